@@ -1,0 +1,1 @@
+"""The ``atemr`` command line: one module per subcommand, named in `atemr.cli.main.COMMAND_MODULES`."""

@@ -1,0 +1,71 @@
+"""``atemr run``: start the robot (in simulation by default) until Ctrl-C or SIGTERM."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+from pathlib import Path
+from types import FrameType
+
+from atemr.cli.command import commands
+from atemr.config import load_config
+from atemr.logsetup import configure_logging
+from atemr.robot import build_robot
+
+log = logging.getLogger(__name__)
+
+
+class RunCommand:
+    help = "start the robot: in simulation by default, or on real hardware with --can-interface socketcan"
+
+    def configure(self, parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
+        parser.add_argument("--world", help="simulated world: a shipped world's name or a path to its YAML")
+        parser.add_argument("--seed", type=int, help="seed of the simulation's random sources")
+        parser.add_argument("--speed", type=float, help="simulated seconds per real second (default 1)")
+        parser.add_argument(
+            "--real", dest="simulation", action="store_const", const=False,
+            help="drive real hardware instead of the simulator (use with --can-interface/--can-channel)",
+        )
+        parser.add_argument("--can-interface", help="python-can interface (virtual, socketcan, ...)")
+        parser.add_argument("--can-channel", help="CAN channel (can0 on the robot)")
+        parser.add_argument(
+            "--duration", type=float, help="stop after this many seconds of robot time (default: until Ctrl-C)"
+        )
+
+    def run(self, args: argparse.Namespace) -> int:
+        config = load_config(
+            args.config,
+            overrides={
+                "log_level": args.log_level,
+                "simulation": args.simulation,
+                "sim.world": args.world,
+                "sim.seed": args.seed,
+                "sim.speed": args.speed,
+                "can.interface": args.can_interface,
+                "can.channel": args.can_channel,
+            },
+        )
+        configure_logging(config.log_level)
+        robot = build_robot(config, realtime=True)
+
+        def on_signal(signum: int, frame: FrameType | None) -> None:
+            log.info("%s received: stopping", signal.Signals(signum).name)
+            robot.stop()
+
+        previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            with robot:
+                can = f"{config.can.interface}:{config.can.channel}"
+                mode = "simulation" if config.simulation else f"real hardware on {can}"
+                print(f"ATEMR running in {mode}; started: {', '.join(robot.parts)}. Ctrl-C stops.", flush=True)
+                robot.run(duration=args.duration)
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        print("ATEMR stopped.", flush=True)
+        return 0
+
+
+commands.add("run", RunCommand())

@@ -1,0 +1,135 @@
+"""The robot's configuration: one typed object, built once at start-up from layers.
+
+Precedence, lowest first: defaults < config file (YAML) < environment (``ATEMR_SECTION__KEY``) <
+explicit arguments (the CLI). Every layer is validated by `atemr.typed.merge_into`, so an error names
+the key and where it came from, unknown keys are errors, and a bad layer changes nothing.
+Issues add their own section dataclass here; nothing else in the package reads the environment.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from atemr.errors import ConfigError
+from atemr.typed import Source, coerce, field_paths, merge_into, nest
+from atemr.yamlsafe import load_yaml
+
+ENV_PREFIX = "ATEMR_"
+#: Environment variables with the prefix that are not configuration keys.
+ENV_RESERVED = {"ATEMR_CONFIG"}
+
+LogLevel = Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"]
+
+
+def default_data_dir() -> Path:
+    """Where maps, media, users and traces live: ``$XDG_DATA_HOME/atemr`` or ``~/.local/share/atemr``."""
+    base = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(base) / "atemr"
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """The built-in simulator (used unless ``simulation`` is false)."""
+
+    world: str = field(default="studio", metadata={"help": "a shipped world's name or a path to a world/map YAML"})
+    seed: int = field(default=0, metadata={"min": 0, "help": "seed of every random source in the simulation"})
+    speed: float = field(
+        default=1.0, metadata={"min": 0.01, "max": 1000.0, "help": "real-time factor when locked to real time"}
+    )
+
+
+@dataclass(frozen=True)
+class CanConfig:
+    """The CAN bus shared by the motors and the secondary core."""
+
+    interface: str = field(default="virtual", metadata={"help": "python-can interface: virtual, socketcan, ..."})
+    channel: str = field(default="atemr", metadata={"help": "bus channel (can0 on the robot)"})
+    bitrate: int = field(default=1_000_000, metadata={"min": 10_000, "max": 1_000_000})
+    log_file: Path | None = field(default=None, metadata={"help": "record the bus (.log, .asc, .blf)"})
+
+
+@dataclass(frozen=True)
+class Config:
+    """Everything that can be configured; see README 'Configuration'."""
+
+    log_level: LogLevel = "INFO"
+    data_dir: Path = field(default_factory=default_data_dir)
+    simulation: bool = field(default=True, metadata={"help": "run in the built-in simulator (false: real robot)"})
+    sim: SimConfig = field(default_factory=SimConfig)
+    can: CanConfig = field(default_factory=CanConfig)
+
+
+def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:
+    """The configuration keys set in ``environ`` (``ATEMR_SIM__SEED=3`` → ``{"sim": {"seed": "3"}}``)."""
+    known = field_paths(Config)
+    flat: dict[str, Any] = {}
+    for name, value in environ.items():
+        if not name.startswith(ENV_PREFIX) or name in ENV_RESERVED:
+            continue
+        dotted = name[len(ENV_PREFIX):].lower().replace("__", ".")
+        if dotted not in known:
+            import difflib
+
+            close = difflib.get_close_matches(dotted, list(known), n=1)
+            hint = f" (did you mean ATEMR_{close[0].upper().replace('.', '__')}?)" if close else ""
+            raise ConfigError(f"unknown configuration variable{hint}", path=f"environment {name}")
+        flat[dotted] = value
+    return nest(flat)
+
+
+def load_config(
+    file: str | Path | None = None,
+    *,
+    environ: Mapping[str, str] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> Config:
+    """Build the configuration from all layers.
+
+    ``file`` defaults to ``$ATEMR_CONFIG`` when set. ``overrides`` are explicit values (from the CLI)
+    as dotted keys, ``{"sim.seed": 3}``; ``None`` values are ignored so unset options do not override.
+    """
+    environ = os.environ if environ is None else environ
+    config = Config()
+    if file is None and environ.get("ATEMR_CONFIG"):
+        file = environ["ATEMR_CONFIG"]
+    if file is not None:
+        document = load_yaml(file)
+        if document is not None:
+            config = merge_into(config, document, Source("file", str(file)))
+    config = merge_into(config, env_layer(environ), Source("env"))
+    if overrides:
+        given = {k: v for k, v in overrides.items() if v is not None}
+        config = merge_into(config, nest(given), Source("argument"))
+    return config
+
+
+def to_dict(config: Config) -> dict[str, Any]:
+    """A plain mapping of the configuration (paths as strings), for display and JSON."""
+
+    def plain(value: Any) -> Any:
+        if isinstance(value, Path):
+            return str(value)
+        if isinstance(value, tuple):
+            return [plain(v) for v in value]
+        return value
+
+    return {k: plain(v) for k, v in _flatten(dataclasses.asdict(config)).items()}
+
+
+def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        path = f"{prefix}.{k}" if prefix else k
+        if isinstance(v, Mapping):
+            out.update(_flatten(v, path))
+        else:
+            out[path] = v
+    return out
+
+
+__all__ = ["CanConfig", "Config", "SimConfig", "coerce", "default_data_dir", "env_layer", "load_config", "to_dict"]

@@ -1,0 +1,86 @@
+"""One exception hierarchy for the whole framework.
+
+Callers catch what they mean (a `HardwareError` is not a `ConfigError`), and the agent's Error state
+classifies a failure by its type and its ``critical`` flag instead of parsing messages.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class AtemrError(Exception):
+    """Root of every error the framework raises on purpose.
+
+    ``critical`` tells the agent's Error state whether the robot can go back to Idle (False) or must
+    shut down (True).
+    """
+
+    critical: bool = False
+
+
+class ConfigError(AtemrError):
+    """A configuration, YAML, map or mission document is invalid.
+
+    Carries where the problem is, so the message points at the exact place an operator must edit:
+    ``agent.yaml:42:7 states.EXEC.tree.children[2]: unknown behaviour 'GoTo' (did you mean 'GoToPose'?)``.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        file: str | Path | None = None,
+        line: int | None = None,
+        column: int | None = None,
+        path: str | None = None,
+    ) -> None:
+        self.reason = message
+        self.file = str(file) if file is not None else None
+        self.line = line
+        self.column = column
+        self.path = path
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        where = ""
+        if self.file is not None:
+            where = self.file
+            if self.line is not None:
+                where += f":{self.line}"
+                if self.column is not None:
+                    where += f":{self.column}"
+        if self.path:
+            where = f"{where} {self.path}" if where else self.path
+        return f"{where}: {self.reason}" if where else self.reason
+
+
+class ProtocolError(AtemrError):
+    """A CAN frame or other wire message is malformed: wrong ID, wrong length, bad value."""
+
+
+class HardwareError(AtemrError):
+    """A hardware component (motor, sensor, bus) failed or stopped answering."""
+
+    critical = False
+
+    def __init__(self, message: str, *, component: str | None = None, critical: bool = False) -> None:
+        self.component = component
+        self.critical = critical
+        super().__init__(f"{component}: {message}" if component else message)
+
+
+class BusError(HardwareError):
+    """The CAN bus itself failed: bus-off, a dead receive side, send failures."""
+
+
+class NavigationError(AtemrError):
+    """A goal cannot be accepted or reached (outside the map, in an obstacle, no path, stuck, lost)."""
+
+
+class SafetyError(AtemrError):
+    """Motion was refused or stopped by a safety rule (stop zone, cliff, watchdog, emergency)."""
+
+
+class RegistryError(AtemrError):
+    """A plugin name is unknown or registered twice."""

@@ -1,0 +1,1 @@
+"""The agent lifecycle machine (transitions), built from trees/agent.yaml."""

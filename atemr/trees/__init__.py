@@ -1,0 +1,1 @@
+"""YAML → py_trees builder, behaviour registry, the Monitor and tree export."""

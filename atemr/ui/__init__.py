@@ -1,0 +1,1 @@
+"""The operator dashboard: Flask application factory, blueprints and Socket.IO events."""
