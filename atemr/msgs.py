@@ -1,0 +1,94 @@
+"""The data that flows between parts: plain frozen dataclasses, SI units in the field names.
+
+Sensors (simulated or real) produce these, skills consume and produce them, the agent and the dashboard
+read them. Arrays are numpy; angles are radians, counter-clockwise positive; the base frame has x
+forward and y to the left (REP 103).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Pose2D:
+    """A pose in the plane: position in metres, heading in radians."""
+
+    x_m: float = 0.0
+    y_m: float = 0.0
+    yaw_rad: float = 0.0
+
+    def distance_to(self, other: Pose2D) -> float:
+        return math.hypot(other.x_m - self.x_m, other.y_m - self.y_m)
+
+
+@dataclass(frozen=True)
+class Twist:
+    """A velocity command or measurement of the base: forward speed and turn rate."""
+
+    linear_mps: float = 0.0
+    angular_radps: float = 0.0
+
+    @property
+    def is_zero(self) -> bool:
+        return self.linear_mps == 0.0 and self.angular_radps == 0.0
+
+
+ZERO_TWIST = Twist()
+
+
+@dataclass(frozen=True)
+class WheelSpeeds:
+    """Wheel angular speeds in rad/s; positive drives the robot forward on both sides."""
+
+    left_radps: float = 0.0
+    right_radps: float = 0.0
+
+
+@dataclass(frozen=True)
+class LaserScan:
+    """One lidar revolution, as ROS's sensor_msgs/LaserScan.
+
+    ``ranges_m[i]`` is measured at ``angle_min_rad + i * angle_increment_rad`` in the sensor frame.
+    Invalid returns are NaN, 0, +inf or outside [range_min_m, range_max_m]; -inf means "closer than
+    the minimum range". ``sensor_pose`` is the sensor's pose in the base frame.
+    """
+
+    t: float
+    ranges_m: FloatArray
+    angle_min_rad: float
+    angle_increment_rad: float
+    range_min_m: float
+    range_max_m: float
+    sensor_pose: Pose2D = field(default_factory=Pose2D)
+
+    @property
+    def angles_rad(self) -> FloatArray:
+        """The beam angles in the sensor frame."""
+        return self.angle_min_rad + self.angle_increment_rad * np.arange(len(self.ranges_m), dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class ImuSample:
+    """Yaw rate (rad/s) and linear acceleration in the base frame (m/s²)."""
+
+    t: float
+    yaw_rate_radps: float
+    accel_x_mps2: float
+    accel_y_mps2: float
+
+
+@dataclass(frozen=True)
+class CliffReadings:
+    """The three IR cliff sensors, distance to the floor in metres (inf: nothing within range)."""
+
+    t: float
+    front_left_m: float
+    front_right_m: float
+    rear_m: float
