@@ -1,0 +1,44 @@
+"""The benchmark harness: it runs benchmark modules, reports ratios against goals, and never raises."""
+
+import importlib.util
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load_harness():
+    spec = importlib.util.spec_from_file_location("harness_under_test", ROOT / "benchmarks" / "harness.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_rows_are_collected_and_failures_reported(tmp_path):
+    harness = load_harness()
+    good = tmp_path / "bench_good.py"
+    good.write_text(
+        "def run(quick=False):\n"
+        "    return [{'what': 'x', 'ours': 200.0, 'baseline': 10.0, 'ratio': 20.0, 'goal': 10, 'unit': 'ops/s'}]\n"
+    )
+    bad = tmp_path / "bench_bad.py"
+    bad.write_text("def run(quick=False):\n    raise RuntimeError('boom')\n")
+    rows = harness.run_all([good, bad], quick=True, progress=False)
+    assert rows[0]["benchmark"] == "good" and rows[0]["ratio"] == 20.0
+    assert rows[1]["what"] == "FAILED: boom"
+    text = harness.table(rows)
+    assert "| good | x | 200 | 10 | ops/s | 20× | ≥ 10× | yes |" in text
+    assert "FAILED: boom" in text
+
+
+def test_goal_not_met_is_visible():
+    harness = load_harness()
+    text = harness.table([{"benchmark": "b", "what": "w", "ours": 1.0, "baseline": 2.0, "ratio": 0.5, "goal": 1,
+                           "unit": "s"}])
+    assert text.endswith("| NO |")
+
+
+def test_every_shipped_benchmark_has_the_run_contract():
+    harness = load_harness()
+    for path in harness.discover():
+        module = harness._load(path)
+        assert callable(getattr(module, "run", None)), f"{path.name} has no run(quick=False)"
