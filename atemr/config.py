@@ -54,6 +54,22 @@ class CanConfig:
 
 
 @dataclass(frozen=True)
+class UiConfig:
+    """The operator dashboard (Flask + Socket.IO). Paths left empty live under ``data_dir``."""
+
+    host: str = field(default="127.0.0.1", metadata={"help": "address the dashboard listens on (0.0.0.0: all)"})
+    port: int = field(default=5000, metadata={"min": 0, "max": 65535, "help": "TCP port (0: any free port)"})
+    database: Path | None = field(default=None, metadata={"help": "users SQLite file (default data_dir/users.sqlite3)"})
+    secret_key_file: Path | None = field(
+        default=None, metadata={"help": "session signing key, generated on first start (default data_dir/ui.key)"}
+    )
+    max_upload_mb: float = field(default=50.0, metadata={"min": 0.001, "max": 4096.0, "help": "largest upload"})
+    login_max_failures: int = field(default=5, metadata={"min": 1, "help": "failed logins before HTTP 429"})
+    login_lockout_s: float = field(default=300.0, metadata={"min": 1.0, "help": "how long a lockout lasts"})
+    message_queue: str | None = field(default=None, metadata={"help": "Socket.IO message queue URL (redis://...)"})
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that can be configured; see README 'Configuration'."""
 
@@ -62,6 +78,7 @@ class Config:
     simulation: bool = field(default=True, metadata={"help": "run in the built-in simulator (false: real robot)"})
     sim: SimConfig = field(default_factory=SimConfig)
     can: CanConfig = field(default_factory=CanConfig)
+    ui: UiConfig = field(default_factory=UiConfig)
 
 
 def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:
@@ -132,4 +149,4 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     return out
 
 
-__all__ = ["CanConfig", "Config", "SimConfig", "coerce", "default_data_dir", "env_layer", "load_config", "to_dict"]
+__all__ = ["CanConfig", "Config", "SimConfig", "UiConfig", "coerce", "default_data_dir", "env_layer", "load_config", "to_dict"]
