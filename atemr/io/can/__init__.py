@@ -1,0 +1,48 @@
+"""The CAN layer: the inter-core protocol codec (0x150–0x157), segmented transfer, the shipped DBC,
+bus factory, supervisor, fault-injection bus and bus recording.
+
+The protocol names are re-exported here so other parts import them from one place::
+
+    from atemr.io.can import PrimaryStatus, StateCode, decode
+"""
+
+from atemr.io.can.protocol import (
+    ID_NAMES,
+    MESSAGE_TYPES,
+    AgentBits,
+    CanId,
+    HardwareBits,
+    Heartbeat,
+    IpAddress,
+    IpRequest,
+    IrFront,
+    IrRear,
+    Message,
+    Power,
+    PowerRequest,
+    PowerState,
+    PrimaryStatus,
+    StateCode,
+    WifiPasswordSegment,
+    WifiSsidSegment,
+    decode,
+    id_name,
+    is_protocol_id,
+)
+from atemr.io.can.segmented import (
+    PASSWORD,
+    SSID,
+    TEXT_FIELDS,
+    SegmentedReceiver,
+    SegmentedSender,
+    TextField,
+    encode_text,
+    segment_text,
+)
+
+__all__ = [
+    "ID_NAMES", "MESSAGE_TYPES", "PASSWORD", "SSID", "TEXT_FIELDS", "AgentBits", "CanId", "HardwareBits", "Heartbeat",
+    "IpAddress", "IpRequest", "IrFront", "IrRear", "Message", "Power", "PowerRequest", "PowerState", "PrimaryStatus",
+    "SegmentedReceiver", "SegmentedSender", "StateCode", "TextField", "WifiPasswordSegment", "WifiSsidSegment",
+    "decode", "encode_text", "id_name", "is_protocol_id", "segment_text",
+]
