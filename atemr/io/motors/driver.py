@@ -1,0 +1,322 @@
+"""The drive motors as one differential pair: commands out, feedback in, watchdog and fault handling.
+
+`DriveMotors` is the template: it owns what every motor pair must do whatever the wire — the 0.5 s
+command watchdog, the fault latch ("one motor silent or in error → both stop and the agent is told"),
+idempotent shutdown and context management. `RmdDriver` owns the wire: MyActuator RMD-L frames on a
+python-can bus, polled in `tick` (no threads, so a simulation stays deterministic).
+
+Units at this API are wheel speeds in rad/s, positive driving the robot forward on either side
+(`atemr.msgs.WheelSpeeds`); each motor's mounting direction (``+1``/``-1``) is applied inside.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Self
+
+import can
+
+from atemr.errors import BusError, HardwareError, ProtocolError
+from atemr.io.motors.rmd_codec import (
+    MotorErrorFlags,
+    RmdCommand,
+    RmdRequest,
+    Status1Reply,
+    Status2Reply,
+    _flag_names,
+    decode_reply,
+    motor_can_id,
+)
+from atemr.msgs import WheelSpeeds
+
+log = logging.getLogger(__name__)
+
+SIDES = ("left", "right")
+
+
+@dataclass(frozen=True)
+class MotorState:
+    """What is known about one motor from its last replies (wheel frame: forward positive)."""
+
+    side: str
+    motor_id: int
+    speed_radps: float = 0.0
+    encoder: int = 0
+    current_a: float = 0.0
+    temperature_c: int = 0
+    voltage_v: float = 0.0
+    errors: MotorErrorFlags = MotorErrorFlags.NONE
+    last_reply_t: float | None = None
+    last_feedback_t: float | None = None
+
+
+@dataclass(frozen=True)
+class WatchdogEvent:
+    """The command watchdog tripped (``tripped``) or was satisfied again by a fresh command."""
+
+    t: float
+    tripped: bool
+    age_s: float
+
+
+class DriveMotors(ABC):
+    """Base of a left/right motor pair; subclasses implement `_exchange` and `_stop_now`.
+
+    ``command_timeout_s``: no fresh command for this long → command zero and report it (0.5 s, as
+    ROS diff_drive_controller). ``silence_timeout_s``: a motor that has not answered for this long is
+    silent → fault. A fault stops both motors at once and is latched: `check` and `set_speeds` raise
+    it as `HardwareError` until `reset_fault`; ``on_fault`` (if given) is called once when it occurs.
+    """
+
+    name: str
+
+    def __init__(self, *, command_timeout_s: float = 0.5, silence_timeout_s: float = 0.3,
+                 on_fault: Callable[[HardwareError], None] | None = None,
+                 on_watchdog: Callable[[WatchdogEvent], None] | None = None) -> None:
+        if not command_timeout_s > 0 or not silence_timeout_s > 0:
+            raise HardwareError("command and silence timeouts must be > 0", component="motors")
+        self.command_timeout_s = command_timeout_s
+        self.silence_timeout_s = silence_timeout_s
+        self.on_fault = on_fault
+        self.on_watchdog = on_watchdog
+        self.fault: HardwareError | None = None
+        self.watchdog_tripped = True  # nothing commanded yet: zero until the first command
+        self.watchdog_trips = 0
+        self._command = WheelSpeeds()
+        self._command_t: float | None = None
+        self._started_t: float | None = None
+        self._closed = False
+
+    # -- the agent's side -----------------------------------------------------------------------
+    def set_speeds(self, speeds: WheelSpeeds, now: float) -> None:
+        """Command wheel speeds (rad/s) at time ``now``; raises the latched fault if there is one."""
+        self.check()
+        for value in (speeds.left_radps, speeds.right_radps):
+            if not math.isfinite(value):
+                raise HardwareError(f"wheel speed must be finite, got {speeds}", component=self.name)
+        self._command = speeds
+        self._command_t = now
+
+    def stop(self, now: float) -> None:
+        """Command zero speed now (counts as a fresh command)."""
+        self._command = WheelSpeeds()
+        self._command_t = now
+
+    def check(self) -> None:
+        """Raise the latched fault, if any, as `HardwareError` (the agent's Monitor calls this)."""
+        if self.fault is not None:
+            raise self.fault
+
+    def reset_fault(self) -> None:
+        """Forget the fault (after the cause is fixed); the motors stay at zero until commanded."""
+        self.fault = None
+        self._command = WheelSpeeds()
+        self._command_t = None
+
+    @property
+    def commanded(self) -> WheelSpeeds:
+        """What is being sent now: zero when the watchdog has tripped or a fault is latched."""
+        if self.fault is not None or self.watchdog_tripped:
+            return WheelSpeeds()
+        return self._command
+
+    # -- scheduler component --------------------------------------------------------------------
+    def tick(self, now: float) -> None:
+        """Read replies, run the watchdog and the health checks, send this period's commands."""
+        if self._closed:
+            return
+        if self._started_t is None:
+            self._started_t = now
+        try:
+            self._receive(now)
+            self._watchdog(now)
+            if self.fault is None:
+                problem = self._health(now)
+                if problem is not None:
+                    self._raise_fault(problem, now)
+            self._exchange(self.commanded, now)
+        except can.CanError as exc:
+            self._raise_fault(BusError(f"CAN send failed: {exc}", component=self.name, critical=True), now)
+
+    def _watchdog(self, now: float) -> None:
+        age = math.inf if self._command_t is None else now - self._command_t
+        tripped = age > self.command_timeout_s
+        if tripped != self.watchdog_tripped:
+            self.watchdog_tripped = tripped
+            if tripped:
+                self.watchdog_trips += 1
+                log.warning("%s: no speed command for %.2f s: commanding zero", self.name, age)
+            event = WatchdogEvent(now, tripped, age)
+            if self.on_watchdog is not None:
+                self.on_watchdog(event)
+
+    def _raise_fault(self, fault: HardwareError, now: float) -> None:
+        try:
+            self._stop_now(now)
+        except can.CanError as exc:
+            log.error("%s: could not send the stop: %s", self.name, exc)
+        if self.fault is not None:
+            return
+        self.fault = fault
+        log.error("%s: both motors stopped: %s", self.name, fault)
+        if self.on_fault is not None:
+            self.on_fault(fault)
+
+    # -- what a wire implements -----------------------------------------------------------------
+    @abstractmethod
+    def _receive(self, now: float) -> None:
+        """Take in every pending reply."""
+
+    @abstractmethod
+    def _health(self, now: float) -> HardwareError | None:
+        """The problem with the motors at ``now``, if any."""
+
+    @abstractmethod
+    def _exchange(self, command: WheelSpeeds, now: float) -> None:
+        """Send this period's frames for ``command``."""
+
+    @abstractmethod
+    def _stop_now(self, now: float) -> None:
+        """Stop both motors immediately."""
+
+    @abstractmethod
+    def _close(self) -> None:
+        """Release the wire."""
+
+    def shutdown(self) -> None:
+        """Stop both motors and release the wire; idempotent."""
+        if self._closed:
+            return
+        try:
+            self._stop_now(self._command_t or 0.0)
+        except can.CanError as exc:
+            log.error("%s: could not stop the motors on shutdown: %s", self.name, exc)
+        finally:
+            self._closed = True
+            self._close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.shutdown()
+
+
+class RmdDriver(DriveMotors):
+    """Two RMD-L-7015 on ``bus`` (its own Bus instance; closed by `shutdown` when ``close_bus``).
+
+    Every tick sends a SPEED_CONTROL to each motor (its reply is status 2: speed, encoder, current) and
+    every ``status_period_s`` a READ_STATUS_1 (temperature, voltage, error flags). Schedule it at
+    ``rate_hz`` ≥ 20 so a silent motor is noticed within ``silence_timeout_s``.
+    ``directions`` is the sign that turns a forward wheel speed into that motor's shaft speed.
+    """
+
+    def __init__(self, bus: can.BusABC, *, left_id: int = 1, right_id: int = 2,
+                 directions: tuple[int, int] = (1, -1), status_period_s: float = 0.2,
+                 command_timeout_s: float = 0.5, silence_timeout_s: float = 0.3,
+                 on_fault: Callable[[HardwareError], None] | None = None,
+                 on_watchdog: Callable[[WatchdogEvent], None] | None = None,
+                 name: str = "motors", close_bus: bool = True) -> None:
+        super().__init__(command_timeout_s=command_timeout_s, silence_timeout_s=silence_timeout_s,
+                         on_fault=on_fault, on_watchdog=on_watchdog)
+        if left_id == right_id:
+            raise HardwareError(f"left and right motor share id {left_id}", component=name)
+        if any(d not in (1, -1) for d in directions):
+            raise HardwareError(f"directions must be +1 or -1, got {directions}", component=name)
+        self.bus = bus
+        self.name = name
+        self.close_bus = close_bus
+        self.status_period_s = status_period_s
+        self.ids = {"left": left_id, "right": right_id}
+        self.directions = dict(zip(SIDES, directions, strict=True))
+        self._by_can_id = {motor_can_id(mid): side for side, mid in self.ids.items()}
+        self.states = {side: MotorState(side, mid) for side, mid in self.ids.items()}
+        self.bad_frames = 0
+        self._last_status1_t: float | None = None
+
+    # -- readings -------------------------------------------------------------------------------
+    def feedback(self) -> WheelSpeeds:
+        """Measured wheel speeds (rad/s, forward positive) from the last status-2 replies."""
+        return WheelSpeeds(self.states["left"].speed_radps, self.states["right"].speed_radps)
+
+    @property
+    def answering(self) -> bool:
+        """Both motors have answered recently (the StartUp check)."""
+        return all(s.last_reply_t is not None for s in self.states.values()) and self.fault is None
+
+    # -- wire -----------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Ask both motors for status 1 so the first tick already has an answer to read."""
+        for side in SIDES:
+            self.bus.send(RmdRequest(self.ids[side], RmdCommand.READ_STATUS_1).encode())
+
+    def _receive(self, now: float) -> None:
+        while (msg := self.bus.recv(timeout=0)) is not None:
+            side = self._by_can_id.get(msg.arbitration_id)
+            if side is None or msg.is_extended_id:
+                continue
+            try:
+                reply = decode_reply(msg)
+            except ProtocolError as exc:
+                self.bad_frames += 1
+                log.warning("%s: bad reply from the %s motor: %s", self.name, side, exc)
+                continue
+            state = replace(self.states[side], last_reply_t=now)
+            sign = self.directions[side]
+            if isinstance(reply, Status2Reply):
+                state = replace(state, speed_radps=sign * reply.speed_radps, encoder=reply.encoder,
+                                current_a=sign * reply.current_a, temperature_c=reply.temperature_c,
+                                last_feedback_t=now)
+            elif isinstance(reply, Status1Reply):
+                state = replace(state, temperature_c=reply.temperature_c, voltage_v=reply.voltage_v,
+                                errors=reply.errors)
+            self.states[side] = state
+
+    def _health(self, now: float) -> HardwareError | None:
+        assert self._started_t is not None
+        for side, state in self.states.items():
+            since = state.last_reply_t if state.last_reply_t is not None else self._started_t
+            if now - since > self.silence_timeout_s:
+                return HardwareError(f"{side} motor (id {state.motor_id}) silent for {now - since:.2f} s",
+                                     component=self.name, critical=True)
+            if state.errors:
+                return HardwareError(f"{side} motor (id {state.motor_id}) reports {_flag_names(state.errors)}",
+                                     component=self.name, critical=True)
+        return None
+
+    def _exchange(self, command: WheelSpeeds, now: float) -> None:
+        if self.fault is None:  # after a fault only status is polled, so the agent sees the motors recover
+            speeds = {"left": command.left_radps, "right": command.right_radps}
+            for side in SIDES:
+                shaft = self.directions[side] * speeds[side]
+                self.bus.send(RmdRequest(self.ids[side], RmdCommand.SPEED_CONTROL, shaft).encode())
+        if self._last_status1_t is None or now - self._last_status1_t >= self.status_period_s - 1e-9:
+            self._last_status1_t = now
+            for side in SIDES:
+                self.bus.send(RmdRequest(self.ids[side], RmdCommand.READ_STATUS_1).encode())
+
+    def _stop_now(self, now: float) -> None:
+        for side in SIDES:
+            self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_STOP).encode())
+
+    def clear_motor_errors(self) -> None:
+        """Send CLEAR_ERRORS to both motors (their replies refresh the error flags), then `reset_fault`."""
+        for side in SIDES:
+            self.bus.send(RmdRequest(self.ids[side], RmdCommand.CLEAR_ERRORS).encode())
+            self.states[side] = replace(self.states[side], errors=MotorErrorFlags.NONE)
+        self.reset_fault()
+
+    def reset_fault(self) -> None:
+        """Forget the fault; silence is measured afresh from the next tick."""
+        super().reset_fault()
+        self._started_t = None
+        for side in SIDES:
+            self.states[side] = replace(self.states[side], last_reply_t=None)
+
+    def _close(self) -> None:
+        if self.close_bus:
+            self.bus.shutdown()

@@ -1,0 +1,110 @@
+"""An RMD-L-7015 on the CAN bus, emulated: answers the driver exactly as the real motor would.
+
+A scheduler component: every `tick` advances its `RmdMotorModel` to ``now`` and drains its own bus
+with ``recv(timeout=0)`` (polled, no threads, so a simulation is repeatable), applies each request
+addressed to its ID and sends the reply. When the model is unplugged it reads and ignores everything,
+as a motor without power would. Frames it cannot decode are ignored, as the real firmware does.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Self
+
+import can
+
+from atemr.errors import ProtocolError
+from atemr.io.motors.model import RmdMotorModel
+from atemr.io.motors.rmd_codec import (
+    AckReply,
+    RmdCommand,
+    RmdReply,
+    RmdRequest,
+    Status1Reply,
+    Status2Reply,
+    decode_request,
+    motor_can_id,
+)
+
+log = logging.getLogger(__name__)
+
+#: Frames handled per tick at most, so a flooded bus cannot stall the scheduler.
+MAX_FRAMES_PER_TICK = 256
+
+
+class RmdMotorEmulator:
+    """Motor ``motor_id`` on ``bus`` (its own Bus instance on the robot's channel; closed by `shutdown`).
+
+    ``model`` is the physics it reports; the simulator drives the wheel from the same object, so
+    what the driver reads over CAN is what the simulated robot does.
+    """
+
+    def __init__(self, bus: can.BusABC, motor_id: int, model: RmdMotorModel | None = None, *,
+                 name: str | None = None, close_bus: bool = True) -> None:
+        self.bus = bus
+        self.motor_id = motor_id
+        self.can_id = motor_can_id(motor_id)
+        self.model = model or RmdMotorModel()
+        self.name = name or f"rmd_motor_{motor_id}"
+        self.close_bus = close_bus
+        self.requests = 0
+        self.ignored = 0
+        self._last_t: float | None = None
+        self._closed = False
+
+    def tick(self, now: float) -> None:
+        """Advance the physics to ``now`` and answer every pending request."""
+        if self._last_t is not None and now > self._last_t:
+            self.model.step(now - self._last_t)
+        self._last_t = now if self._last_t is None else max(self._last_t, now)
+        for _ in range(MAX_FRAMES_PER_TICK):
+            msg = self.bus.recv(timeout=0)
+            if msg is None:
+                break
+            if msg.arbitration_id != self.can_id or msg.is_extended_id:
+                continue
+            if not self.model.plugged:
+                continue
+            try:
+                request = decode_request(msg)
+            except ProtocolError as exc:
+                self.ignored += 1
+                log.debug("%s ignores a frame: %s", self.name, exc)
+                continue
+            self.requests += 1
+            self.bus.send(self.answer(request).encode())
+
+    def answer(self, request: RmdRequest) -> RmdReply:
+        """Apply ``request`` to the model and return the reply the real motor sends."""
+        model, command = self.model, request.command
+        if command is RmdCommand.MOTOR_OFF:
+            model.off()
+        elif command is RmdCommand.MOTOR_STOP:
+            model.stop()
+        elif command is RmdCommand.MOTOR_RUN:
+            model.run()
+        elif command is RmdCommand.SPEED_CONTROL:
+            model.set_speed(request.speed_radps)
+        elif command is RmdCommand.CLEAR_ERRORS:
+            model.clear_errors()
+        if command in (RmdCommand.MOTOR_OFF, RmdCommand.MOTOR_STOP, RmdCommand.MOTOR_RUN):
+            return AckReply(self.motor_id, command)
+        temperature = max(-128, min(127, round(model.temperature_c)))
+        if command in (RmdCommand.READ_STATUS_1, RmdCommand.CLEAR_ERRORS):
+            voltage = max(0.0, min(6553.5, model.voltage_v))
+            return Status1Reply(self.motor_id, command, temperature, voltage, model.error_flags)
+        current = max(-33.0, min(33.0, model.current_a))
+        return Status2Reply(self.motor_id, command, temperature, current, model.speed_radps, model.encoder)
+
+    def shutdown(self) -> None:
+        """Close the bus (when owned); idempotent."""
+        if not self._closed:
+            self._closed = True
+            if self.close_bus:
+                self.bus.shutdown()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.shutdown()

@@ -1,0 +1,204 @@
+"""The RMD driver drives two emulated motors over a virtual CAN bus on a simulated clock."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import can
+import pytest
+
+from atemr.clock import SimClock
+from atemr.errors import BusError, HardwareError
+from atemr.io.motors.driver import RmdDriver, WatchdogEvent
+from atemr.io.motors.emulator import RmdMotorEmulator
+from atemr.io.motors.model import RmdMotorModel
+from atemr.io.motors.rmd_codec import MotorErrorFlags, RmdCommand, RmdRequest
+from atemr.msgs import WheelSpeeds
+from atemr.scheduler import Scheduler
+
+
+@dataclass
+class Rig:
+    clock: SimClock
+    sched: Scheduler
+    driver: RmdDriver
+    left: RmdMotorEmulator
+    right: RmdMotorEmulator
+    faults: list[HardwareError]
+    watchdog: list[WatchdogEvent]
+
+    def run(self, seconds: float) -> None:
+        self.sched.run(duration=seconds)
+
+
+@pytest.fixture
+def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
+    channel = f"motors-{request.node.name}"
+    clock = SimClock()
+    faults: list[HardwareError] = []
+    events: list[WatchdogEvent] = []
+    driver = RmdDriver(can.Bus(interface="virtual", channel=channel), on_fault=faults.append,
+                       on_watchdog=events.append)
+    left = RmdMotorEmulator(can.Bus(interface="virtual", channel=channel), 1, RmdMotorModel())
+    right = RmdMotorEmulator(can.Bus(interface="virtual", channel=channel), 2, RmdMotorModel(initial_angle_rad=1.0))
+    sched = Scheduler(clock)
+    sched.add(driver, 50.0)
+    sched.add(left, 100.0)
+    sched.add(right, 100.0)
+    sched.start()
+    yield Rig(clock, sched, driver, left, right, faults, events)
+    sched.shutdown()
+
+
+def command_for(rig: Rig, speeds: WheelSpeeds, seconds: float, period: float = 0.1) -> None:
+    for _ in range(round(seconds / period)):
+        rig.driver.set_speeds(speeds, rig.clock.now())
+        rig.run(period)
+
+
+def test_speed_commands_reach_the_motors_and_feedback_returns(rig: Rig) -> None:
+    command_for(rig, WheelSpeeds(5.0, 5.0), 1.0)
+    assert rig.left.model.speed_radps == pytest.approx(5.0, abs=0.05)
+    assert rig.right.model.speed_radps == pytest.approx(-5.0, abs=0.05)  # mirrored mounting
+    feedback = rig.driver.feedback()
+    # status 2 carries 1 dps resolution and is one tick old
+    assert feedback.left_radps == pytest.approx(5.0, abs=0.1)
+    assert feedback.right_radps == pytest.approx(5.0, abs=0.1)
+    assert rig.driver.answering and rig.faults == []
+    assert rig.driver.states["left"].voltage_v == pytest.approx(24.0)
+    assert rig.driver.states["left"].encoder != rig.driver.states["right"].encoder
+
+
+def test_watchdog_commands_zero_after_half_a_second(rig: Rig) -> None:
+    command_for(rig, WheelSpeeds(4.0, 4.0), 0.5)
+    assert not rig.driver.watchdog_tripped
+    t_last = rig.clock.now() - 0.1
+    rig.run(0.38)  # 0.48 s since the last command: still driving
+    assert not rig.driver.watchdog_tripped and rig.driver.commanded == WheelSpeeds(4.0, 4.0)
+    rig.run(0.1)
+    assert rig.driver.watchdog_tripped and rig.driver.watchdog_trips == 1
+    assert rig.driver.commanded == WheelSpeeds()
+    trip = [e for e in rig.watchdog if e.tripped][-1]
+    assert 0.5 < trip.age_s <= 0.52 and trip.t - t_last == pytest.approx(trip.age_s)
+    rig.run(1.0)
+    assert abs(rig.left.model.speed_radps) < 0.01 and abs(rig.right.model.speed_radps) < 0.01
+    assert rig.faults == []  # the watchdog is not a fault
+    command_for(rig, WheelSpeeds(1.0, 1.0), 0.5)
+    assert not rig.driver.watchdog_tripped and rig.left.model.command_radps == pytest.approx(1.0, abs=1e-3)
+
+
+def test_silent_motor_stops_both(rig: Rig) -> None:
+    command_for(rig, WheelSpeeds(3.0, 3.0), 0.5)
+    rig.right.model.unplug()
+    with pytest.raises(HardwareError, match=r"right motor .* silent") as info:
+        command_for(rig, WheelSpeeds(3.0, 3.0), 1.0)
+    assert info.value.critical and info.value.component == "motors"
+    assert len(rig.faults) == 1 and rig.faults[0] is info.value
+    assert rig.left.model.target_radps == 0.0  # the healthy motor was stopped too
+    rig.run(1.0)
+    assert abs(rig.left.model.speed_radps) < 0.01
+    with pytest.raises(HardwareError):
+        rig.driver.check()
+
+
+def test_injected_error_flag_stops_both(rig: Rig) -> None:
+    command_for(rig, WheelSpeeds(2.0, 2.0), 0.5)
+    rig.left.model.inject_error(MotorErrorFlags.OVER_TEMPERATURE)
+    rig.run(0.3)
+    assert rig.driver.fault is not None
+    assert "left motor (id 1) reports OVER_TEMPERATURE" in str(rig.driver.fault)
+    assert rig.right.model.target_radps == 0.0
+    with pytest.raises(HardwareError, match="OVER_TEMPERATURE"):
+        rig.driver.set_speeds(WheelSpeeds(1.0, 1.0), rig.clock.now())
+    # the cause goes away; clearing the flags over CAN brings the motors back
+    rig.left.model.clear_injected()
+    rig.driver.clear_motor_errors()
+    command_for(rig, WheelSpeeds(1.0, 1.0), 1.0)
+    assert rig.driver.fault is None and rig.left.model.error_flags == MotorErrorFlags.NONE
+    assert rig.left.model.speed_radps == pytest.approx(1.0, abs=0.02)
+
+
+def test_under_voltage_is_reported(rig: Rig) -> None:
+    command_for(rig, WheelSpeeds(1.0, 1.0), 0.3)
+    rig.right.model.voltage_v = 16.0
+    rig.run(0.3)
+    assert "right motor (id 2) reports UNDER_VOLTAGE" in str(rig.driver.fault)
+
+
+def test_no_motor_at_startup_is_a_fault(request: pytest.FixtureRequest) -> None:
+    channel = f"motors-{request.node.name}"
+    clock = SimClock()
+    with RmdDriver(can.Bus(interface="virtual", channel=channel)) as driver:
+        sched = Scheduler(clock)
+        sched.add(driver, 50.0)
+        sched.run(duration=0.5)
+        assert not driver.answering
+        with pytest.raises(HardwareError, match="silent"):
+            driver.check()
+
+
+def test_deterministic_runs(request: pytest.FixtureRequest) -> None:
+    def once(suffix: str) -> list[tuple[float, float, int]]:
+        channel = f"motors-{request.node.name}-{suffix}"
+        clock = SimClock()
+        driver = RmdDriver(can.Bus(interface="virtual", channel=channel))
+        left = RmdMotorEmulator(can.Bus(interface="virtual", channel=channel), 1)
+        right = RmdMotorEmulator(can.Bus(interface="virtual", channel=channel), 2)
+        sched = Scheduler(clock)
+        for comp, rate in ((driver, 50.0), (left, 100.0), (right, 100.0)):
+            sched.add(comp, rate)
+        out = []
+        with driver, left, right:
+            for k in range(40):
+                driver.set_speeds(WheelSpeeds(math.sin(k / 5), math.cos(k / 5)), clock.now())
+                sched.run(duration=0.05)
+                fb = driver.feedback()
+                out.append((fb.left_radps, fb.right_radps, driver.states["left"].encoder))
+        return out
+
+    assert once("a") == once("b")
+
+
+def test_shutdown_stops_motors_and_is_idempotent(rig: Rig) -> None:
+    command_for(rig, WheelSpeeds(2.0, 2.0), 0.5)
+    rig.driver.shutdown()
+    rig.driver.shutdown()
+    rig.left.tick(rig.clock.now() + 0.01)
+    rig.right.tick(rig.clock.now() + 0.01)
+    assert rig.left.model.target_radps == 0.0 and rig.right.model.target_radps == 0.0
+
+
+def test_send_failure_is_a_critical_bus_error(request: pytest.FixtureRequest) -> None:
+    class BrokenBus(can.BusABC):
+        def __init__(self) -> None:
+            super().__init__(channel="broken")
+
+        def send(self, msg: can.Message, timeout: float | None = None) -> None:
+            raise can.CanOperationError("bus-off")
+
+        def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+            return None, False
+
+    faults: list[HardwareError] = []
+    driver = RmdDriver(BrokenBus(), on_fault=faults.append)
+    driver.set_speeds(WheelSpeeds(1.0, 1.0), 0.0)
+    driver.tick(0.0)
+    assert isinstance(driver.fault, BusError) and driver.fault.critical and "bus-off" in str(driver.fault)
+    driver.shutdown()
+
+
+def test_emulator_ignores_garbage_and_other_ids(request: pytest.FixtureRequest) -> None:
+    channel = f"motors-{request.node.name}"
+    with can.Bus(interface="virtual", channel=channel) as host:
+        emu = RmdMotorEmulator(can.Bus(interface="virtual", channel=channel), 1)
+        host.send(can.Message(arbitration_id=0x141, data=b"\x55" + bytes(7), is_extended_id=False))
+        host.send(can.Message(arbitration_id=0x142, data=b"\x9a" + bytes(7), is_extended_id=False))
+        host.send(RmdRequest(1, RmdCommand.MOTOR_RUN).encode())
+        emu.tick(0.0)
+        assert (emu.ignored, emu.requests) == (1, 1)
+        reply = host.recv(timeout=0)
+        assert reply is not None and bytes(reply.data) == bytes((0x88, 0, 0, 0, 0, 0, 0, 0))
+        assert host.recv(timeout=0) is None
+        emu.shutdown()
