@@ -1,0 +1,139 @@
+"""The dashboard's application factory: `create_app` builds a Flask app with its Socket.IO server.
+
+As in Flask's flaskr tutorial there is no app object at import time; each call makes a new app with
+its own user store, rate limiter and Socket.IO server, so tests get a fresh one per test. One blueprint
+per page group (auth, control, mapping, settings, media), each with its templates, static files and
+Socket.IO handlers beside it.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+from datetime import timedelta
+from pathlib import Path
+from typing import Any
+
+from flask import Flask, redirect, request, url_for
+from flask_socketio import SocketIO
+from werkzeug.wrappers import Response
+
+from atemr import __version__
+from atemr.clock import Clock, WallClock
+from atemr.config import Config
+from atemr.errors import ConfigError
+from atemr.ui import sockets
+from atemr.ui.gateway import RobotGateway
+from atemr.ui.media import files as media_files
+from atemr.ui.security import LoginRateLimiter, check_csrf, csrf_token, current_user
+from atemr.ui.users import HASH_METHOD, UserStore
+
+#: Endpoints reachable before the root admin has a password (everything else redirects to first start).
+FIRST_START_OPEN = frozenset({"auth.first_start", "static"})
+
+
+def database_path(config: Config) -> Path:
+    """The users database: ``ui.database`` or ``data_dir/users.sqlite3``."""
+    return config.ui.database or config.data_dir / "users.sqlite3"
+
+
+def secret_key(config: Config) -> bytes:
+    """The session signing key, read from ``ui.secret_key_file`` (default ``data_dir/ui.key``) and
+    generated there (mode 0600) on the first start, so sessions survive a restart."""
+    path = config.ui.secret_key_file or config.data_dir / "ui.key"
+    try:
+        if path.exists():
+            key = path.read_bytes()
+            if len(key) < 32:
+                raise ConfigError(f"the secret key file holds {len(key)} bytes; delete it to generate a new one",
+                                  file=path)
+            return key
+        path.parent.mkdir(parents=True, exist_ok=True)
+        key = secrets.token_bytes(48)
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        with os.fdopen(fd, "wb") as out:
+            out.write(key)
+        return key
+    except OSError as exc:
+        raise ConfigError(f"cannot read or create the secret key file: {exc.strerror}", file=path) from None
+
+
+def create_app(
+    config: Config | None = None,
+    gateway: RobotGateway | None = None,
+    *,
+    clock: Clock | None = None,
+    hash_method: str = HASH_METHOD,
+) -> Flask:
+    """A dashboard app for ``config`` talking to the robot through ``gateway`` (None: pages work, every
+    robot command is refused with "no robot is connected").
+
+    ``clock`` times the login rate limit (wall clock by default); ``hash_method`` lets tests use cheaper
+    scrypt parameters ("scrypt:1024:8:1"). The Socket.IO server is ``app.extensions["socketio"]``.
+    """
+    config = config or Config()
+    app = Flask(__name__, static_folder="static", template_folder="templates")
+    app.config.update(
+        SECRET_KEY=secret_key(config),
+        SESSION_COOKIE_NAME="atemr_session",
+        SESSION_COOKIE_HTTPONLY=True,
+        SESSION_COOKIE_SAMESITE="Lax",
+        PERMANENT_SESSION_LIFETIME=timedelta(hours=12),
+        MAX_CONTENT_LENGTH=int(config.ui.max_upload_mb * 1024 * 1024),
+        ATEMR_CONFIG=config,
+        ATEMR_VERSION=__version__,
+    )
+    app.extensions["atemr.users"] = UserStore(database_path(config), hash_method=hash_method)
+    app.extensions["atemr.gateway"] = gateway
+    app.extensions["atemr.limiter"] = LoginRateLimiter(
+        clock or WallClock(), max_failures=config.ui.login_max_failures, lockout_s=config.ui.login_lockout_s
+    )
+    app.extensions["atemr.media"] = media_files.MediaStore(config.data_dir)
+
+    app.before_request(check_csrf)
+    app.before_request(_first_start_gate)
+    app.jinja_env.globals["csrf_token"] = csrf_token
+    app.context_processor(_template_globals)
+
+    from atemr.ui.auth import bp as auth_bp
+    from atemr.ui.control import bp as control_bp
+    from atemr.ui.mapping import bp as mapping_bp
+    from atemr.ui.media import bp as media_bp
+    from atemr.ui.settings import bp as settings_bp
+
+    for bp in (auth_bp, control_bp, mapping_bp, settings_bp, media_bp):
+        app.register_blueprint(bp)
+    app.add_url_rule("/", "index", lambda: redirect(url_for("control.page")))
+
+    socketio = SocketIO(
+        app,
+        async_mode="threading",
+        cors_allowed_origins=None,  # None = same origin only; never "*"
+        manage_session=True,
+        message_queue=config.ui.message_queue,
+        max_http_buffer_size=app.config["MAX_CONTENT_LENGTH"],
+        logger=False,
+        engineio_logger=False,
+    )
+    sockets.init_app(app, socketio)
+    return app
+
+
+def _first_start_gate() -> Response | None:
+    """Until the root admin has a password, every page leads to the first-start page."""
+    from atemr.ui.security import user_store
+
+    if request.endpoint in FIRST_START_OPEN or (request.endpoint or "").endswith(".static"):
+        return None
+    if request.path.startswith("/socket.io"):
+        return None
+    if user_store().needs_root_password():
+        return redirect(url_for("auth.first_start"))
+    return None
+
+
+def _template_globals() -> dict[str, Any]:
+    from flask import current_app
+
+    config: Config = current_app.config["ATEMR_CONFIG"]
+    return {"current_user": current_user(), "version": __version__, "simulation": config.simulation}

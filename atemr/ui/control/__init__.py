@@ -1,0 +1,62 @@
+"""The Control page (camera, map, joystick, mode, states, graph, missions, simulation panel) and the
+robot products it fetches over HTTP: the map image and the secondary core's screen."""
+
+from __future__ import annotations
+
+from typing import Any, cast
+
+from flask import Blueprint, abort, current_app, jsonify, render_template
+from werkzeug.wrappers import Response
+
+from atemr.ui.gateway import RobotGateway
+from atemr.ui.security import role_required
+
+bp = Blueprint("control", __name__, template_folder="templates", static_folder="static",
+               static_url_path="/static/control")
+
+
+def _gateway() -> RobotGateway | None:
+    return cast("RobotGateway | None", current_app.extensions["atemr.gateway"])
+
+
+@bp.route("/control")
+@role_required("user")
+def page() -> str:
+    return render_template("control/control.html")
+
+
+@bp.route("/api/state")
+@role_required("user")
+def state() -> Any:
+    """The snapshot once, for a page's first paint before the socket delivers."""
+    robot = _gateway()
+    return jsonify({"connected": robot is not None, **(robot.state() if robot else {})})
+
+
+@bp.route("/api/map")
+@role_required("user")
+def map_meta() -> Any:
+    """Size, resolution, origin and version of the map to draw (``null`` when there is none)."""
+    robot = _gateway()
+    image = robot.map_image() if robot else None
+    return jsonify(image.meta() if image else None)
+
+
+@bp.route("/api/map.png")
+@role_required("user")
+def map_png() -> Response:
+    robot = _gateway()
+    image = robot.map_image() if robot else None
+    if image is None:
+        abort(404, description="no map")
+    return Response(image.png, mimetype="image/png", headers={"Cache-Control": "no-store"})
+
+
+@bp.route("/api/secondary-screen.png")
+@role_required("user")
+def secondary_screen() -> Response:
+    robot = _gateway()
+    png = robot.secondary_screen_png() if robot else None
+    if png is None:
+        abort(404, description="no secondary-core screen")
+    return Response(png, mimetype="image/png", headers={"Cache-Control": "no-store"})

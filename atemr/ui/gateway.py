@@ -1,0 +1,210 @@
+"""The boundary between the dashboard and the robot: what the dashboard reads and what it commands.
+
+The dashboard never touches the agent, the skills or the bus. It reads one JSON-able snapshot
+(`RobotGateway.state`) at 10 Hz plus a few binary products (map image, camera JPEG, the secondary
+core's screen), and every operator action is one method that returns a `CommandResult`: ok, or a
+refusal reason the page shows as it is ("refused: switch to AUTO first"). The lead engineer implements
+this protocol over the real robot (`atemr/robot.py`); tests use small fakes of their own. Methods may
+be called from the web server's threads, so an implementation must be thread-safe (queue the command
+for the agent's next tick and answer from what it can check at once).
+
+The snapshot (`state()`) is a mapping with these keys; any may be missing when the robot does not know
+it yet, and the page shows "—" for it:
+
+======================  ==========================================================================
+key                     value
+======================  ==========================================================================
+``agent_state``         ``"UNDEFINED" | "STARTUP" | "IDLE" | "EXEC" | "MAPPING" | "SHUTDOWN" | "ERROR"``
+``mode``                ``"MANUAL" | "AUTO"``
+``simulation``          bool: the simulation panel is shown when true
+``active_map``          str | None: name of the map in use
+``map_version``         int: changes whenever `map_image` would return a different image
+``pose``                ``{"x_m", "y_m", "yaw_rad"}`` in the map frame, or None when not localized
+``scan``                ``[[x_m, y_m], ...]``: valid lidar returns in the map frame
+``global_path``         ``[[x_m, y_m], ...]``
+``local_path``          ``[[x_m, y_m], ...]``
+``goal``                ``{"x_m", "y_m", "yaw_rad"}`` or None
+``wheel_speeds``        ``{"left_radps", "right_radps"}``
+``emergency``           bool: low-level brakes applied
+``level1``              ``{name: bool}``: agent bits of CAN 0x153 byte 0 (heartbeat, hardware, auto,
+                        connectivity, localization); True means OK
+``level2``              ``{name: bool}``: hardware bits of 0x153 byte 1 (left_motor, right_motor, imu,
+                        lidar, camera, webserver, ir_front, ir_rear)
+``system``              ``{"t", "cpu_percent", "memory_percent", "disk_percent"}`` (1 Hz sample)
+``limits``              ``{"linear_mps", "angular_radps"}``: the speed limits in force
+``awareness``           bool: the reactive engine is enabled
+``wifi_ssid``           str | None
+``mapping``             bool: a mapping session is running
+``recording``           bool: a video is being recorded
+``mission``             ``{"name", "progress", "state"}`` or None
+``missions``            ``[name, ...]``: the missions that can be started
+``maps``                ``[name, ...]``: the stored maps
+``events``              ``[{"t", "kind", "text"}, ...]``: the latest events, oldest first
+======================  ==========================================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal, Protocol, runtime_checkable
+
+from atemr.msgs import Pose2D, Twist
+
+Mode = Literal["MANUAL", "AUTO"]
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    """The robot's answer to a command: accepted, or refused with a reason an operator can act on."""
+
+    ok: bool
+    reason: str = ""
+
+    @classmethod
+    def accepted(cls) -> CommandResult:
+        return cls(True)
+
+    @classmethod
+    def refused(cls, reason: str) -> CommandResult:
+        return cls(False, reason)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"ok": self.ok, "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class MapImage:
+    """The active map (or the map being built) as the browser draws it.
+
+    ``png`` is the occupancy grid rendered as an image (row 0 is the top, i.e. the largest y);
+    ``origin`` is the map-frame pose of the bottom-left pixel, as in ROS map_server.
+    """
+
+    png: bytes
+    width_px: int
+    height_px: int
+    resolution_m: float
+    origin: Pose2D
+    version: int
+
+    def meta(self) -> dict[str, Any]:
+        return {
+            "width_px": self.width_px, "height_px": self.height_px, "resolution_m": self.resolution_m,
+            "origin": {"x_m": self.origin.x_m, "y_m": self.origin.y_m, "yaw_rad": self.origin.yaw_rad},
+            "version": self.version,
+        }
+
+
+@runtime_checkable
+class RobotGateway(Protocol):
+    """Everything the dashboard needs from the robot."""
+
+    # -- reading -----------------------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        """The JSON-able snapshot described in the module docstring; cheap (called at 10 Hz)."""
+        ...
+
+    def map_image(self) -> MapImage | None:
+        """The map to draw (the growing one while mapping), or None when there is none."""
+        ...
+
+    def camera_jpeg(self) -> bytes | None:
+        """The newest camera frame as JPEG (at least 640×480), or None when the camera is off."""
+        ...
+
+    def secondary_screen_png(self) -> bytes | None:
+        """The secondary core's 128×64 screen as PNG (simulation), or None."""
+        ...
+
+    # -- driving -----------------------------------------------------------------------------------
+    def joystick(self, twist: Twist) -> CommandResult:
+        """An operator velocity command; ignored by the robot in AUTO mode, expires after 0.5 s."""
+        ...
+
+    def set_mode(self, mode: Mode) -> CommandResult:
+        """MANUAL or AUTO; AUTO is refused unless every level-1 state is OK."""
+        ...
+
+    def set_goal(self, goal: Pose2D) -> CommandResult:
+        """A navigation goal in the map frame (AUTO only; refused outside the map or in an obstacle)."""
+        ...
+
+    def set_initial_pose(self, pose: Pose2D) -> CommandResult:
+        """Where the robot is, for the localization."""
+        ...
+
+    def cancel_goal(self) -> CommandResult:
+        ...
+
+    # -- mapping -----------------------------------------------------------------------------------
+    def begin_mapping(self) -> CommandResult:
+        """Start a mapping session (MANUAL only)."""
+        ...
+
+    def end_mapping(self) -> CommandResult:
+        """Stop adding scans; the map waits for `save_map` or `discard_map`."""
+        ...
+
+    def save_map(self, name: str) -> CommandResult:
+        """Store the map built under ``name`` (it becomes the active map)."""
+        ...
+
+    def discard_map(self) -> CommandResult:
+        ...
+
+    def select_map(self, name: str) -> CommandResult:
+        """Make the stored map ``name`` the active one."""
+        ...
+
+    def validate_map(self, yaml_path: Path) -> CommandResult:
+        """Check an uploaded ROS map (``name.yaml`` beside its image) before the dashboard stores it."""
+        ...
+
+    def maps_changed(self) -> None:
+        """Tell the robot the map directory changed (an upload or a delete), so its list is fresh."""
+        ...
+
+    # -- settings ----------------------------------------------------------------------------------
+    def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:
+        """New speed limits, applied at once without a restart, persisted; a refusal keeps the old ones."""
+        ...
+
+    def set_awareness(self, enabled: bool) -> CommandResult:
+        """Turn the reactive engine on or off."""
+        ...
+
+    def set_wifi(self, ssid: str, password: str) -> CommandResult:
+        """Join another WiFi network."""
+        ...
+
+    # -- media and missions ------------------------------------------------------------------------
+    def capture_image(self) -> CommandResult:
+        """Save the current camera frame under ``data_dir/media/images``."""
+        ...
+
+    def record_video(self, on: bool) -> CommandResult:
+        """Start or stop recording the camera under ``data_dir/media/videos``."""
+        ...
+
+    def start_mission(self, name: str) -> CommandResult:
+        ...
+
+    def stop_mission(self) -> CommandResult:
+        ...
+
+    # -- simulation panel --------------------------------------------------------------------------
+    def sim_button(self, hold_s: float) -> CommandResult:
+        """Press the secondary core's button for ``hold_s`` seconds (1 s: power on, 5 s: power off)."""
+        ...
+
+    def sim_drop_obstacle(self, x_m: float, y_m: float) -> CommandResult:
+        """Put an obstacle in the simulated world at a map-frame point."""
+        ...
+
+    def sim_kidnap(self, pose: Pose2D) -> CommandResult:
+        """Move the simulated robot without telling its localization."""
+        ...
+
+
+NO_ROBOT = CommandResult.refused("no robot is connected to the dashboard")

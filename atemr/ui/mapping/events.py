@@ -1,0 +1,50 @@
+"""Socket.IO events of the Mapping page: begin/end a mapping session, save or discard, select a map."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from atemr.errors import ProtocolError
+from atemr.ui import payload
+from atemr.ui.gateway import CommandResult, RobotGateway
+from atemr.ui.sockets import on_event
+
+MAP_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+
+
+def map_name(event: str, data: Any) -> str:
+    """A map name usable as a file stem: letters, digits, ``_``, ``.``, ``-`` (not leading), 1-64."""
+    name = payload.text(event, data, "name", max_len=64)
+    if name.endswith((".yaml", ".yml")):
+        name = name.rsplit(".", 1)[0]
+    if not MAP_NAME_RE.match(name) or ".." in name:
+        raise ProtocolError(f"{event}.name: a map name is 1-64 letters, digits, '_', '.', '-', got {name!r}")
+    return name
+
+
+@on_event("mapping_begin")
+def mapping_begin(robot: RobotGateway, data: Any) -> CommandResult:
+    return robot.begin_mapping()
+
+
+@on_event("mapping_end")
+def mapping_end(robot: RobotGateway, data: Any) -> CommandResult:
+    return robot.end_mapping()
+
+
+@on_event("map_save")
+def map_save(robot: RobotGateway, data: Any) -> CommandResult:
+    """``{name}``: store the map just built; it becomes the active map."""
+    return robot.save_map(map_name("map_save", data))
+
+
+@on_event("map_discard")
+def map_discard(robot: RobotGateway, data: Any) -> CommandResult:
+    return robot.discard_map()
+
+
+@on_event("map_select")
+def map_select(robot: RobotGateway, data: Any) -> CommandResult:
+    """``{name}``: switch the active map."""
+    return robot.select_map(map_name("map_select", data))

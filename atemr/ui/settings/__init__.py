@@ -1,0 +1,163 @@
+"""The Settings page: robot parameters (WiFi, speed limits, awareness) through the gateway, the current
+user's password, and for admins the user management (grant/revoke access and admin, add, remove)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, cast
+
+from flask import Blueprint, current_app, flash, redirect, render_template, request, url_for
+from werkzeug.wrappers import Response
+
+from atemr.ui import sockets
+from atemr.ui.gateway import NO_ROBOT, CommandResult, RobotGateway
+from atemr.ui.security import current_user, role_required, user_store
+from atemr.ui.users import ROLES, UserError
+
+bp = Blueprint("settings", __name__, url_prefix="/settings", template_folder="templates")
+
+#: What the form accepts; the robot refuses anything above its own hardware limits.
+MAX_LINEAR_MPS = 1.8
+MAX_ANGULAR_RADPS = 4.0
+
+
+def _gateway() -> RobotGateway | None:
+    return cast("RobotGateway | None", current_app.extensions["atemr.gateway"])
+
+
+def _back() -> Response:
+    return redirect(url_for("settings.page"))
+
+
+def _report(what: str, result: CommandResult) -> bool:
+    flash(f"{what}: {'done' if result.ok else 'refused: ' + result.reason}", "ok" if result.ok else "error")
+    return result.ok
+
+
+@bp.route("")
+@role_required("user")
+def page() -> str:
+    robot = _gateway()
+    state = robot.state() if robot else {}
+    users = user_store().list() if current_user() and current_user().can("admin") else []  # type: ignore[union-attr]
+    return render_template("settings/settings.html", state=state, users=users, roles=ROLES, connected=robot is not None)
+
+
+def _form_number(key: str, hi: float) -> float:
+    raw = request.form.get(key, "").strip()
+    try:
+        value = float(raw)
+    except ValueError:
+        raise UserError(f"{key.replace('_', ' ')}: expected a number, got {raw!r}") from None
+    if not math.isfinite(value) or not 0.0 < value <= hi:
+        raise UserError(f"{key.replace('_', ' ')}: expected a value in (0, {hi}], got {raw}")
+    return value
+
+
+@bp.route("/limits", methods=["POST"])
+@role_required("user")
+def limits() -> Response:
+    """Linear and angular speed limits, applied by the robot at once (no restart)."""
+    try:
+        linear = _form_number("linear_mps", MAX_LINEAR_MPS)
+        angular = _form_number("angular_radps", MAX_ANGULAR_RADPS)
+    except UserError as exc:
+        flash(f"Speed limits: {exc}", "error")
+        return _back()
+    robot = _gateway()
+    _report("Speed limits", robot.set_limits(linear, angular) if robot else NO_ROBOT)
+    return _back()
+
+
+@bp.route("/awareness", methods=["POST"])
+@role_required("user")
+def awareness() -> Response:
+    robot = _gateway()
+    on = request.form.get("awareness") == "on"
+    _report(f"Awareness {'on' if on else 'off'}", robot.set_awareness(on) if robot else NO_ROBOT)
+    return _back()
+
+
+@bp.route("/wifi", methods=["POST"])
+@role_required("user")
+def wifi() -> Response:
+    """SSID 1-32 bytes, password 8-63 bytes (what the secondary core's transfer accepts too)."""
+    ssid = request.form.get("ssid", "")
+    password = request.form.get("password", "")
+    if not 1 <= len(ssid.encode()) <= 32 or not 8 <= len(password.encode()) <= 63:
+        flash("WiFi: the SSID has 1-32 bytes and the password 8-63 bytes.", "error")
+        return _back()
+    robot = _gateway()
+    _report("WiFi", robot.set_wifi(ssid, password) if robot else NO_ROBOT)
+    return _back()
+
+
+@bp.route("/password", methods=["POST"])
+@role_required("user")
+def password() -> Response:
+    """Change one's own password (the current one is asked again)."""
+    user = current_user()
+    assert user is not None
+    store = user_store()
+    if store.verify(user.username, request.form.get("current", "")) is None:
+        flash("Password: the current password is wrong.", "error")
+        return _back()
+    if request.form.get("new", "") != request.form.get("confirm", ""):
+        flash("Password: the two new passwords differ.", "error")
+        return _back()
+    try:
+        store.set_password(user.username, request.form.get("new", ""))
+    except UserError as exc:
+        flash(f"Password: {exc}", "error")
+        return _back()
+    flash("Password changed.", "ok")
+    return _back()
+
+
+@bp.route("/users/add", methods=["POST"])
+@role_required("admin")
+def add_user() -> Response:
+    role = request.form.get("role", "none")
+    try:
+        if role not in ROLES:
+            raise UserError(f"unknown role {role!r}")
+        user_store().create(request.form.get("username", "").strip(), request.form.get("password", ""),
+                            role)
+    except UserError as exc:
+        flash(f"Add user: {exc}", "error")
+        return _back()
+    flash(f"User {request.form.get('username', '').strip()} added.", "ok")
+    return _back()
+
+
+@bp.route("/users/<username>/role", methods=["POST"])
+@role_required("admin")
+def set_role(username: str) -> Response:
+    role = request.form.get("role", "")
+    try:
+        if role not in ROLES:
+            raise UserError(f"unknown role {role!r}")
+        user_store().set_role(username, role)
+    except UserError as exc:
+        flash(f"Role of {username}: {exc}", "error")
+        return _back()
+    sockets.disconnect_user(current_app._get_current_object(), username)  # type: ignore[attr-defined]
+    flash(f"{username} is now {role}.", "ok")
+    return _back()
+
+
+@bp.route("/users/<username>/remove", methods=["POST"])
+@role_required("admin")
+def remove_user(username: str) -> Any:
+    user = current_user()
+    if user is not None and user.username == username:
+        flash("Remove user: you cannot remove yourself.", "error")
+        return _back()
+    try:
+        user_store().remove(username)
+    except UserError as exc:
+        flash(f"Remove {username}: {exc}", "error")
+        return _back()
+    sockets.disconnect_user(current_app._get_current_object(), username)  # type: ignore[attr-defined]
+    flash(f"User {username} removed.", "ok")
+    return _back()

@@ -1,0 +1,183 @@
+"""Socket.IO plumbing shared by the page groups: the connect check, per-event role checks, the pushes.
+
+A client without a logged-in session with at least the ``user`` role is refused in the connect
+handler. Every event is declared with `on_event`, which re-reads the user from the database (so a
+revoked role takes effect on the next event), validates nothing else and turns the handler's
+`CommandResult` (or an `AtemrError`) into the acknowledgement the page shows. Logging out, a role
+change or a removal disconnects that user's sockets at once (`disconnect_user`).
+
+Rooms: every accepted client joins ``operators`` (state at 10 Hz); a client that turned its camera on
+also joins ``camera`` (JPEG frames, base64 in JSON, only while someone watches).
+"""
+
+from __future__ import annotations
+
+import base64
+import functools
+import logging
+import threading
+from collections.abc import Callable
+from typing import Any, cast
+
+from flask import Flask, current_app, request
+from flask_socketio import SocketIO, join_room, leave_room
+
+from atemr.errors import AtemrError
+from atemr.ui.gateway import NO_ROBOT, CommandResult, RobotGateway
+from atemr.ui.security import current_user
+from atemr.ui.users import Role
+
+log = logging.getLogger(__name__)
+
+OPERATORS = "operators"
+CAMERA = "camera"
+
+Handler = Callable[..., CommandResult | dict[str, Any]]
+_registrations: list[Callable[[SocketIO], None]] = []
+
+
+class Sessions:
+    """Which Socket.IO sessions belong to which user, and who watches the camera. Thread-safe."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._by_sid: dict[str, str] = {}
+        self.camera: set[str] = set()
+
+    def add(self, sid: str, username: str) -> None:
+        with self._lock:
+            self._by_sid[sid] = username
+
+    def remove(self, sid: str) -> None:
+        with self._lock:
+            self._by_sid.pop(sid, None)
+            self.camera.discard(sid)
+
+    def of(self, username: str) -> list[str]:
+        with self._lock:
+            return [sid for sid, name in self._by_sid.items() if name == username]
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._by_sid)
+
+
+def socketio_of(app: Flask) -> SocketIO:
+    return cast(SocketIO, app.extensions["socketio"])
+
+
+def sessions_of(app: Flask) -> Sessions:
+    return cast(Sessions, app.extensions["atemr.sockets"])
+
+
+def gateway() -> RobotGateway | None:
+    return cast("RobotGateway | None", current_app.extensions["atemr.gateway"])
+
+
+def on_event(event: str, role: Role = "user") -> Callable[[Handler], Handler]:
+    """Declare a Socket.IO event of a page group; registered on each app by `init_app`.
+
+    The handler gets the robot gateway (or the event is refused when there is none) and the event's
+    payload; its return value is the acknowledgement ``{"ok": bool, "reason": str, ...}``.
+    """
+
+    def decorate(handler: Handler) -> Handler:
+        @functools.wraps(handler)
+        def checked(data: Any = None) -> dict[str, Any]:
+            user = current_user()
+            if user is None or not user.can(role):
+                log.warning("socket event %r refused for %s", event, user.username if user else "anonymous")
+                return CommandResult.refused(f"'{event}' needs the {role} role").to_json()
+            robot = gateway()
+            if robot is None:
+                return NO_ROBOT.to_json()
+            try:
+                result = handler(robot, data)
+            except AtemrError as exc:
+                return CommandResult.refused(str(exc)).to_json()
+            return result.to_json() if isinstance(result, CommandResult) else result
+
+        def register(socketio: SocketIO) -> None:
+            socketio.on_event(event, checked)
+
+        _registrations.append(register)
+        return checked
+
+    return decorate
+
+
+def _connect(auth: Any = None) -> bool:
+    user = current_user()
+    if user is None or not user.can("user"):
+        log.info("socket connection refused from %s: no session with access", request.remote_addr)
+        return False
+    sid = cast(str, request.sid)  # type: ignore[attr-defined]
+    sessions_of(current_app).add(sid, user.username)
+    join_room(OPERATORS)
+    return True
+
+
+def _disconnect(reason: Any = None) -> None:
+    sessions_of(current_app).remove(cast(str, request.sid))  # type: ignore[attr-defined]
+
+
+def _camera(data: Any = None) -> dict[str, Any]:
+    """``camera {on: bool}``: join or leave the camera room (CAM ON/OFF)."""
+    user = current_user()
+    if user is None or not user.can("user"):
+        return CommandResult.refused("'camera' needs the user role").to_json()
+    sid = cast(str, request.sid)  # type: ignore[attr-defined]
+    on = bool(data.get("on")) if isinstance(data, dict) else False
+    sessions = sessions_of(current_app)
+    if on:
+        join_room(CAMERA)
+        sessions.camera.add(sid)
+    else:
+        leave_room(CAMERA)
+        sessions.camera.discard(sid)
+    return {"ok": True, "reason": "", "on": on}
+
+
+def init_app(app: Flask, socketio: SocketIO) -> None:
+    """Attach the connect check and every page group's events to ``socketio``."""
+    # Importing the page groups' event modules fills `_registrations` (once per process).
+    from atemr.ui.control import events as _control_events  # noqa: F401
+    from atemr.ui.mapping import events as _mapping_events  # noqa: F401
+
+    app.extensions["atemr.sockets"] = Sessions()
+    socketio.on_event("connect", _connect)
+    socketio.on_event("disconnect", _disconnect)
+    socketio.on_event("camera", _camera)
+    for register in _registrations:
+        register(socketio)
+
+
+def disconnect_user(app: Flask, username: str) -> None:
+    """Close every socket of ``username`` (after logout, a role change or removal)."""
+    socketio = socketio_of(app)
+    for sid in sessions_of(app).of(username):
+        socketio.server.disconnect(sid, namespace="/")
+        sessions_of(app).remove(sid)
+
+
+def push(app: Flask, robot: RobotGateway | None) -> int:
+    """Send the state snapshot to the operators and a camera frame to the camera watchers.
+
+    Returns the number of connected clients (nothing is read from the robot when nobody watches).
+    """
+    sessions = sessions_of(app)
+    clients = len(sessions)
+    if clients == 0 or robot is None:
+        return clients
+    socketio = socketio_of(app)
+    try:
+        state = robot.state()
+    except Exception:  # the dashboard must outlive a robot-side bug; say so on the page
+        log.exception("gateway.state() failed")
+        state = {"error": "the robot's state could not be read"}
+    socketio.emit("state", state, to=OPERATORS)
+    if sessions.camera:
+        frame = robot.camera_jpeg()
+        if frame:
+            socketio.emit("camera", {"jpeg": base64.b64encode(frame).decode("ascii")}, to=CAMERA)
+    return clients
