@@ -1,0 +1,192 @@
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from atemr.errors import ConfigError
+from atemr.msgs import Twist
+from atemr.skills.ramp import Clearance, IdleDetector, MotionLimits, SpeedRamp, checked_limits
+
+CLEAR = Clearance()
+DT = 0.02
+
+
+def run(ramp, target, seconds, clearance=CLEAR, t0=0.0, command=None):
+    out = None
+    n = round(seconds / DT)
+    for k in range(n + 1):
+        out = ramp.step(t0 + k * DT, target, clearance, command=command)
+    return out
+
+
+def test_linear_ramp_in_time_with_separate_limits():
+    ramp = SpeedRamp({"linear_accel_mps2": 0.5, "angular_accel_radps2": 2.0})
+    out = run(ramp, Twist(1.0, 1.0), 0.4)
+    # 0.4 s at 0.5 m/s² → 0.2 m/s; at 2 rad/s² → 0.8 rad/s
+    assert out.twist.linear_mps == pytest.approx(0.2) and out.twist.angular_radps == pytest.approx(0.8)
+    out = run(ramp, Twist(1.0, 1.0), 2.0, t0=0.42)
+    assert out.twist == Twist(1.0, 1.0)  # reached exactly, no overshoot
+    out = run(ramp, Twist(0.0, 0.0), 0.5, t0=2.44)
+    assert out.twist.linear_mps == pytest.approx(0.74) and out.twist.angular_radps == pytest.approx(0.0)
+
+
+def test_target_is_clamped_to_the_limits():
+    ramp = SpeedRamp({"max_linear_mps": 1.0, "max_angular_radps": 1.5})
+    out = run(ramp, Twist(5.0, -9.0), 10.0)
+    assert out.twist == Twist(1.0, -1.5)
+
+
+def test_slow_zone_limits_speed_in_the_direction_of_travel():
+    ramp = SpeedRamp()
+    out = run(ramp, Twist(1.0, 3.0), 5.0, Clearance(front_m=0.5, rear_m=math.inf))
+    assert out.slow and not out.emergency
+    assert out.twist == Twist(0.35, 1.6)
+    # an obstacle behind a base that drives forward does not slow it
+    ramp = SpeedRamp()
+    out = run(ramp, Twist(1.0, 0.0), 5.0, Clearance(front_m=math.inf, rear_m=0.4))
+    assert not out.slow and out.twist.linear_mps == pytest.approx(1.0)
+    # turning on the spot is slowed by anything near
+    out = run(SpeedRamp(), Twist(0.0, 2.0), 5.0, Clearance(front_m=math.inf, rear_m=0.4))
+    assert out.slow and out.twist.angular_radps == pytest.approx(1.6)
+
+
+def test_stop_zone_is_an_emergency_that_bypasses_the_ramp_and_resumes_2s_after_clear():
+    ramp = SpeedRamp()
+    run(ramp, Twist(0.3, 0.0), 2.0, Clearance(front_m=0.5))
+    assert ramp.velocity.linear_mps == pytest.approx(0.3)
+    out = ramp.step(2.02, Twist(0.3, 0.0), Clearance(front_m=0.27))
+    assert out.emergency and out.twist.is_zero and ramp.velocity.is_zero  # at once, no ramp down
+    out = ramp.step(3.0, Twist(0.3, 0.0), Clearance(front_m=0.27))
+    assert out.emergency
+    # obstacle gone at t=3.02: still stopped until t=5.02
+    out = ramp.step(3.02, Twist(0.3, 0.0), Clearance(front_m=0.8))
+    assert out.emergency
+    out = ramp.step(5.0, Twist(0.3, 0.0), Clearance(front_m=0.8))
+    assert out.emergency
+    out = ramp.step(5.02, Twist(0.3, 0.0), Clearance(front_m=0.8))
+    assert not out.emergency and out.twist.linear_mps == pytest.approx(0.02)  # ramps up from zero
+
+
+def test_obstacle_returning_restarts_the_resume_delay():
+    ramp = SpeedRamp()
+    ramp.step(0.0, Twist(0.3, 0.0), Clearance(front_m=0.2))
+    ramp.step(1.0, Twist(0.3, 0.0), Clearance(front_m=0.5))
+    ramp.step(2.0, Twist(0.3, 0.0), Clearance(front_m=0.2))
+    assert ramp.step(3.5, Twist(0.3, 0.0), Clearance(front_m=0.5)).emergency
+    assert ramp.step(5.4, Twist(0.3, 0.0), Clearance(front_m=0.5)).emergency
+    assert not ramp.step(5.5, Twist(0.3, 0.0), Clearance(front_m=0.5)).emergency
+
+
+def test_backing_away_from_the_wall_is_possible_after_the_resume_delay():
+    ramp = SpeedRamp()
+    wall = Clearance(front_m=0.25)
+    assert ramp.step(0.0, Twist(0.2, 0.0), wall).emergency
+    assert ramp.step(1.0, Twist(-0.2, 0.0), wall).emergency
+    assert ramp.step(2.98, Twist(-0.2, 0.0), wall).emergency
+    out = ramp.step(3.0, Twist(-0.2, 0.0), wall)
+    assert not out.emergency and out.slow is False
+    assert out.twist.linear_mps == pytest.approx(-0.02)
+    # pushing forward again stops at once
+    assert ramp.step(3.2, Twist(0.2, 0.0), wall).emergency
+
+
+def test_blind_base_moves_only_at_slow_limits():
+    out = run(SpeedRamp(), Twist(1.0, 0.0), 3.0, clearance=None)
+    assert out.slow and not out.emergency and out.twist.linear_mps == pytest.approx(0.35)
+
+
+def test_idle_after_8s_without_state_changing_command():
+    ramp = SpeedRamp()
+    out = run(ramp, Twist(), 7.9, command=Twist())
+    assert not out.idle
+    assert ramp.step(8.0, Twist(), CLEAR, command=Twist()).idle  # zeros streaming do not change state
+    assert not ramp.step(8.02, Twist(0.1, 0.0), CLEAR, command=Twist(0.1, 0.0)).idle
+    assert not ramp.step(16.0, Twist(), CLEAR, command=Twist()).idle  # a stop is a change: 8 s from here
+    assert ramp.step(24.0, Twist(), CLEAR, command=None).idle
+
+
+def test_idle_detector_wake():
+    d = IdleDetector()
+    assert not d.observe(0.0, None, 8.0)
+    assert d.observe(8.0, None, 8.0)
+    d.wake(8.5)
+    assert not d.observe(9.0, None, 8.0)
+
+
+def test_non_finite_target_means_stop():
+    ramp = SpeedRamp()
+    run(ramp, Twist(0.5, 0.0), 1.0)
+    out = ramp.step(1.04, Twist(math.nan, 0.0), CLEAR)
+    assert out.twist.linear_mps == pytest.approx(0.46)
+
+
+def test_set_limits_validates_and_keeps_the_old_on_rejection():
+    ramp = SpeedRamp()
+    assert ramp.set_limits({"max_linear_mps": "1.2"}).max_linear_mps == 1.2
+    before = ramp.limits
+    for bad, match in [
+        ({"max_linear_mps": 2.5}, "max_linear_mps: must be at most 1.8"),
+        ({"max_linear_mps": 1.0, "stop_distance_m": 0.9}, "must not exceed slow_distance_m"),
+        ({"max_linear_mps": math.nan}, "finite"),
+        ({"speed": 1.0}, "unknown key 'speed'"),
+    ]:
+        with pytest.raises(ConfigError, match=match):
+            ramp.set_limits(bad)
+        assert ramp.limits is before
+    # a whole MotionLimits object is checked field by field too
+    with pytest.raises(ConfigError, match=r"at least 0\.05"):
+        ramp.set_limits(MotionLimits(linear_accel_mps2=0.0))
+    with pytest.raises(ConfigError):
+        SpeedRamp({"idle_after_s": -1})
+    assert checked_limits({}) == MotionLimits()
+
+
+def test_lowered_limit_brings_speed_down_at_the_ramp_rate():
+    ramp = SpeedRamp()
+    run(ramp, Twist(1.5, 0.0), 3.0)
+    ramp.set_limits({"max_linear_mps": 0.5})
+    out = ramp.step(3.1, Twist(1.5, 0.0), CLEAR)
+    assert out.twist.linear_mps == pytest.approx(1.4)
+
+
+# ---- property test: whatever the inputs, the ramp's limits hold -------------------------------------
+
+step_st = st.tuples(
+    st.floats(0.0, 0.2),  # dt
+    st.floats(-3, 3),  # target v
+    st.floats(-5, 5),  # target w
+    st.floats(0.0, 2.0),  # front clearance
+    st.floats(0.0, 2.0),  # rear clearance
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    steps=st.lists(step_st, min_size=1, max_size=80),
+    accel=st.floats(0.1, 3.0),
+    alpha=st.floats(0.1, 10.0),
+    vmax=st.floats(0.0, 1.8),
+)
+def test_property_accel_speed_and_zone_limits(steps, accel, alpha, vmax):
+    lim = checked_limits({"linear_accel_mps2": accel, "angular_accel_radps2": alpha, "max_linear_mps": vmax})
+    ramp = SpeedRamp(lim)
+    t, prev = 0.0, Twist()
+    for dt, tv, tw, front, rear in steps:
+        t += dt
+        out = ramp.step(t, Twist(tv, tw), Clearance(front, rear))
+        v, w = out.twist.linear_mps, out.twist.angular_radps
+        if out.emergency:
+            assert out.twist.is_zero
+        else:
+            first = t == steps[0][0]
+            assert abs(v - prev.linear_mps) <= accel * (0.0 if first else dt) + 1e-9
+            assert abs(w - prev.angular_radps) <= alpha * (0.0 if first else dt) + 1e-9
+            cap = lim.slow_linear_mps if out.slow else lim.max_linear_mps
+            assert abs(v) <= max(abs(prev.linear_mps), min(cap, lim.max_linear_mps)) + 1e-9
+            # never moving towards something inside the stop zone
+            if v > 0:
+                assert front >= lim.stop_distance_m
+            if v < 0:
+                assert rear >= lim.stop_distance_m
+        prev = out.twist
