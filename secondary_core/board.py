@@ -469,6 +469,8 @@ class SecondaryCore:
         return max(candidates) if candidates else None
 
     def _emergency_reason(self) -> str | None:
+        if self.state == "power_on_sequence":
+            return "starting up"
         if self.primary_power is PowerState.POWER_OFF_ACK:
             return "primary off"
         if self.primary_power is not PowerState.RUNNING:

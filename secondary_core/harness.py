@@ -35,6 +35,19 @@ def unique_channel(prefix: str = "atemr-bench") -> str:
     return f"{prefix}-{os.getpid()}-{next(_counter)}"
 
 
+class _Gate:
+    """Ticks a component unless paused: a hung process, or a core unplugged from the bus."""
+
+    def __init__(self, component: SecondaryCore | SecondaryLink) -> None:
+        self.component = component
+        self.name = component.name
+        self.paused = False
+
+    def tick(self, now: float) -> None:
+        if not self.paused:
+            self.component.tick(now)
+
+
 class _Spy:
     """Drains the spy bus each tick, stamping frames with the simulated time they were seen."""
 
@@ -75,8 +88,9 @@ class LinkBench:
         self.core = SecondaryCore(self.board_bus, cliff_source=lambda: self.cliff, config=config)
         self.link = SecondaryLink(self.link_bus, self.network, **(link_kwargs or {}))
         self.scheduler = Scheduler(self.clock)
-        self.scheduler.add(self.core, RATE_HZ)
-        self.scheduler.add(self.link, RATE_HZ)
+        self.gates = {"core": _Gate(self.core), "link": _Gate(self.link)}
+        self.scheduler.add(self.gates["core"], RATE_HZ)
+        self.scheduler.add(self.gates["link"], RATE_HZ)
         self.frames: list[tuple[float, can.Message]] = []
         self.scheduler.add(_Spy(self.spy, self.frames), RATE_HZ)  # added last: sees each tick's frames
 
@@ -97,6 +111,13 @@ class LinkBench:
                 raise TimeoutError(f"condition not met within {timeout_s} s of simulated time")
             self.run(step_s)
         return self.now - start
+
+    def pause(self, which: str) -> None:
+        """Stop ticking ``"core"`` (the board) or ``"link"`` (the primary) until `resume`."""
+        self.gates[which].paused = True
+
+    def resume(self, which: str) -> None:
+        self.gates[which].paused = False
 
     def frames_with_id(self, arbitration_id: int, *, since: float = float("-inf")) -> list[tuple[float, can.Message]]:
         return [(t, m) for t, m in self.frames if m.arbitration_id == arbitration_id and t >= since]

@@ -45,6 +45,10 @@ class BoardView:
     shutdown_in_s: float = 0.0
 
 
+#: Soft-emergency reasons as they fit on the OPS screen's last line.
+_SHORT_REASONS = {"primary not running": "primary down"}
+
+
 def _bits(value: int) -> str:
     return f"{value:08b}"
 
@@ -76,7 +80,8 @@ def _ops(v: BoardView) -> Screen:
     status = v.status or PrimaryStatus()
     mode = "AUTO" if status.auto_mode else "MANUAL"
     heartbeat = "HB OK" if v.heartbeat_ok else "HB LOST"
-    last = f"BRAKED: {v.emergency_reason}" if v.emergency_reason else f"IP {v.robot_ip or '0.0.0.0'}"
+    reason = _SHORT_REASONS.get(v.emergency_reason or "", v.emergency_reason)
+    last = f"BRAKE {reason}" if reason else f"IP {v.robot_ip or '0.0.0.0'}"
     return Screen(
         status.state.name,
         (f"AGENT {_bits(status.agent)}", f"HDW   {_bits(status.hardware)}", f"{mode:<7}{heartbeat}", last),
