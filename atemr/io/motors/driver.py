@@ -21,6 +21,7 @@ from typing import Self
 import can
 
 from atemr.errors import BusError, HardwareError, ProtocolError
+from atemr.io.can.protocol import is_protocol_id
 from atemr.io.motors.rmd_codec import (
     MotorErrorFlags,
     RmdCommand,
@@ -36,6 +37,15 @@ from atemr.msgs import WheelSpeeds
 log = logging.getLogger(__name__)
 
 SIDES = ("left", "right")
+
+
+def check_motor_ids(motor_ids: tuple[int, ...], *, component: str) -> None:
+    """Refuse motor ids whose CAN ID (0x140 + id) is one of the inter-core protocol's 0x150-0x157."""
+    for motor_id in motor_ids:
+        can_id = motor_can_id(motor_id)
+        if is_protocol_id(can_id):
+            raise HardwareError(f"motor id {motor_id} would use 0x{can_id:03X}, an ID of the inter-core protocol; "
+                                f"use 1-15 or 24-32", component=component)
 
 
 @dataclass(frozen=True)
@@ -225,6 +235,7 @@ class RmdDriver(DriveMotors):
                          on_fault=on_fault, on_watchdog=on_watchdog)
         if left_id == right_id:
             raise HardwareError(f"left and right motor share id {left_id}", component=name)
+        check_motor_ids((left_id, right_id), component=name)
         if any(d not in (1, -1) for d in directions):
             raise HardwareError(f"directions must be +1 or -1, got {directions}", component=name)
         self.bus = bus

@@ -14,6 +14,7 @@ from typing import Self
 import can
 
 from atemr.errors import ProtocolError
+from atemr.io.motors.driver import check_motor_ids
 from atemr.io.motors.model import RmdMotorModel
 from atemr.io.motors.rmd_codec import (
     AckReply,
@@ -44,6 +45,7 @@ class RmdMotorEmulator:
         self.bus = bus
         self.motor_id = motor_id
         self.can_id = motor_can_id(motor_id)
+        check_motor_ids((motor_id,), component=name or f"rmd_motor_{motor_id}")
         self.model = model or RmdMotorModel()
         self.name = name or f"rmd_motor_{motor_id}"
         self.close_bus = close_bus

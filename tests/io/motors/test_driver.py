@@ -202,3 +202,11 @@ def test_emulator_ignores_garbage_and_other_ids(request: pytest.FixtureRequest) 
         assert reply is not None and bytes(reply.data) == bytes((0x88, 0, 0, 0, 0, 0, 0, 0))
         assert host.recv(timeout=0) is None
         emu.shutdown()
+
+
+def test_motor_ids_may_not_collide_with_the_inter_core_protocol() -> None:
+    with can.Bus(interface="virtual", channel="motors-collide") as bus:
+        with pytest.raises(HardwareError, match="0x150"):
+            RmdDriver(bus, left_id=16, right_id=2)
+        with pytest.raises(HardwareError, match="0x157"):
+            RmdMotorEmulator(bus, 23)
