@@ -1,0 +1,388 @@
+"""The agent: lifecycle machine + the current state's behaviour tree + the Monitor tree, one scheduler component.
+
+Each ``tick(now)`` (10 Hz on the robot, any rate in simulation) does, in this order:
+
+1. take the commands submitted since the last tick (`Agent.submit`, thread-safe) and fire them;
+2. tick the current state's tree; when it finishes, post the state's ``on_success``/``on_failure`` trigger;
+3. fire the events posted so far (changing state stops the old tree, so its driving leaves command zero);
+4. tick the Monitor tree (status 0x153 out at 2 Hz and on every change, power-off requests and faults in);
+5. fire the Monitor's events and write the agent's keys to the blackboard.
+
+Time comes only from ``now``; nothing here blocks or reads a clock. A refused trigger becomes a
+`CommandResult` (for commands) and a `TransitionRecord` in the trace (for everything), never an exception.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import queue
+import threading
+from collections import deque
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import py_trees
+
+from atemr.errors import AtemrError, ConfigError
+from atemr.fsm.codes import state_code, top_level
+from atemr.fsm.machine import Lifecycle, TransitionRecord
+from atemr.fsm.spec import AgentSpec, StateSpec, load_agent
+from atemr.trees import leaves as _leaves  # registers the built-in behaviours
+from atemr.trees.behaviours import Leaf
+from atemr.trees.builder import build, setup_tree
+from atemr.trees.context import AGENT_NS, AgentContext, Event
+from atemr.trees.ports import LinkPort, RobotPort
+
+log = logging.getLogger(__name__)
+Status = py_trees.common.Status
+_ = _leaves
+
+#: The agent document shipped with the package checkout.
+DEFAULT_AGENT_FILE = Path(__file__).resolve().parents[2] / "trees" / "agent.yaml"
+RELOAD = "__reload__"
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    """What became of one submitted command (the dashboard shows ``reason`` when refused)."""
+
+    id: int
+    t: float
+    trigger: str
+    accepted: bool
+    source: str
+    dest: str | None
+    reason: str
+    origin: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def jsonable(value: Any) -> Any:
+    """A JSON-friendly rendering of a blackboard or event value."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if hasattr(value, "__dataclass_fields__"):
+        return {k: jsonable(v) for k, v in asdict(value).items()}
+    return str(value)
+
+
+class Agent:
+    """The agent as a scheduler component (``name``, ``start``, ``tick(now)``, ``shutdown``).
+
+    ``port`` and ``link`` are the robot and secondary-core ports (`atemr.trees.ports`); ``on_halt`` is
+    called once when the power-off sequence has finished (the robot then stops its scheduler).
+    """
+
+    def __init__(self, spec: AgentSpec, port: RobotPort, link: LinkPort | None = None, *, name: str = "agent",
+                 history: int = 200, on_halt: Callable[[], None] | None = None) -> None:
+        self.name = name
+        self.spec = spec
+        self.context = AgentContext(port=port, link=link)
+        self.lifecycle = Lifecycle(spec, self.context)
+        self.on_halt = on_halt
+        self.results: deque[CommandResult] = deque(maxlen=history)
+        self.errors: deque[str] = deque(maxlen=history)
+        self.listeners: list[Callable[[TransitionRecord], None]] = []
+        self.ticks = 0
+        self._inbox: queue.SimpleQueue[tuple[int, str, dict[str, Any], str]] = queue.SimpleQueue()
+        self._ids = itertools.count(1)
+        self._lock = threading.RLock()
+        self._started = False
+        self._tree: py_trees.behaviour.Behaviour | None = None
+        self._tree_state: StateSpec | None = None
+        self._tree_done = False
+        self._monitor: py_trees.behaviour.Behaviour | None = None
+        self._counts: dict[Any, int] = {}
+        self._halt_reported = False
+        self._bb = py_trees.blackboard.Client(name=f"{name}/agent", namespace=AGENT_NS)
+        for key in ("state", "code", "mode", "task", "error", "last_transition", "now"):
+            self._bb.register_key(key, access=py_trees.common.Access.WRITE)
+
+    @classmethod
+    def from_file(cls, path: str | Path, port: RobotPort, link: LinkPort | None = None, **kwargs: Any) -> Agent:
+        """An agent from a validated document (raises `ConfigError` before anything is built)."""
+        return cls(load_agent(path), port, link, **kwargs)
+
+    # -- read-only views ---------------------------------------------------------------------------
+    @property
+    def state(self) -> str:
+        return self.lifecycle.state
+
+    @property
+    def halted(self) -> bool:
+        """True once the power-off sequence has finished."""
+        return self.context.halted
+
+    @property
+    def trace(self) -> list[TransitionRecord]:
+        """Every transition attempt so far (bounded), oldest first."""
+        return list(self.lifecycle.trace)
+
+    @property
+    def tree(self) -> py_trees.behaviour.Behaviour | None:
+        """The current state's tree (None in a state without one)."""
+        return self._tree
+
+    @property
+    def monitor(self) -> py_trees.behaviour.Behaviour | None:
+        return self._monitor
+
+    # -- commands ----------------------------------------------------------------------------------
+    def submit(self, trigger: str, *, origin: str = "dashboard", **kwargs: Any) -> int:
+        """Queue ``trigger`` (goal, cancel, set_auto, begin_mapping, save_map, shutdown, start_mission, ...).
+
+        Thread-safe; handled at the start of the next tick. Returns an id to look the outcome up with
+        `result`. Keyword arguments are what the guards read (``goal=Pose2D``, ``mission=Mission``,
+        ``name="kitchen"``).
+        """
+        command_id = next(self._ids)
+        self._inbox.put((command_id, trigger, kwargs, origin))
+        return command_id
+
+    def submit_reload(self, path: str | Path, *, origin: str = "dashboard") -> int:
+        """Queue a reload of the agent document; applied only in IDLE and only if it validates."""
+        return self.submit(RELOAD, origin=origin, path=str(path))
+
+    def result(self, command_id: int) -> CommandResult | None:
+        """The outcome of a submitted command, once its tick has run."""
+        return next((r for r in reversed(self.results) if r.id == command_id), None)
+
+    # -- scheduler component -----------------------------------------------------------------------
+    def start(self) -> None:
+        """Build the Monitor and enter the initial state's tree (also done by the first tick)."""
+        with self._lock:
+            if self._started:
+                return
+            self._started = True
+            if self.spec.monitor is not None:
+                self._monitor = build(self.spec.monitor)
+                setup_tree(self._monitor, self.context)
+            self._enter_state()
+            self._write_blackboard()
+
+    def tick(self, now: float) -> None:
+        """One agent period at time ``now``."""
+        with self._lock:
+            self.context.now = now
+            if not self._started:
+                self.start()
+            if self.context.halted:
+                return
+            self._drain_commands()
+            if self._tree is not None and not self._tree_done:
+                status = self._tick(self._tree)
+                if status in (Status.SUCCESS, Status.FAILURE):
+                    self._tree_done = True
+                    self._on_outcome(status)
+            self._fire_events()
+            if self._monitor is not None:  # also in the tick that halts, so the last status goes out
+                self._tick(self._monitor)
+                self._fire_events()
+            self._write_blackboard()
+            self.ticks += 1
+            if self.context.halted and not self._halt_reported:
+                self._halt_reported = True
+                log.info("agent halted: power-off acknowledged")
+                if self.on_halt is not None:
+                    self.on_halt()
+
+    def shutdown(self) -> None:
+        """Stop every running tree (driving leaves command zero in their terminate)."""
+        with self._lock:
+            for tree in (self._tree, self._monitor):
+                if tree is not None and tree.status == Status.RUNNING:
+                    tree.stop(Status.INVALID)
+
+    # -- reload ------------------------------------------------------------------------------------
+    def reload(self, spec: AgentSpec) -> str | None:
+        """Swap in a validated document; returns None when applied, else why not (the old one stays).
+
+        Only in IDLE (never mid-Exec or mid-Mapping), and only if the new document has the current state.
+        The blackboard, the trace and the context (mode, ports) are kept.
+        """
+        with self._lock:
+            if top_level(self.state) != "IDLE":
+                return f"a new agent document is applied only in IDLE (now {self.state})"
+            if self.state not in spec.states or spec.states[self.state].children:
+                return f"the new document has no state {self.state} to continue in"
+            lifecycle = Lifecycle(spec, self.context, initial=self.state)
+            lifecycle.trace.extendleft(reversed(self.lifecycle.trace))
+            self._stop_tree()
+            if self._monitor is not None and self._monitor.status == Status.RUNNING:
+                self._monitor.stop(Status.INVALID)
+            self.spec, self.lifecycle = spec, lifecycle
+            self._monitor = None
+            if spec.monitor is not None:
+                self._monitor = build(spec.monitor)
+                setup_tree(self._monitor, self.context)
+            self._enter_state()
+            return None
+
+    # -- internals ---------------------------------------------------------------------------------
+    def _drain_commands(self) -> None:
+        while True:
+            try:
+                command_id, trigger, kwargs, origin = self._inbox.get_nowait()
+            except queue.Empty:
+                return
+            if trigger == RELOAD:
+                self.results.append(self._reload_command(command_id, str(kwargs.get("path")), origin))
+                continue
+            record = self._fire(Event(trigger, kwargs, f"{origin} command" if origin else "", origin))
+            self.results.append(CommandResult(command_id, record.t, trigger, record.accepted, record.source,
+                                              record.dest, record.reason, origin))
+
+    def _reload_command(self, command_id: int, path: str, origin: str) -> CommandResult:
+        source = self.state
+        try:
+            why = self.reload(load_agent(path))
+        except ConfigError as exc:
+            why = f"not reloaded, the running document stays: {exc}"
+        return CommandResult(command_id, self.context.now, RELOAD, why is None, source, self.state if why is None
+                             else None, why or f"reloaded {path}", origin)
+
+    def _fire_events(self) -> None:
+        for _ in range(100):  # bounded: a burst of events cannot spin the tick forever
+            events = self.context.take_events()
+            if not events:
+                return
+            for event in events:
+                self._fire(event)
+        self.errors.append("event storm: more than 100 rounds of events in one tick")
+
+    def _fire(self, event: Event) -> TransitionRecord:
+        record = self.lifecycle.fire(event.trigger, reason=event.reason, origin=event.origin, **event.kwargs)
+        if record.accepted:
+            log.info("%s --%s--> %s %s", record.source, record.trigger, record.dest, record.reason)
+        else:
+            log.debug("refused %s in %s: %s", record.trigger, record.source, record.reason)
+        if record.state_changed:
+            self._enter_state()
+        for listener in self.listeners:
+            try:
+                listener(record)
+            except Exception as exc:  # a broken listener must not stop the agent
+                self.errors.append(f"transition listener failed: {exc!r}")
+        return record
+
+    def _stop_tree(self) -> None:
+        if self._tree is None:
+            return
+        if self._tree.status == Status.RUNNING:
+            self._tree.stop(Status.INVALID)
+        for node in self._tree.iterate():
+            self._counts.pop(node.id, None)
+
+    def _enter_state(self) -> None:
+        """Stop the old state's tree and build, set up and start the new state's."""
+        self._stop_tree()
+        self._tree, self._tree_state, self._tree_done = None, None, False
+        tree_state = self.spec.tree_state(self.state)
+        if tree_state is None or tree_state.tree is None:
+            return
+        task = getattr(self.context.task, "spec", None)
+        try:
+            root = build(tree_state.tree, task=task)
+            setup_tree(root, self.context)
+        except AtemrError as exc:
+            self.errors.append(f"cannot build the tree of {self.state}: {exc}")
+            if tree_state.on_failure:
+                self.context.post(tree_state.on_failure, f"tree not built: {exc}", f"tree:{tree_state.name}",
+                                  error=exc)
+            return
+        self._tree, self._tree_state = root, tree_state
+
+    def _tick(self, root: py_trees.behaviour.Behaviour) -> Status:
+        try:
+            for node in root.tick():
+                self._counts[node.id] = self._counts.get(node.id, 0) + 1
+        except Exception as exc:  # a leaf bug becomes the tree's failure, not a dead agent
+            text = str(exc) if isinstance(exc, AtemrError) else f"internal error: {exc!r}"
+            self.errors.append(f"{root.name}: {text}")
+            log.exception("tree %s raised", root.name)
+            if root.status == Status.RUNNING:
+                root.stop(Status.INVALID)
+            if self.context.error is None:
+                self.context.error = exc if isinstance(exc, AtemrError) else AtemrError(text)
+            root.status = Status.FAILURE
+        return root.status
+
+    def _on_outcome(self, status: Status) -> None:
+        state = self._tree_state
+        assert state is not None and self._tree is not None
+        origin = f"tree:{state.name}"
+        if status == Status.SUCCESS:
+            if state.on_success:
+                self.context.post(state.on_success, f"{self._tree.name} succeeded", origin)
+            return
+        why = failure_reason(self._tree)
+        if state.on_failure:
+            error = self.context.error or AtemrError(why)
+            self.context.post(state.on_failure, why, origin, error=error)
+
+    def _write_blackboard(self) -> None:
+        last = self.lifecycle.trace[-1] if self.lifecycle.trace else None
+        self._bb.state = self.state
+        self._bb.code = int(state_code(self.state))
+        self._bb.mode = self.context.mode
+        self._bb.task = getattr(self.context.task, "name", None)
+        self._bb.error = str(self.context.error) if self.context.error else None
+        self._bb.last_transition = last.as_dict() if last else None
+        self._bb.now = self.context.now
+
+    # -- snapshot ----------------------------------------------------------------------------------
+    def snapshot(self, *, transitions: int = 20) -> dict[str, Any]:
+        """A JSON-able picture of the agent now, for the dashboard and tests."""
+        with self._lock:
+            storage = py_trees.blackboard.Blackboard.storage
+            return {
+                "name": self.name,
+                "t": self.context.now,
+                "ticks": self.ticks,
+                "state": self.state,
+                "code": int(state_code(self.state)),
+                "mode": self.context.mode,
+                "halted": self.context.halted,
+                "valid_triggers": self.lifecycle.valid_triggers(),
+                "task": getattr(self.context.task, "name", None),
+                "error": str(self.context.error) if self.context.error else None,
+                "tree": self._node_dict(self._tree) if self._tree is not None else None,
+                "monitor": self._node_dict(self._monitor) if self._monitor is not None else None,
+                "blackboard": {k: jsonable(v) for k, v in sorted(storage.items())
+                               if k.startswith((AGENT_NS + "/", "/monitor/"))},
+                "transitions": [r.as_dict() for r in list(self.lifecycle.trace)[-transitions:]],
+                "commands": [r.as_dict() for r in list(self.results)[-transitions:]],
+                "errors": list(self.errors)[-transitions:],
+            }
+
+    def _node_dict(self, node: py_trees.behaviour.Behaviour) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "name": node.name,
+            "type": type(node).__name__,
+            "status": node.status.name,
+            "ticks": self._counts.get(node.id, 0),
+            "feedback": node.feedback_message,
+        }
+        if isinstance(node, Leaf) and node.reason:
+            out["reason"] = node.reason
+        if node.children:
+            out["children"] = [self._node_dict(c) for c in node.children]
+        return out
+
+
+def failure_reason(root: py_trees.behaviour.Behaviour) -> str:
+    """The deepest failed node's reason (py_trees iterates children before parents)."""
+    for node in root.iterate():
+        if node.status == Status.FAILURE:
+            text = getattr(node, "reason", "") or node.feedback_message
+            return f"{node.name}: {text}" if text else f"{node.name} failed"
+    return f"{root.name} failed"

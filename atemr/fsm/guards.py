@@ -1,0 +1,181 @@
+"""Guards (``conditions``/``unless``) and callbacks (``before``/``after``/``on_enter``/``on_exit``) by name.
+
+The agent YAML names them; the builder resolves them only through these registries (never an import
+string from the file). A guard returns None when it holds and a sentence saying why not otherwise, so a
+refused or redirected transition always carries a reason the dashboard can show. Guards only read;
+callbacks act, through the ports.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from atemr.errors import AtemrError, NavigationError
+from atemr.msgs import Pose2D
+from atemr.registry import Registry
+from atemr.trees.behaviours import behaviours
+from atemr.trees.context import AgentContext
+from atemr.trees.ports import HARDWARE_COMPONENTS
+
+
+@dataclass
+class GuardInput:
+    """What a guard or callback sees: the agent context, the event's keyword arguments, and (for
+    callbacks) the reasons the guards gave while this transition was chosen."""
+
+    context: AgentContext
+    kwargs: Mapping[str, Any]
+    reasons: list[str] = field(default_factory=list)
+
+
+Guard = Callable[[GuardInput], "str | None"]
+Callback = Callable[[GuardInput], None]
+
+guards: Registry[Guard] = Registry("guards")
+callbacks: Registry[Callback] = Registry("callbacks")
+
+#: Navigation's goal step; a goal can be executed only once a behaviour of this name is registered.
+GO_TO_POSE = "GoToPose"
+_MAP_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+
+
+# -- guards ----------------------------------------------------------------------------------------
+@guards.register("goal_valid")
+def goal_valid(g: GuardInput) -> str | None:
+    """The goal is a finite pose, navigation exists, the robot is localized, the goal is in free map space.
+
+    Each check asks the port; a check the port cannot answer yet (None: no map, no localization in this
+    build) refuses the goal and says so, rather than guessing.
+    """
+    goal = g.kwargs.get("goal")
+    if not isinstance(goal, Pose2D):
+        return f"a goal must be a Pose2D, got {type(goal).__name__}"
+    if not all(math.isfinite(v) for v in (goal.x_m, goal.y_m, goal.yaw_rad)):
+        return f"goal has a non-finite coordinate: x={goal.x_m}, y={goal.y_m}, yaw={goal.yaw_rad}"
+    if GO_TO_POSE not in behaviours:
+        return f"navigation is not available in this build (no '{GO_TO_POSE}' behaviour)"
+    port = g.context.port
+    localized = port.localized()
+    if localized is None:
+        return "cannot check the goal: localization is not available"
+    if not localized:
+        return "the robot is not localized: set the initial pose first"
+    where = f"({goal.x_m:.2f}, {goal.y_m:.2f})"
+    in_map = port.pose_in_map(goal)
+    if in_map is None:
+        return "cannot check the goal: no map is loaded"
+    if not in_map:
+        return f"goal {where} is outside the map"
+    free = port.pose_free(goal)
+    if free is None:
+        return "cannot check the goal: the map cannot tell free space"
+    if not free:
+        return f"goal {where} is not in free space"
+    return None
+
+
+@guards.register("mission_runnable")
+def mission_runnable(g: GuardInput) -> str | None:
+    """The event carries a validated mission whose every step has a registered behaviour."""
+    from atemr.trees.missions import Mission
+
+    mission = g.kwargs.get("mission")
+    if not isinstance(mission, Mission):
+        return f"start_mission needs a validated Mission, got {type(mission).__name__}"
+    missing = mission.missing_behaviours()
+    if missing:
+        return f"mission '{mission.name}' cannot run in this build: no behaviour {', '.join(missing)}"
+    return None
+
+
+@guards.register("level1_ok")
+def level1_ok(g: GuardInput) -> str | None:
+    """AUTO only when the level-1 statuses are OK: heartbeat alive and every reported hardware part healthy."""
+    problems = []
+    link = g.context.link
+    if link is not None and not link.heartbeat_ok():
+        problems.append("heartbeat lost")
+    health = g.context.port.health()
+    bad = sorted(n for n, h in health.items() if n in HARDWARE_COMPONENTS and not h.ok)
+    if bad:
+        problems.append(f"unhealthy: {', '.join(bad)}")
+    return f"level-1 status not OK ({'; '.join(problems)})" if problems else None
+
+
+@guards.register("map_name_valid")
+def map_name_valid(g: GuardInput) -> str | None:
+    """A map name that is safe as a file name (it becomes ``name.pgm`` + ``name.yaml``)."""
+    name = g.kwargs.get("name")
+    if not isinstance(name, str) or not _MAP_NAME.match(name):
+        return f"map name must be 1-64 letters, digits, '_', '.' or '-' (not starting with one), got {name!r}"
+    return None
+
+
+# -- callbacks -------------------------------------------------------------------------------------
+@callbacks.register("begin_mapping")
+def begin_mapping(g: GuardInput) -> None:
+    """Start SLAM (raises if mapping is not available: the transition is then refused)."""
+    g.context.port.begin_mapping()
+
+
+@callbacks.register("save_map")
+def save_map(g: GuardInput) -> None:
+    """Stop SLAM and save the map under the event's ``name``."""
+    g.context.port.end_mapping(str(g.kwargs["name"]))
+
+
+@callbacks.register("discard_map")
+def discard_map(g: GuardInput) -> None:
+    """Stop SLAM and drop the map."""
+    g.context.port.end_mapping(None)
+
+
+@callbacks.register("stop_motors")
+def stop_motors(g: GuardInput) -> None:
+    """Stop the base at once, before a state's tree gets the chance."""
+    g.context.port.stop_motors()
+
+
+@callbacks.register("set_goal_task")
+def set_goal_task(g: GuardInput) -> None:
+    """Make the event's goal Exec's task (a single GoToPose step)."""
+    from atemr.trees.missions import goal_task
+
+    g.context.task = goal_task(g.kwargs["goal"])
+
+
+@callbacks.register("set_mission_task")
+def set_mission_task(g: GuardInput) -> None:
+    """Make the event's mission Exec's task."""
+    g.context.task = g.kwargs["mission"]
+
+
+@callbacks.register("clear_task")
+def clear_task(g: GuardInput) -> None:
+    """Forget Exec's task (reached, cancelled or failed)."""
+    g.context.task = None
+
+
+@callbacks.register("record_error")
+def record_error(g: GuardInput) -> None:
+    """Keep the error the Error state will classify: the event's ``error``, else one from the reasons.
+
+    An invalid goal becomes a non-critical `NavigationError`; anything else without a typed error is a
+    plain non-critical `AtemrError` carrying the event's reason.
+    """
+    error = g.kwargs.get("error")
+    if isinstance(error, AtemrError):
+        g.context.error = error
+        return
+    text = "; ".join(r for r in g.reasons if r) or "unspecified error"
+    g.context.error = NavigationError(text) if "goal" in g.kwargs else AtemrError(text)
+
+
+@callbacks.register("clear_error")
+def clear_error(g: GuardInput) -> None:
+    """The error is handled: forget it."""
+    g.context.error = None

@@ -1,0 +1,172 @@
+"""The lifecycle machine: transitions' ``HierarchicalMachine`` built from an `AgentSpec`.
+
+`Lifecycle.fire` is the only way in. It never raises into the agent's loop: a trigger that is not valid in
+the current state, guards that all say no, or a callback that fails, each come back as a refused
+`TransitionRecord` with the reason, and every attempt (accepted or not) is kept in the trace.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from transitions import EventData
+from transitions.extensions import HierarchicalMachine
+from transitions.extensions.nesting import NestedState
+
+from atemr.errors import AtemrError
+from atemr.fsm.codes import SEPARATOR, state_code
+from atemr.fsm.guards import Callback, Guard, GuardInput, callbacks, guards
+from atemr.fsm.spec import AgentSpec, TransitionDict
+from atemr.registry import Registry
+from atemr.trees.context import AgentContext
+
+
+class _DottedState(NestedState):
+    """Nested states named ``IDLE.AUTO`` (the default separator '_' would clash with names like POWER_OFF)."""
+
+    separator = SEPARATOR
+
+
+class _Machine(HierarchicalMachine):
+    state_cls = _DottedState
+
+
+@dataclass(frozen=True)
+class TransitionRecord:
+    """One attempt to fire a trigger: what happened and why (JSON-able with `as_dict`)."""
+
+    t: float
+    trigger: str
+    source: str
+    dest: str | None
+    accepted: bool
+    reason: str = ""
+    origin: str = ""
+
+    @property
+    def state_changed(self) -> bool:
+        return self.accepted and self.dest is not None and self.dest != self.source
+
+    def as_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["code"] = int(state_code(self.dest)) if self.dest else None
+        return out
+
+
+class _Model:
+    """The object transitions decorates with ``state`` and ``trigger``."""
+
+    state: str
+    trigger: Callable[..., bool]
+
+
+class Lifecycle:
+    """The agent's state machine over ``context``; guards and callbacks come from the given registries."""
+
+    def __init__(self, spec: AgentSpec, context: AgentContext, *, guard_registry: Registry[Guard] = guards,
+                 callback_registry: Registry[Callback] = callbacks, initial: str | None = None,
+                 trace_size: int = 1000) -> None:
+        self.spec = spec
+        self.context = context
+        self._guards = guard_registry
+        self._callbacks = callback_registry
+        self.trace: deque[TransitionRecord] = deque(maxlen=trace_size)
+        self._reasons: list[str] = []
+        self._kwargs: dict[str, Any] = {}
+        self.model = _Model()
+        start = spec.leaf_of(initial or spec.initial)
+        self.machine = _Machine(
+            model=self.model, states=spec.state_dicts(), transitions=self._transition_dicts(), initial=start,
+            auto_transitions=False, send_event=True, ignore_invalid_triggers=False, queued=False,
+        )
+        for name, state in spec.states.items():
+            for cb in state.on_enter:
+                self.machine.get_state(name).add_callback("enter", self._callback(cb))
+            for cb in state.on_exit:
+                self.machine.get_state(name).add_callback("exit", self._callback(cb))
+        context.state = self.state
+        self.trace.append(TransitionRecord(context.now, "(initial)", "", self.state, True, "agent started"))
+
+    @property
+    def state(self) -> str:
+        """The current (leaf) state's full name, e.g. ``IDLE.MANUAL``."""
+        return str(self.model.state)
+
+    def valid_triggers(self, state: str | None = None) -> list[str]:
+        """Triggers with a transition out of ``state`` (default: the current state)."""
+        return self.spec.triggers_from(state or self.state)
+
+    def fire(self, trigger: str, *, reason: str = "", origin: str = "", **kwargs: Any) -> TransitionRecord:
+        """Try ``trigger`` now; returns what happened, never raises for a refusal."""
+        source = self.state
+        now = self.context.now
+        if trigger not in self.valid_triggers(source):
+            valid = ", ".join(self.valid_triggers(source)) or "none"
+            why = f"'{trigger}' is not valid in state {source} (valid here: {valid})"
+            return self._record(TransitionRecord(now, trigger, source, None, False, why, origin))
+        self._reasons = [reason] if reason else []
+        self._kwargs = kwargs
+        try:
+            moved = self.model.trigger(trigger, **kwargs)
+        except AtemrError as exc:
+            return self._after_error(trigger, source, origin, f"{type(exc).__name__}: {exc}")
+        except Exception as exc:  # a callback bug must not take the agent loop down
+            return self._after_error(trigger, source, origin, f"internal error in a callback: {exc!r}")
+        self.context.state = self.state
+        text = "; ".join(r for r in self._reasons if r)
+        if not moved:
+            return self._record(TransitionRecord(now, trigger, source, None, False, text or "guards refused",
+                                                 origin))
+        return self._record(TransitionRecord(now, trigger, source, self.state, True, text, origin))
+
+    def _after_error(self, trigger: str, source: str, origin: str, why: str) -> TransitionRecord:
+        self.context.state = self.state
+        changed = self.state != source
+        text = "; ".join([*(r for r in self._reasons if r), why])
+        return self._record(TransitionRecord(self.context.now, trigger, source, self.state if changed else None,
+                                             changed, text, origin))
+
+    def _record(self, record: TransitionRecord) -> TransitionRecord:
+        self.trace.append(record)
+        return record
+
+    # -- wiring guards and callbacks ---------------------------------------------------------------
+    def _guard(self, name: str, negated: bool) -> Callable[[EventData], bool]:
+        guard = self._guards.get(name)
+
+        def check(event: EventData) -> bool:
+            why = guard(GuardInput(self.context, event.kwargs, self._reasons))
+            note = why if why is not None else (f"{name} holds" if negated else None)
+            if note is not None and note not in self._reasons:
+                self._reasons.append(note)
+            return why is None
+
+        return check
+
+    def _callback(self, name: str) -> Callable[[EventData], None]:
+        callback = self._callbacks.get(name)
+
+        def run(event: EventData) -> None:
+            callback(GuardInput(self.context, event.kwargs, list(self._reasons)))
+
+        return run
+
+    def _transition_dicts(self) -> list[TransitionDict]:
+        out: list[TransitionDict] = []
+        for t in self.spec.transitions:
+            d: TransitionDict = {"trigger": t.trigger, "source": list(t.sources) if t.sources != ("*",) else "*",
+                                 "dest": t.dest}
+            d["conditions"] = [self._guard(g, negated=False) for g in t.conditions]
+            d["unless"] = [self._guard(g, negated=True) for g in t.unless]
+            d["before"] = [self._callback(c) for c in t.before]
+            d["after"] = [self._callback(c) for c in t.after]
+            out.append(d)
+        return out
+
+
+def trace_dicts(records: Iterable[TransitionRecord]) -> list[dict[str, Any]]:
+    """The trace as JSON-able dicts."""
+    return [r.as_dict() for r in records]

@@ -1,0 +1,119 @@
+"""Recording implementations of the agent's ports, for tests and for running the agent without a robot.
+
+They are not stubs of the robot: they hold exactly the state a test sets (health, pose, joystick, what the
+map would answer) and record every call the agent makes, so a test asserts on what the agent did.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from atemr.errors import HardwareError, NavigationError
+from atemr.io.can import PowerState, PrimaryStatus
+from atemr.msgs import Pose2D, Twist
+from atemr.trees.ports import HARDWARE_COMPONENTS, ComponentHealth, Mode, VelocitySource
+
+
+def all_healthy() -> dict[str, ComponentHealth]:
+    """Every hardware component of 0x153 reported healthy, plus connectivity."""
+    return {**{name: ComponentHealth(True) for name in HARDWARE_COMPONENTS}, "connectivity": ComponentHealth(True)}
+
+
+@dataclass
+class RecordingPort:
+    """A `RobotPort` whose answers are plain attributes and whose commands are recorded.
+
+    ``yaw_per_command`` integrates commanded turn rates into ``current_pose`` (``dt_s`` per command), so a
+    Rotate leaf sees its own motion; leave it 0 to keep the pose fixed.
+    """
+
+    components: dict[str, ComponentHealth] = field(default_factory=all_healthy)
+    current_pose: Pose2D | None = field(default_factory=Pose2D)
+    joystick_command: tuple[Twist, float] | None = None
+    is_localized: bool | None = None
+    in_map: bool | None = None
+    free: bool | None = None
+    mapping_available: bool = False
+    camera_ok: bool = True
+    dt_s: float = 0.0
+    commands: list[tuple[VelocitySource, Twist, float]] = field(default_factory=list)
+    stops: int = 0
+    modes: list[Mode] = field(default_factory=list)
+    images: list[str] = field(default_factory=list)
+    maps: list[str | None] = field(default_factory=list)
+    mapping: bool = False
+
+    def command_velocity(self, source: VelocitySource, twist: Twist, now: float) -> None:
+        self.commands.append((source, twist, now))
+        if self.dt_s and self.current_pose is not None:
+            p = self.current_pose
+            self.current_pose = Pose2D(p.x_m, p.y_m, p.yaw_rad + twist.angular_radps * self.dt_s)
+
+    def stop_motors(self) -> None:
+        self.stops += 1
+
+    def set_mode(self, mode: Mode) -> None:
+        self.modes.append(mode)
+
+    def health(self) -> Mapping[str, ComponentHealth]:
+        return dict(self.components)
+
+    def pose(self) -> Pose2D | None:
+        return self.current_pose
+
+    def joystick(self) -> tuple[Twist, float] | None:
+        return self.joystick_command
+
+    def capture_image(self, label: str) -> str:
+        if not self.camera_ok:
+            raise HardwareError("no frame", component="camera")
+        path = f"images/{label}-{len(self.images)}.jpg"
+        self.images.append(path)
+        return path
+
+    def localized(self) -> bool | None:
+        return self.is_localized
+
+    def pose_in_map(self, pose: Pose2D) -> bool | None:
+        return self.in_map
+
+    def pose_free(self, pose: Pose2D) -> bool | None:
+        return self.free
+
+    def begin_mapping(self) -> None:
+        if not self.mapping_available:
+            raise NavigationError("mapping is not available in this build")
+        self.mapping = True
+
+    def end_mapping(self, save_as: str | None) -> None:
+        self.mapping = False
+        self.maps.append(save_as)
+
+    @property
+    def last_twist(self) -> Twist | None:
+        return self.commands[-1][1] if self.commands else None
+
+
+@dataclass
+class RecordingLink:
+    """A `LinkPort` that records what the agent sends (stamped by ``time_source``); a test sets ``heartbeat``
+    and ``power_off``."""
+
+    heartbeat: bool = True
+    power_off: bool = False
+    time_source: Callable[[], float] = field(default=lambda: 0.0)
+    statuses: list[tuple[float, PrimaryStatus]] = field(default_factory=list)
+    power_states: list[tuple[float, PowerState]] = field(default_factory=list)
+
+    def publish_status(self, status: PrimaryStatus) -> None:
+        self.statuses.append((self.time_source(), status))
+
+    def set_power_state(self, state: PowerState) -> None:
+        self.power_states.append((self.time_source(), state))
+
+    def power_off_requested(self) -> bool:
+        return self.power_off
+
+    def heartbeat_ok(self) -> bool:
+        return self.heartbeat

@@ -1,0 +1,129 @@
+"""Leaves that check the robot and classify failures: component checks (StartUp), error classification
+(Error) and the MANUAL/AUTO switch of the twist mux."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import py_trees
+
+from atemr.errors import AtemrError, HardwareError
+from atemr.trees.behaviours import Leaf, behaviours
+
+Status = py_trees.common.Status
+
+
+@dataclass(frozen=True)
+class CheckComponentParams:
+    component: str = field(default="", metadata={"required": True, "help": "a name the port reports health for"})
+    timeout_s: float = field(default=5.0, metadata={"min": 0.0, "max": 600.0})
+    critical: bool = True
+
+    def validate(self) -> None:
+        if not self.component:
+            raise ValueError("component must be a non-empty name")
+
+
+@behaviours.register("CheckComponent")
+class CheckComponent(Leaf):
+    """Wait up to ``timeout_s`` for ``component`` to report healthy.
+
+    SUCCESS as soon as it is; FAILURE after the timeout, leaving a `HardwareError` (critical or not as
+    configured) in the context for the Error/Shutdown logic to classify. A component the port does not
+    know at all is reported as missing, not as healthy.
+    """
+
+    Params = CheckComponentParams
+    summary = "wait for a component to report healthy, fail after timeout_s"
+
+    def initialise(self) -> None:
+        self._deadline = self.ctx.now + self.params.timeout_s
+
+    def update(self) -> py_trees.common.Status:
+        health = self.ctx.port.health().get(self.params.component)
+        if health is not None and health.ok:
+            self.feedback_message = "ok"
+            return Status.SUCCESS
+        detail = "not reported by the robot" if health is None else (health.detail or "not healthy")
+        self.feedback_message = detail
+        if self.ctx.now < self._deadline - 1e-9:
+            return Status.RUNNING
+        error = HardwareError(
+            f"{detail} after {self.params.timeout_s:g} s", component=self.params.component,
+            critical=self.params.critical,
+        )
+        if self.ctx.error is None or (error.critical and not self.ctx.error.critical):
+            self.ctx.error = error
+        return self.fail(str(error))
+
+
+@behaviours.register("ClassifyError")
+class ClassifyError(Leaf):
+    """SUCCESS when the error being handled is not critical (back to Idle), FAILURE when it is (Shutdown).
+
+    Classification is by the error's type and its ``critical`` flag (`atemr.errors`), never by its text.
+    """
+
+    summary = "succeed for a non-critical error, fail for a critical one"
+
+    def update(self) -> py_trees.common.Status:
+        error: AtemrError | None = self.ctx.error
+        if error is None:
+            self.feedback_message = "no error recorded"
+            return Status.SUCCESS
+        kind = type(error).__name__
+        if error.critical:
+            return self.fail(f"critical {kind}: {error}")
+        self.feedback_message = f"non-critical {kind}: {error}"
+        return Status.SUCCESS
+
+
+@dataclass(frozen=True)
+class SetModeParams:
+    mode: Literal["MANUAL", "AUTO"] = field(default="MANUAL", metadata={"required": True})
+
+
+@behaviours.register("SetMode")
+class SetMode(Leaf):
+    """Put the twist mux in MANUAL or AUTO mode (and record the mode for the 0x153 AUTO bit)."""
+
+    Params = SetModeParams
+    summary = "switch the twist mux to MANUAL or AUTO"
+
+    def update(self) -> py_trees.common.Status:
+        self.ctx.port.set_mode(self.params.mode)
+        self.ctx.mode = self.params.mode
+        return Status.SUCCESS
+
+
+@dataclass(frozen=True)
+class CheckHeartbeatParams:
+    timeout_s: float = field(default=5.0, metadata={"min": 0.0, "max": 600.0})
+    critical: bool = True
+
+
+@behaviours.register("CheckHeartbeat")
+class CheckHeartbeat(Leaf):
+    """Wait up to ``timeout_s`` for the secondary core's 0x157 heartbeat exchange to be established."""
+
+    Params = CheckHeartbeatParams
+    summary = "wait for the 0x157 heartbeat with the secondary core, fail after timeout_s"
+
+    def initialise(self) -> None:
+        self._deadline = self.ctx.now + self.params.timeout_s
+
+    def update(self) -> py_trees.common.Status:
+        link = self.ctx.link
+        if link is not None and link.heartbeat_ok():
+            self.feedback_message = "heartbeat established"
+            return Status.SUCCESS
+        detail = "no secondary-core link" if link is None else "no heartbeat answer"
+        self.feedback_message = detail
+        if self.ctx.now < self._deadline - 1e-9:
+            return Status.RUNNING
+        error = HardwareError(f"{detail} after {self.params.timeout_s:g} s", component="secondary_core",
+                              critical=self.params.critical)
+        if self.ctx.error is None or (error.critical and not self.ctx.error.critical):
+            self.ctx.error = error
+        return self.fail(str(error))

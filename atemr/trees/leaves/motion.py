@@ -1,0 +1,105 @@
+"""Leaves that move or stop the base. Every one that commands a velocity commands zero in ``terminate``,
+so an interrupted or finished motion never leaves a twist behind in the mux."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import py_trees
+
+from atemr.msgs import ZERO_TWIST, Twist
+from atemr.trees.behaviours import Leaf, behaviours
+
+Status = py_trees.common.Status
+
+
+def wrap_angle(angle_rad: float) -> float:
+    """``angle_rad`` folded into [-pi, pi)."""
+    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@behaviours.register("StopMotors")
+class StopMotors(Leaf):
+    """Stop the base at once (every agent-owned mux input to zero); always SUCCESS."""
+
+    summary = "command zero velocity on every agent-owned input"
+
+    def update(self) -> py_trees.common.Status:
+        self.ctx.port.stop_motors()
+        return Status.SUCCESS
+
+
+@dataclass(frozen=True)
+class DriveJoystickParams:
+    timeout_s: float = field(default=0.5, metadata={"min": 0.05, "max": 5.0})
+
+
+@behaviours.register("DriveJoystick")
+class DriveJoystick(Leaf):
+    """Forward the operator's joystick to the mux's joystick input while the state lasts (MANUAL, MAPPING).
+
+    A joystick command older than ``timeout_s`` is replaced by zero (the thesis' lost-browser-tab rule,
+    applied here as well as in the mux). Never finishes on its own: RUNNING until the state ends.
+    """
+
+    Params = DriveJoystickParams
+    summary = "pass the operator's joystick to the base until the state ends"
+
+    def update(self) -> py_trees.common.Status:
+        latest = self.ctx.port.joystick()
+        twist = ZERO_TWIST
+        if latest is not None and self.ctx.now - latest[1] <= self.params.timeout_s:
+            twist = latest[0]
+        self.feedback_message = f"v={twist.linear_mps:.2f} m/s w={twist.angular_radps:.2f} rad/s"
+        self.ctx.port.command_velocity("joystick", twist, self.ctx.now)
+        return Status.RUNNING
+
+    def terminate(self, new_status: py_trees.common.Status) -> None:
+        if self._context is not None:
+            self.ctx.port.command_velocity("joystick", ZERO_TWIST, self.ctx.now)
+
+
+@dataclass(frozen=True)
+class RotateParams:
+    angle_rad: float = field(default=0.0, metadata={"min": -4 * math.pi, "max": 4 * math.pi, "required": True})
+    tolerance_rad: float = field(default=0.05, metadata={"min": 0.005, "max": 0.5})
+    max_speed_radps: float = field(default=0.8, metadata={"min": 0.05, "max": 1.6})
+    gain: float = field(default=1.5, metadata={"min": 0.1, "max": 10.0})
+
+
+@behaviours.register("Rotate")
+class Rotate(Leaf):
+    """Turn in place by ``angle_rad`` (counter-clockwise positive) using the pose's heading as feedback.
+
+    A proportional controller on the remaining angle, saturated at ``max_speed_radps``; the remaining
+    angle is integrated from heading changes so turns beyond half a revolution work. SUCCESS within
+    ``tolerance_rad``; FAILURE when there is no pose to steer by. Commands on the mux's ``agent`` input.
+    """
+
+    Params = RotateParams
+    summary = "rotate in place by angle_rad using heading feedback"
+
+    def initialise(self) -> None:
+        pose = self.ctx.port.pose()
+        self._last_yaw = pose.yaw_rad if pose is not None else None
+        self._remaining = self.params.angle_rad
+
+    def update(self) -> py_trees.common.Status:
+        pose = self.ctx.port.pose()
+        if pose is None or self._last_yaw is None:
+            return self.fail("no pose to steer by")
+        self._remaining -= wrap_angle(pose.yaw_rad - self._last_yaw)
+        self._last_yaw = pose.yaw_rad
+        self.feedback_message = f"{math.degrees(self._remaining):.1f} deg left"
+        if abs(self._remaining) <= self.params.tolerance_rad:
+            self.ctx.port.command_velocity("agent", ZERO_TWIST, self.ctx.now)
+            return Status.SUCCESS
+        limit = self.params.max_speed_radps
+        speed = max(-limit, min(limit, self.params.gain * self._remaining))
+        self.ctx.port.command_velocity("agent", Twist(0.0, speed), self.ctx.now)
+        return Status.RUNNING
+
+    def terminate(self, new_status: py_trees.common.Status) -> None:
+        if self._context is not None:
+            self.ctx.port.command_velocity("agent", ZERO_TWIST, self.ctx.now)

@@ -1,0 +1,32 @@
+"""Leaves about time: waiting on the agent's injected clock."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import py_trees
+
+from atemr.trees.behaviours import Leaf, behaviours
+
+Status = py_trees.common.Status
+
+
+@dataclass(frozen=True)
+class WaitParams:
+    duration_s: float = field(default=0.0, metadata={"min": 0.0, "max": 86_400.0, "required": True})
+
+
+@behaviours.register("Wait")
+class Wait(Leaf):
+    """RUNNING until ``duration_s`` of agent time has passed since it started, then SUCCESS."""
+
+    Params = WaitParams
+    summary = "wait duration_s seconds of robot time"
+
+    def initialise(self) -> None:
+        self._until = self.ctx.now + self.params.duration_s
+
+    def update(self) -> py_trees.common.Status:
+        left = self._until - self.ctx.now
+        self.feedback_message = f"{max(left, 0.0):.1f} s left"
+        return Status.SUCCESS if left <= 1e-9 else Status.RUNNING

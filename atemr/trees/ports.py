@@ -1,0 +1,109 @@
+"""The agent's only doors to the robot: two small typed ports the lead engineer implements.
+
+Leaves, guards and callbacks never import a driver, a skill or the CAN bus; they call a `RobotPort`
+(motion, health, pose, camera, mapping) and a `LinkPort` (the primary's side of the secondary-core link:
+0x153 status out, 0x150 power byte, power-off requests and heartbeat health in). That keeps the agent
+testable with an in-test fake and lets the real parts land behind the ports without the agent changing.
+
+A method that cannot answer yet (no map, no localization in this build) returns ``None`` rather than
+guessing; the guard that asked turns that into a refusal with a reason the dashboard shows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Literal, Protocol, runtime_checkable
+
+from atemr.io.can import HardwareBits, PowerState, PrimaryStatus
+from atemr.msgs import Pose2D, Twist
+
+#: The twist-mux inputs the agent may command (DESIGN.md §4); ``safety`` is never commanded by the agent.
+VelocitySource = Literal["joystick", "navigation", "agent"]
+Mode = Literal["MANUAL", "AUTO"]
+
+#: Components whose health fills a 0x153 hardware bit: ``HardwareBits`` member names in lower case
+#: (``left_motor``, ``right_motor``, ``imu``, ``lidar``, ``camera``, ``webserver``, ``ir_front``, ``ir_rear``).
+HARDWARE_COMPONENTS: dict[str, HardwareBits] = {str(b.name).lower(): b for b in HardwareBits if b}
+
+
+@dataclass(frozen=True)
+class ComponentHealth:
+    """One component's health as the port sees it: ``ok`` and, when not, why (for the dashboard)."""
+
+    ok: bool
+    detail: str = ""
+
+
+@runtime_checkable
+class RobotPort(Protocol):
+    """What the agent asks of the robot. Times are the agent's injected ``now`` (seconds)."""
+
+    def command_velocity(self, source: VelocitySource, twist: Twist, now: float) -> None:
+        """Offer ``twist`` to the twist mux as input ``source`` (it expires there after its timeout)."""
+        ...
+
+    def stop_motors(self) -> None:
+        """Command zero on every agent-owned input at once (bypasses the ramp where the robot can)."""
+        ...
+
+    def set_mode(self, mode: Mode) -> None:
+        """Switch the twist mux between MANUAL (joystick wins) and AUTO (navigation wins)."""
+        ...
+
+    def health(self) -> Mapping[str, ComponentHealth]:
+        """Every known component's health by name (names as in `HARDWARE_COMPONENTS`, plus any others)."""
+        ...
+
+    def pose(self) -> Pose2D | None:
+        """The best current pose estimate (map frame if localized, else odometry); None before any."""
+        ...
+
+    def joystick(self) -> tuple[Twist, float] | None:
+        """The operator's latest joystick command and the time it arrived, or None if none yet."""
+        ...
+
+    def capture_image(self, label: str) -> str:
+        """Store one camera frame and return where (a path or media id); raises `HardwareError`."""
+        ...
+
+    def localized(self) -> bool | None:
+        """True when localization is confident; None when this build cannot localize at all."""
+        ...
+
+    def pose_in_map(self, pose: Pose2D) -> bool | None:
+        """Whether ``pose`` lies inside the active map; None when no map is loaded."""
+        ...
+
+    def pose_free(self, pose: Pose2D) -> bool | None:
+        """Whether ``pose`` is in free space of the active map; None when no map is loaded."""
+        ...
+
+    def begin_mapping(self) -> None:
+        """Start SLAM; raises an `AtemrError` (e.g. `NavigationError`) when mapping is not available."""
+        ...
+
+    def end_mapping(self, save_as: str | None) -> None:
+        """Stop SLAM and save the map as ``save_as`` (it becomes active) or discard it (None)."""
+        ...
+
+
+@runtime_checkable
+class LinkPort(Protocol):
+    """The agent's view of the secondary-core link (the link itself sends the 0x157 heartbeat)."""
+
+    def publish_status(self, status: PrimaryStatus) -> None:
+        """Send CAN 0x153 now (agent bits, hardware bits, state code)."""
+        ...
+
+    def set_power_state(self, state: PowerState) -> None:
+        """Set 0x150 byte 0 (1 after start-up, 2 to acknowledge power-off) and send it."""
+        ...
+
+    def power_off_requested(self) -> bool:
+        """True once the secondary core has asked to power off (0x150 byte 1 = 1)."""
+        ...
+
+    def heartbeat_ok(self) -> bool:
+        """True while the 0x157 exchange is alive (a valid answer within the last 2 s)."""
+        ...
