@@ -1,0 +1,116 @@
+"""``atemr sim``: run the simulated robot in a world and report what happened.
+
+``--headless`` runs as fast as the CPU allows on a `SimClock` (CI, benchmarks); without it the run is
+locked to real time with `RealTimeSimClock` (``--speed`` times real time). ``--json`` prints a
+machine-readable summary: simulated and wall seconds, real-time factor, collisions, final true pose
+and how many scans, IMU samples, cliff readings and camera frames were produced.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import signal
+from dataclasses import replace
+from pathlib import Path
+from types import FrameType
+from typing import Any
+
+from atemr.cli.command import commands
+from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
+from atemr.config import load_config
+from atemr.errors import ConfigError
+from atemr.io.sim.simulation import Simulation, build_simulation, params_from_config
+from atemr.scheduler import Scheduler
+
+log = logging.getLogger(__name__)
+
+
+def summary(sim: Simulation, sim_seconds: float, wall_seconds: float, seed: int) -> dict[str, Any]:
+    """What a run did, as plain JSON-able values."""
+    pose = sim.pose
+    return {
+        "world": sim.world.name,
+        "seed": seed,
+        "sim_seconds": round(sim_seconds, 6),
+        "wall_seconds": round(wall_seconds, 6),
+        "real_time_factor": round(sim_seconds / wall_seconds, 3) if wall_seconds > 0 else None,
+        "collisions": len(sim.collisions),
+        "collision_events": [
+            {"t": round(c.t, 4), "what": c.what, "x_m": round(c.pose.x_m, 4), "y_m": round(c.pose.y_m, 4)}
+            for c in sim.collisions
+        ],
+        "falls": [{"t": round(f.t, 4), "zone": f.zone} for f in sim.falls],
+        "final_pose": {"x_m": pose.x_m, "y_m": pose.y_m, "yaw_rad": pose.yaw_rad},
+        "distance_m": round(sim.base.distance_m, 6),
+        "scans": sim.lidar_source.count,
+        "imu_samples": sim.imu_source.count,
+        "cliff_readings": sim.cliff_source.count,
+        "frames": sim.camera_source.count,
+    }
+
+
+class SimCommand:
+    help = "run the simulated robot in a world (headless as fast as possible, or locked to real time)"
+
+    def configure(self, parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
+        parser.add_argument("--world", help="a shipped world's name (studio) or a path to a world or map YAML")
+        parser.add_argument("--seed", type=int, help="seed of every random source (default 0)")
+        parser.add_argument("--headless", action="store_true",
+                            help="run as fast as possible on simulated time (no real-time pacing)")
+        parser.add_argument("--duration", type=float,
+                            help="simulated seconds to run (default: 10 headless, until Ctrl-C otherwise)")
+        parser.add_argument("--speed", type=float, help="simulated seconds per real second when not headless")
+        parser.add_argument("--camera-hz", type=float, help="camera frames per second (0: camera off)")
+        parser.add_argument("--twist", type=float, nargs=2, metavar=("V_MPS", "W_RADPS"), default=(0.0, 0.0),
+                            help="drive the base with this constant command (default: stand still)")
+        parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+
+    def run(self, args: argparse.Namespace) -> int:
+        config = load_config(args.config, overrides={
+            "log_level": args.log_level, "sim.world": args.world, "sim.seed": args.seed,
+            "sim.speed": args.speed, "sim.camera_hz": args.camera_hz,
+        })
+        duration = args.duration if args.duration is not None else (10.0 if args.headless else None)
+        if duration is not None and not duration >= 0:
+            raise ConfigError(f"must be >= 0 seconds, got {duration}", path="argument --duration")
+        params = params_from_config(config.sim)
+        sim = build_simulation(config.sim.world, config.sim.seed, params=replace(params))
+        clock: Clock = SimClock() if args.headless else RealTimeSimClock(speed=config.sim.speed)
+        scheduler = Scheduler(clock)
+        sim.attach(scheduler)
+        v, w = args.twist
+        sim.command_twist(v, w)
+
+        def on_signal(signum: int, frame: FrameType | None) -> None:
+            log.info("%s received: stopping", signal.Signals(signum).name)
+            scheduler.stop()
+
+        previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+        wall = WallClock()
+        t0_sim, t0_wall = clock.now(), wall.now()
+        try:
+            scheduler.start()
+            if not args.json:
+                mode = "headless" if args.headless else f"real time x{config.sim.speed:g}"
+                print(f"simulating world '{sim.world.name}' (seed {config.sim.seed}, {mode})", flush=True)
+            scheduler.run(duration=duration)
+        finally:
+            scheduler.shutdown()
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        result = summary(sim, clock.now() - t0_sim, wall.now() - t0_wall, config.sim.seed)
+        if args.json:
+            print(json.dumps(result, indent=2))
+        else:
+            p = result["final_pose"]
+            print(f"{result['sim_seconds']:.2f} s simulated in {result['wall_seconds']:.2f} s "
+                  f"({result['real_time_factor']}x real time); collisions: {result['collisions']}; "
+                  f"final pose: ({p['x_m']:.3f}, {p['y_m']:.3f}, {p['yaw_rad']:.3f}); "
+                  f"scans: {result['scans']}, frames: {result['frames']}")
+        return 0
+
+
+commands.add("sim", SimCommand())

@@ -1,0 +1,306 @@
+"""Occupancy-grid maps in the ROS map_server format: ``name.yaml`` + an image (PGM, PNG, ...).
+
+This is the one reader and writer of maps in the package: the simulator loads its worlds with it,
+navigation and localization use the `OccupancyMap` it returns, and the map store saves with `save_map`
+so maps made here open in ROS tools and maps made by other robots load here unchanged.
+
+The YAML keys are those of map_server: ``image`` (relative to the YAML), ``resolution`` (m/cell),
+``origin`` ([x, y, yaw] of the lower-left pixel), ``occupied_thresh``, ``free_thresh``, ``negate`` and the
+optional ``mode`` (``trinary`` by default, ``scale`` or ``raw``). Pixel values are turned into cell
+values exactly as map_server does: 100 occupied, 0 free, -1 unknown (and 1..99 in ``scale`` mode).
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from PIL import Image, UnidentifiedImageError
+
+from atemr.errors import ConfigError
+from atemr.msgs import Pose2D
+from atemr.yamlsafe import load_yaml, mark_of
+
+MapMode = Literal["trinary", "scale", "raw"]
+OCCUPIED = 100
+FREE = 0
+UNKNOWN = -1
+#: Largest map accepted, in cells (a 100 m x 100 m map at 2 cm is 25 M cells).
+MAX_CELLS = 50_000_000
+
+_REQUIRED = ("image", "resolution", "origin", "occupied_thresh", "free_thresh", "negate")
+_KNOWN = (*_REQUIRED, "mode")
+
+
+@dataclass(frozen=True, eq=False)
+class OccupancyMap:
+    """An occupancy grid with its place in the world.
+
+    ``data[row, col]`` holds ROS OccupancyGrid values (100 occupied, 0 free, -1 unknown, 1..99 a
+    probability in ``scale`` mode). Row 0 is the *bottom* of the map (lowest y), as in ROS, so cell
+    ``(row, col)`` covers ``x in origin.x + [col, col+1) * resolution`` (before the origin's yaw).
+    """
+
+    data: NDArray[np.int8]
+    resolution_m: float
+    origin: Pose2D = field(default_factory=Pose2D)
+    occupied_thresh: float = 0.65
+    free_thresh: float = 0.25
+    name: str = "map"
+
+    def __post_init__(self) -> None:
+        if self.data.ndim != 2 or self.data.size == 0:
+            raise ConfigError(f"map '{self.name}': grid must be a non-empty 2-D array, got shape {self.data.shape}")
+        if not (math.isfinite(self.resolution_m) and self.resolution_m > 0):
+            raise ConfigError(f"map '{self.name}': resolution must be > 0 m, got {self.resolution_m}")
+        self.data.setflags(write=False)
+
+    # -- shape ---------------------------------------------------------------------------------
+    @property
+    def height(self) -> int:
+        """Rows (cells along y)."""
+        return int(self.data.shape[0])
+
+    @property
+    def width(self) -> int:
+        """Columns (cells along x)."""
+        return int(self.data.shape[1])
+
+    @property
+    def size_m(self) -> tuple[float, float]:
+        """Width and height in metres."""
+        return self.width * self.resolution_m, self.height * self.resolution_m
+
+    # -- masks ---------------------------------------------------------------------------------
+    @property
+    def occupied(self) -> NDArray[np.bool_]:
+        """Cells at least as likely occupied as ``occupied_thresh`` (all 100s in a trinary map)."""
+        return self.data >= min(OCCUPIED, round(self.occupied_thresh * 100))
+
+    @property
+    def free(self) -> NDArray[np.bool_]:
+        """Cells known to be free."""
+        return (self.data >= 0) & (self.data <= round(self.free_thresh * 100))
+
+    @property
+    def unknown(self) -> NDArray[np.bool_]:
+        return self.data < 0
+
+    # -- transforms ----------------------------------------------------------------------------
+    def world_to_grid(self, x_m: Any, y_m: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World coordinates → continuous grid coordinates (gx along columns, gy along rows), in cells."""
+        dx = np.asarray(x_m, dtype=np.float64) - self.origin.x_m
+        dy = np.asarray(y_m, dtype=np.float64) - self.origin.y_m
+        if self.origin.yaw_rad:
+            c, s = math.cos(self.origin.yaw_rad), math.sin(self.origin.yaw_rad)
+            dx, dy = c * dx + s * dy, -s * dx + c * dy
+        return dx / self.resolution_m, dy / self.resolution_m
+
+    def world_to_cell(self, x_m: Any, y_m: Any) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """World coordinates → (row, col) indices; may be outside the grid (see `contains`)."""
+        gx, gy = self.world_to_grid(x_m, y_m)
+        return np.floor(gy).astype(np.intp), np.floor(gx).astype(np.intp)
+
+    def cell_to_world(self, row: Any, col: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(row, col) → world coordinates of the cell centre."""
+        gx = (np.asarray(col, dtype=np.float64) + 0.5) * self.resolution_m
+        gy = (np.asarray(row, dtype=np.float64) + 0.5) * self.resolution_m
+        if self.origin.yaw_rad:
+            c, s = math.cos(self.origin.yaw_rad), math.sin(self.origin.yaw_rad)
+            gx, gy = c * gx - s * gy, s * gx + c * gy
+        return gx + self.origin.x_m, gy + self.origin.y_m
+
+    def contains(self, row: Any, col: Any) -> NDArray[np.bool_]:
+        """Whether (row, col) indices lie inside the grid."""
+        r, c = np.asarray(row), np.asarray(col)
+        return (r >= 0) & (r < self.height) & (c >= 0) & (c < self.width)
+
+    def value_at(self, x_m: float, y_m: float) -> int:
+        """The cell value at a world point; unknown (-1) outside the grid."""
+        row, col = self.world_to_cell(x_m, y_m)
+        if not self.contains(row, col):
+            return UNKNOWN
+        return int(self.data[int(row), int(col)])
+
+    def replace(self, data: NDArray[np.int8]) -> OccupancyMap:
+        """The same map (resolution, origin, thresholds) with another grid of the same shape."""
+        if data.shape != self.data.shape:
+            raise ConfigError(f"map '{self.name}': new grid shape {data.shape} differs from {self.data.shape}")
+        return OccupancyMap(
+            np.array(data, dtype=np.int8), self.resolution_m, self.origin, self.occupied_thresh, self.free_thresh,
+            self.name,
+        )
+
+
+# -- loading ---------------------------------------------------------------------------------
+def _number(doc: Any, key: str, file: str) -> float:
+    value = doc[key]
+    line, col = mark_of(doc, key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(f"expected a finite number, got {value!r}", file=file, line=line, column=col, path=key)
+    return float(value)
+
+
+def _fail(message: str, doc: Any, key: str, file: str) -> ConfigError:
+    line, col = mark_of(doc, key)
+    return ConfigError(message, file=file, line=line, column=col, path=key)
+
+
+def load_map(path: str | Path) -> OccupancyMap:
+    """Read a map_server YAML and its image into an `OccupancyMap`.
+
+    Every problem (missing or unreadable image, thresholds out of order, an origin that is not three
+    numbers, a file that is not an image, unknown keys) raises `ConfigError` naming the file, line and key.
+    """
+    path = Path(path)
+    file = str(path)
+    doc = load_yaml(path)
+    if not isinstance(doc, dict):
+        raise ConfigError(f"expected a map_server mapping ({', '.join(_REQUIRED)}), got {type(doc).__name__}",
+                          file=file)
+    for key in doc:
+        if key not in _KNOWN:
+            close = difflib.get_close_matches(str(key), _KNOWN, n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            line, col = mark_of(doc, key)
+            raise ConfigError(f"unknown key '{key}'{hint}; known keys: {', '.join(_KNOWN)}",
+                              file=file, line=line, column=col, path=str(key))
+    missing = [k for k in _REQUIRED if k not in doc]
+    if missing:
+        raise ConfigError(f"missing required key(s): {', '.join(missing)}", file=file)
+
+    resolution = _number(doc, "resolution", file)
+    if resolution <= 0:
+        raise _fail(f"must be > 0 m per cell, got {resolution}", doc, "resolution", file)
+    origin_raw = doc["origin"]
+    if (
+        not isinstance(origin_raw, list) or len(origin_raw) != 3
+        or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in origin_raw)
+    ):
+        raise _fail(f"expected three numbers [x, y, yaw], got {origin_raw!r}", doc, "origin", file)
+    occ = _number(doc, "occupied_thresh", file)
+    free = _number(doc, "free_thresh", file)
+    if not 0.0 <= occ <= 1.0:
+        raise _fail(f"must be within [0, 1], got {occ}", doc, "occupied_thresh", file)
+    if not 0.0 <= free <= 1.0:
+        raise _fail(f"must be within [0, 1], got {free}", doc, "free_thresh", file)
+    if free >= occ:
+        raise _fail(f"must be below occupied_thresh ({occ}), got {free}", doc, "free_thresh", file)
+    negate = doc["negate"]
+    if negate not in (0, 1) or isinstance(negate, float):
+        raise _fail(f"expected 0 or 1 (or true/false), got {negate!r}", doc, "negate", file)
+    mode = doc.get("mode", "trinary")
+    if mode not in ("trinary", "scale", "raw"):
+        raise _fail(f"expected one of 'trinary', 'scale', 'raw', got {mode!r}", doc, "mode", file)
+    image_name = doc["image"]
+    if not isinstance(image_name, str) or not image_name:
+        raise _fail(f"expected an image file name, got {image_name!r}", doc, "image", file)
+    image_path = Path(image_name) if Path(image_name).is_absolute() else path.parent / image_name
+
+    gray, alpha = _read_image(image_path, doc, file)
+    data = pixels_to_occupancy(gray, alpha, occupied_thresh=occ, free_thresh=free, negate=bool(negate), mode=mode)
+    return OccupancyMap(
+        data, resolution, Pose2D(*(float(v) for v in origin_raw)), occ, free, name=path.stem,
+    )
+
+
+def _read_image(image_path: Path, doc: Any, file: str) -> tuple[NDArray[np.float64], NDArray[np.bool_] | None]:
+    """The image as grey levels 0..255 (float, mean of the colour channels as map_server) and transparency."""
+    try:
+        with Image.open(image_path) as img:
+            if img.width * img.height > MAX_CELLS:
+                raise _fail(f"image {image_path} has {img.width}x{img.height} pixels, more than {MAX_CELLS}",
+                            doc, "image", file)
+            img.load()
+            if img.mode in ("I;16", "I;16B", "I;16L", "I"):
+                arr = np.asarray(img, dtype=np.float64)
+                peak = 65535.0 if arr.max(initial=0) > 255 else 255.0
+                return arr * (255.0 / peak), None
+            has_alpha = "A" in img.mode or "transparency" in img.info
+            rgba = np.asarray(img.convert("RGBA"))
+            gray = rgba[..., :3].astype(np.float64).mean(axis=2)
+            return gray, (rgba[..., 3] < 255) if has_alpha else None
+    except FileNotFoundError:
+        raise _fail(f"image file not found: {image_path}", doc, "image", file) from None
+    except IsADirectoryError:
+        raise _fail(f"image path is a directory: {image_path}", doc, "image", file) from None
+    except UnidentifiedImageError:
+        raise _fail(f"not an image file (PGM, PNG, ...): {image_path}", doc, "image", file) from None
+    except (OSError, SyntaxError, ValueError) as exc:
+        raise _fail(f"cannot read image {image_path}: {exc}", doc, "image", file) from None
+
+
+def pixels_to_occupancy(
+    gray: NDArray[np.float64],
+    alpha: NDArray[np.bool_] | None = None,
+    *,
+    occupied_thresh: float,
+    free_thresh: float,
+    negate: bool = False,
+    mode: MapMode = "trinary",
+) -> NDArray[np.int8]:
+    """Convert image grey levels (row 0 = top of the image) to a ROS grid (row 0 = bottom), as map_server.
+
+    ``p = (255 - v) / 255`` (or ``v / 255`` when negated) is the occupancy probability: above
+    ``occupied_thresh`` → 100, below ``free_thresh`` → 0, else unknown (-1) in trinary mode or a scaled
+    1..99 in scale mode; ``raw`` copies the value. Transparent pixels are unknown.
+    """
+    v = 255.0 - gray if negate else gray
+    if mode == "raw":
+        out = np.clip(np.rint(v), -1, 127).astype(np.int8)
+    else:
+        p = (255.0 - v) / 255.0
+        out = np.full(p.shape, UNKNOWN, dtype=np.int8)
+        if mode == "scale":
+            ratio = (p - free_thresh) / (occupied_thresh - free_thresh)
+            out = np.clip(np.rint(1 + 98 * ratio), 1, 99).astype(np.int8)
+        out[p > occupied_thresh] = OCCUPIED
+        out[p < free_thresh] = FREE
+        if alpha is not None:
+            out[alpha] = UNKNOWN
+    return np.ascontiguousarray(out[::-1])
+
+
+# -- saving ----------------------------------------------------------------------------------
+def save_map(grid: OccupancyMap, path: str | Path, *, image_format: Literal["pgm", "png"] = "pgm") -> Path:
+    """Write ``grid`` as ``path`` (the YAML) plus ``<stem>.pgm`` beside it, as ROS map_saver does.
+
+    Trinary output: occupied 0 (black), free 254 (white), unknown 205 (grey), thresholds 0.65 / 0.25.
+    Returns the YAML path. Writes the image first and the YAML last, each to a temporary name renamed
+    into place, so a reader never sees a YAML whose image is missing or half written.
+    """
+    path = Path(path)
+    if path.suffix != ".yaml":
+        path = path.with_suffix(".yaml")
+    image_path = path.with_suffix(f".{image_format}")
+    pixels = np.full(grid.data.shape, 205, dtype=np.uint8)
+    pixels[grid.free] = 254
+    pixels[grid.occupied] = 0
+    tmp_image = image_path.with_name(image_path.name + ".tmp")
+    pil_format = "PPM" if image_format == "pgm" else "PNG"  # Pillow writes PGM through its PPM plugin
+    Image.fromarray(np.ascontiguousarray(pixels[::-1])).save(tmp_image, format=pil_format)
+    tmp_image.replace(image_path)
+    o = grid.origin
+    text = (
+        f"image: {image_path.name}\n"
+        f"mode: trinary\n"
+        f"resolution: {grid.resolution_m!r}\n"
+        f"origin: [{o.x_m!r}, {o.y_m!r}, {o.yaw_rad!r}]\n"
+        f"negate: 0\n"
+        f"occupied_thresh: 0.65\n"
+        f"free_thresh: 0.25\n"
+    )
+    tmp_yaml = path.with_name(path.name + ".tmp")
+    tmp_yaml.write_text(text, encoding="utf-8")
+    tmp_yaml.replace(path)
+    return path
+
+
+def is_map_document(doc: Any) -> bool:
+    """Whether a loaded YAML document looks like a map_server map (rather than a world file)."""
+    return isinstance(doc, dict) and "image" in doc and "resolution" in doc

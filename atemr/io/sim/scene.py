@@ -1,0 +1,183 @@
+"""The simulator's own view of a world: what blocks rays and bodies, cell by cell.
+
+The navigation map says what the robot *knows*; the scene is what is really there: the map's occupied
+cells (walls) plus every piece of furniture and every obstacle dropped at run time, rasterised into a
+label grid (0 free, 1 wall, 2+ an object) in the map's frame. Lidar, camera and collisions all read it,
+so what the robot bumps into is exactly what its sensors could have seen. Moving obstacles are
+circles kept outside the grid (see `atemr.io.sim.movers`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from atemr.errors import ConfigError
+from atemr.io.sim.world import Color, Furniture, World
+
+WALL = 1
+FIRST_OBJECT = 2
+WALL_COLOR: Color = (205, 200, 190)
+
+
+@dataclass(frozen=True)
+class Contact:
+    """The closest obstacle to a body: signed clearance (negative: overlapping) and what it is."""
+
+    clearance_m: float
+    what: str
+
+
+class Scene:
+    """Label grid of static obstacles, with run-time obstacles that can be dropped and removed."""
+
+    def __init__(self, world: World) -> None:
+        self.world = world
+        self.map = world.map
+        self.resolution_m = world.map.resolution_m
+        rows, cols = np.indices(world.map.data.shape)
+        self._cell_x, self._cell_y = world.map.cell_to_world(rows, cols)
+        self._objects: dict[int, Furniture] = {}
+        self._next_label = FIRST_OBJECT
+        for item in world.furniture:
+            self._add(item, check_inside=True)
+        drop = np.zeros(world.map.data.shape, dtype=bool)
+        for zone in world.drop_zones:
+            drop |= zone.contains(self._cell_x, self._cell_y)
+        drop.setflags(write=False)
+        self.drop_mask = drop
+        self._rebuild()
+        self._footprints: dict[float, tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
+
+    # -- objects -------------------------------------------------------------------------------
+    def _add(self, item: Furniture, *, check_inside: bool) -> int:
+        label = self._next_label
+        if label > np.iinfo(np.int16).max:
+            raise ConfigError("too many objects in the scene")
+        if check_inside and not item.contains(self._cell_x, self._cell_y).any():
+            where = f"world {self.world.source}" if self.world.source else f"world '{self.world.name}'"
+            raise ConfigError(f"furniture '{item.name}' covers no cell of the map", path=where)
+        self._objects[label] = item
+        self._next_label += 1
+        return label
+
+    def add_object(self, item: Furniture) -> int:
+        """Place an obstacle at run time (the dashboard's 'drop obstacle'); returns its id."""
+        if not item.contains(self._cell_x, self._cell_y).any():
+            raise ConfigError(f"obstacle '{item.name}' is outside the map", path="drop obstacle")
+        label = self._add(item, check_inside=False)
+        self._rebuild()
+        return label
+
+    def remove_object(self, object_id: int) -> Furniture:
+        """Take an obstacle away again; unknown ids raise `ConfigError`."""
+        try:
+            item = self._objects.pop(object_id)
+        except KeyError:
+            raise ConfigError(f"no obstacle with id {object_id}", path="remove obstacle") from None
+        self._rebuild()
+        return item
+
+    @property
+    def objects(self) -> dict[int, Furniture]:
+        """Id → furniture or dropped obstacle currently in the scene."""
+        return dict(self._objects)
+
+    def _rebuild(self) -> None:
+        labels = np.where(self.map.occupied, WALL, 0).astype(np.int16)
+        for label, item in self._objects.items():
+            labels[item.contains(self._cell_x, self._cell_y)] = label
+        labels.setflags(write=False)
+        self.labels = labels
+        self.blocked = labels != 0
+        self.walls = labels == WALL
+        self.furniture = labels >= FIRST_OBJECT
+        # Distance from each cell centre to the nearest blocked cell centre: lets `clearance` answer at once
+        # when nothing is near, which is almost always.
+        self._edt_m = ndimage.distance_transform_edt(~self.blocked) * self.resolution_m if self.blocked.any() \
+            else np.full(labels.shape, np.inf)
+        n = self._next_label
+        colors = np.zeros((n, 3), dtype=np.float64)
+        heights = np.zeros(n, dtype=np.float64)
+        colors[WALL] = WALL_COLOR
+        heights[WALL] = self.world.wall_height_m
+        for label, item in self._objects.items():
+            colors[label] = item.color
+            heights[label] = item.height_m
+        self.label_colors = colors
+        self.label_heights = heights
+
+    def name_of(self, label: int) -> str:
+        """What a label is, for collision reports."""
+        if label == WALL:
+            return "wall"
+        item = self._objects.get(label)
+        return item.name if item is not None else f"object {label}"
+
+    # -- frames --------------------------------------------------------------------------------
+    def to_grid_frame(self, x_m: float, y_m: float, yaw_rad: float) -> tuple[float, float, float]:
+        """A world pose in the grid frame (metres from the grid's lower-left corner, yaw relative)."""
+        o = self.map.origin
+        dx, dy = x_m - o.x_m, y_m - o.y_m
+        if o.yaw_rad:
+            c, s = math.cos(o.yaw_rad), math.sin(o.yaw_rad)
+            dx, dy = c * dx + s * dy, -s * dx + c * dy
+        return dx, dy, yaw_rad - o.yaw_rad
+
+    def cell_of(self, x_m: float, y_m: float) -> tuple[int, int] | None:
+        """(row, col) of a world point, or None outside the grid."""
+        gx, gy, _ = self.to_grid_frame(x_m, y_m, 0.0)
+        row, col = math.floor(gy / self.resolution_m), math.floor(gx / self.resolution_m)
+        h, w = self.labels.shape
+        return (row, col) if 0 <= row < h and 0 <= col < w else None
+
+    def in_drop_zone(self, x_m: float, y_m: float) -> bool:
+        """Whether a point's cell is over a drop zone."""
+        cell = self.cell_of(x_m, y_m)
+        return cell is not None and bool(self.drop_mask[cell])
+
+    # -- bodies --------------------------------------------------------------------------------
+    def _offsets(self, radius_m: float) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        cached = self._footprints.get(radius_m)
+        if cached is None:
+            reach = math.ceil(radius_m / self.resolution_m) + 1
+            dr, dc = np.mgrid[-reach:reach + 1, -reach:reach + 1]
+            cached = (dr.ravel().astype(np.intp), dc.ravel().astype(np.intp))
+            self._footprints[radius_m] = cached
+        return cached
+
+    def clearance(self, x_m: float, y_m: float, radius_m: float) -> Contact:
+        """Distance from a disc of ``radius_m`` at (x, y) to the nearest blocked cell (negative: inside).
+
+        Only cells within reach of the disc are examined, so the answer is exact up to ``radius_m`` plus
+        a cell; farther away the clearance is reported as that reach.
+        """
+        res = self.resolution_m
+        gx, gy, _ = self.to_grid_frame(x_m, y_m, 0.0)
+        row0, col0 = math.floor(gy / res), math.floor(gx / res)
+        reach = (math.ceil(radius_m / res) + 1) * res - radius_m
+        h, w = self.labels.shape
+        if 0 <= row0 < h and 0 <= col0 < w:
+            # The exact distance is at least the centre-to-centre one minus two half cell diagonals.
+            lower = float(self._edt_m[row0, col0]) - 1.4143 * res - radius_m
+            if lower > reach:
+                return Contact(reach, "")
+        dr, dc = self._offsets(radius_m)
+        rows, cols = row0 + dr, col0 + dc
+        inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        rows, cols = rows[inside], cols[inside]
+        lab = self.labels[rows, cols]
+        hit = lab != 0
+        if not hit.any():
+            return Contact(reach, "")
+        rows, cols, lab = rows[hit], cols[hit], lab[hit]
+        # Nearest point of each cell's square to the centre.
+        nx = np.clip(gx, cols * res, (cols + 1) * res) - gx
+        ny = np.clip(gy, rows * res, (rows + 1) * res) - gy
+        d = np.hypot(nx, ny)
+        i = int(np.argmin(d))
+        return Contact(min(float(d[i]) - radius_m, reach), self.name_of(int(lab[i])))

@@ -1,0 +1,329 @@
+"""The simulation: one world, one base on two wheel models, its sensors, and the scheduler components.
+
+Wiring (see `Simulation.attach`): physics ticks at ``physics_hz`` (steps the wheel models, the base and
+the moving obstacles from the time elapsed since the last tick), each sensor at its own rate reads the
+true state and publishes what the robot would see. Everything runs from the scheduler's injected clock,
+and every random source is a child of the one generator given at construction (one child per
+subsystem), so switching the camera on or changing the lidar's noise does not change the trajectory,
+and the same seed and world give the same ground truth, step for step.
+
+Ground truth (`Simulation.pose`, the ``sim.truth`` component) is for tests, benchmarks and the
+dashboard's simulation panel only; the robot sees scans, IMU samples, cliff readings, camera frames and
+its wheels' speeds.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Generic, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from atemr.config import SimConfig
+from atemr.errors import ConfigError
+from atemr.io.sim.base import BaseParams, Collision, DiffDriveBase, WheelMotor
+from atemr.io.sim.camera import Camera, CameraParams
+from atemr.io.sim.cliff import CliffParams, CliffSensors
+from atemr.io.sim.imu import Imu, ImuParams
+from atemr.io.sim.lidar import Lidar, LidarParams
+from atemr.io.sim.movers import Movers
+from atemr.io.sim.scene import Contact, Scene
+from atemr.io.sim.world import Furniture, World, load_world
+from atemr.msgs import CliffReadings, ImuSample, LaserScan, Pose2D
+
+log = logging.getLogger(__name__)
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class SimParams:
+    """Rates and sensor/base models of a simulation (``camera_hz = 0``: no camera)."""
+
+    base: BaseParams = field(default_factory=BaseParams)
+    lidar: LidarParams = field(default_factory=LidarParams)
+    imu: ImuParams = field(default_factory=ImuParams)
+    cliff: CliffParams = field(default_factory=CliffParams)
+    camera: CameraParams = field(default_factory=CameraParams)
+    physics_hz: float = 100.0
+    lidar_hz: float = 10.0
+    imu_hz: float = 50.0
+    cliff_hz: float = 20.0
+    camera_hz: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("physics_hz", "lidar_hz", "imu_hz", "cliff_hz"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0 < value <= 10_000):
+                raise ConfigError(f"must be within (0, 10000] Hz, got {value!r}", path=f"sim.{name}")
+        if not (math.isfinite(self.camera_hz) and 0 <= self.camera_hz <= 120):
+            raise ConfigError(f"must be within [0, 120] Hz (0: off), got {self.camera_hz!r}", path="sim.camera_hz")
+
+
+@dataclass(frozen=True)
+class Fall:
+    """The base drove over a drop zone at time ``t``: it is stuck there (a real robot would be down the stairs)."""
+
+    t: float
+    pose: Pose2D
+    zone: str
+
+
+class SensorComponent(Generic[T]):
+    """A scheduler component that produces one reading per tick, keeps the latest and tells subscribers.
+
+    A subscriber that raises is logged and does not stop the others (as a python-can listener must not
+    stop a Notifier).
+    """
+
+    def __init__(self, name: str, read: Callable[[float], T]) -> None:
+        self.name = name
+        self._read = read
+        self.latest: T | None = None
+        self.count = 0
+        self._subscribers: list[Callable[[T], None]] = []
+
+    def subscribe(self, callback: Callable[[T], None]) -> None:
+        """Call ``callback(reading)`` after every tick."""
+        self._subscribers.append(callback)
+
+    def tick(self, now: float) -> None:
+        reading = self._read(now)
+        self.latest = reading
+        self.count += 1
+        for callback in self._subscribers:
+            try:
+                callback(reading)
+            except Exception:
+                log.exception("%s: a subscriber failed", self.name)
+
+
+@dataclass(frozen=True)
+class TruePose:
+    """Ground truth at time ``t``: pose, body speed and turn rate."""
+
+    t: float
+    pose: Pose2D
+    v_mps: float
+    w_radps: float
+
+
+class Simulation:
+    """A world with the robot in it. Build with `build_simulation`; schedule with `attach`."""
+
+    def __init__(
+        self,
+        world: World,
+        left: WheelMotor,
+        right: WheelMotor,
+        rng: np.random.Generator,
+        params: SimParams | None = None,
+    ) -> None:
+        self.world = world
+        self.params = params or SimParams()
+        self.left = left
+        self.right = right
+        base_rng, lidar_rng, imu_rng, cliff_rng, movers_rng = rng.spawn(5)
+        self.scene = Scene(world)
+        self.movers = Movers(world.movers, self.scene, movers_rng)
+        p = self.params
+        self.base = DiffDriveBase(left, right, params=p.base, pose=world.start, rng=base_rng,
+                                  clearance=self._clearance)
+        start = self._clearance(world.start.x_m, world.start.y_m)
+        if start.clearance_m < 0:
+            raise ConfigError(f"start pose ({world.start.x_m}, {world.start.y_m}) overlaps {start.what}",
+                              file=world.source, path="start")
+        self.lidar = Lidar(p.lidar, lidar_rng)
+        self.imu = Imu(p.imu, imu_rng)
+        self.cliff = CliffSensors(p.cliff, world.drop_zones, cliff_rng)
+        self.camera = Camera(p.camera)
+        self.falls: list[Fall] = []
+        self._last_t: float | None = None
+        self.t = 0.0
+        self.physics = SensorComponent[TruePose]("sim.physics", self.step_to)
+        self.lidar_source = SensorComponent[LaserScan]("sim.lidar", self.read_lidar)
+        self.imu_source = SensorComponent[ImuSample]("sim.imu", self.read_imu)
+        self.cliff_source = SensorComponent[CliffReadings]("sim.cliff", self.read_cliff)
+        self.camera_source = SensorComponent[NDArray[np.uint8]]("sim.camera", self.render_camera)
+
+    # -- wiring --------------------------------------------------------------------------------
+    def components(self) -> list[tuple[SensorComponent[Any], float]]:
+        """(component, rate) pairs to schedule; the camera only when ``camera_hz > 0``."""
+        p = self.params
+        out: list[tuple[SensorComponent[Any], float]] = [
+            (self.physics, p.physics_hz), (self.lidar_source, p.lidar_hz), (self.imu_source, p.imu_hz),
+            (self.cliff_source, p.cliff_hz),
+        ]
+        if p.camera_hz > 0:
+            out.append((self.camera_source, p.camera_hz))
+        return out
+
+    def attach(self, scheduler: Any) -> None:
+        """Add every component to ``scheduler`` (physics first, so sensors read the state of the same tick)."""
+        for component, rate in self.components():
+            scheduler.add(component, rate)
+
+    # -- physics -------------------------------------------------------------------------------
+    def _clearance(self, x: float, y: float) -> Contact:
+        r = self.params.base.footprint_radius_m
+        contact = self.scene.clearance(x, y, r)
+        for m in self.movers.items:
+            gap = math.hypot(m.x_m - x, m.y_m - y) - m.spec.radius_m - r
+            if gap < contact.clearance_m:
+                contact = Contact(gap, m.name)
+        return contact
+
+    def step_to(self, now: float) -> TruePose:
+        """Advance the wheels, the base and the moving obstacles to time ``now``."""
+        dt = 0.0 if self._last_t is None else now - self._last_t
+        self._last_t = now
+        self.t = now
+        if dt > 0:
+            pose = self.base.pose
+            self.movers.step(dt, (pose.x_m, pose.y_m), self.params.base.footprint_radius_m)
+            if self.falls:
+                self.left.step(dt)
+                self.right.step(dt)
+                self.base.v_mps = self.base.w_radps = self.base.accel_mps2 = 0.0
+            else:
+                event = self.base.step(now, dt)
+                if event is not None:
+                    log.info("collision at t=%.2f s with %s at (%.2f, %.2f)", event.t, event.what,
+                             event.pose.x_m, event.pose.y_m)
+                self._check_fall(now)
+        return TruePose(now, self.base.pose, self.base.v_mps, self.base.w_radps)
+
+    def _check_fall(self, now: float) -> None:
+        pose = self.base.pose
+        if not self.scene.in_drop_zone(pose.x_m, pose.y_m):
+            return
+        zone = next((z.name for z in self.world.drop_zones
+                     if z.contains(np.array([pose.x_m]), np.array([pose.y_m]))[0]), "drop zone")
+        self.falls.append(Fall(now, pose, zone))
+        log.warning("the robot fell at t=%.2f s: %s at (%.2f, %.2f)", now, zone, pose.x_m, pose.y_m)
+
+    # -- sensors -------------------------------------------------------------------------------
+    def read_lidar(self, now: float) -> LaserScan:
+        return self.lidar.scan(now, self.base.pose, self.scene, self.movers.centres, self.movers.radii)
+
+    def read_imu(self, now: float) -> ImuSample:
+        b = self.base
+        return self.imu.sample(now, b.v_mps, b.w_radps, b.accel_mps2)
+
+    def read_cliff(self, now: float) -> CliffReadings:
+        return self.cliff.read(now, self.base.pose)
+
+    def render_camera(self, now: float) -> NDArray[np.uint8]:
+        return self.camera.render(self.base.pose, self.scene, self.movers)
+
+    # -- truth and events ----------------------------------------------------------------------
+    @property
+    def pose(self) -> Pose2D:
+        """Ground-truth pose (tests, benchmarks, the simulation panel; never the robot's own estimate)."""
+        return self.base.pose
+
+    @property
+    def odometry(self) -> Pose2D:
+        """Pose integrated from the wheels' speeds with encoder noise, from (0, 0, 0) at start."""
+        return self.base.odom_pose
+
+    @property
+    def collisions(self) -> list[Collision]:
+        return self.base.collisions
+
+    # -- run-time interventions (the dashboard's simulation panel) ------------------------------
+    def kidnap(self, pose: Pose2D) -> None:
+        """Teleport the robot to ``pose`` (tests relocalisation); refused inside an obstacle or off the map."""
+        if not all(math.isfinite(v) for v in (pose.x_m, pose.y_m, pose.yaw_rad)):
+            raise ConfigError(f"pose must be finite numbers, got {pose}", path="kidnap")
+        row, col = self.world.map.world_to_cell(pose.x_m, pose.y_m)
+        if not self.world.map.contains(row, col):
+            raise ConfigError(f"({pose.x_m:.2f}, {pose.y_m:.2f}) is outside the map", path="kidnap")
+        contact = self._clearance(pose.x_m, pose.y_m)
+        if contact.clearance_m < 0:
+            raise ConfigError(f"({pose.x_m:.2f}, {pose.y_m:.2f}) overlaps {contact.what}", path="kidnap")
+        self.base.teleport(pose)
+        self.falls.clear()
+
+    def drop_obstacle(
+        self, x_m: float, y_m: float, *, size_m: float = 0.4, shape: str = "box", name: str | None = None,
+        height_m: float = 0.6, color: tuple[int, int, int] = (60, 160, 90),
+    ) -> int:
+        """Put a box (side ``size_m``) or a cylinder (diameter ``size_m``) at (x, y); returns its id."""
+        if not all(math.isfinite(v) for v in (x_m, y_m, size_m, height_m)) or size_m <= 0 or height_m <= 0:
+            raise ConfigError("position must be finite and size/height > 0", path="drop obstacle")
+        half = size_m / 2
+        if shape == "box":
+            item = Furniture(name or "dropped box", "box", (x_m - half, y_m - half, x_m + half, y_m + half),
+                             height_m, color)
+        elif shape == "circle":
+            item = Furniture(name or "dropped cylinder", "circle", (x_m, y_m, half), height_m, color)
+        else:
+            raise ConfigError(f"shape must be 'box' or 'circle', got {shape!r}", path="drop obstacle")
+        return self.scene.add_object(item)
+
+    def remove_obstacle(self, object_id: int) -> None:
+        """Take away an obstacle placed with `drop_obstacle` (or a piece of furniture, by its id)."""
+        self.scene.remove_object(object_id)
+
+    def command_wheels(self, left_radps: float, right_radps: float) -> None:
+        """Set the wheels' speed commands, for wheel models with ``set_speed`` (the RMD model).
+
+        On the full robot the motor driver does this over CAN; this shortcut serves the stand-alone
+        ``atemr sim`` and tests.
+        """
+        for wheel, value in ((self.left, left_radps), (self.right, right_radps)):
+            setter = getattr(wheel, "set_speed", None)
+            if setter is None:
+                raise ConfigError(f"wheel {wheel!r} takes no speed commands (no set_speed)", path="command_wheels")
+            setter(value)
+
+    def command_twist(self, linear_mps: float, angular_radps: float) -> None:
+        """Command a body twist through the wheels (inverse differential-drive kinematics)."""
+        b = self.params.base
+        half = b.track_m / 2
+        self.command_wheels((linear_mps - angular_radps * half) / b.wheel_radius_m,
+                            (linear_mps + angular_radps * half) / b.wheel_radius_m)
+
+
+def params_from_config(cfg: SimConfig) -> SimParams:
+    """The simulation parameters named in the robot's configuration (``sim.*``); the rest keep defaults."""
+    return SimParams(
+        base=BaseParams(slip_std=cfg.wheel_slip, odom_noise_std=cfg.odom_noise),
+        lidar=LidarParams(beams=cfg.lidar_beams, noise_std_m=cfg.lidar_noise_m, dropout_prob=cfg.lidar_dropout),
+        camera=CameraParams(width=cfg.camera_width, height=cfg.camera_height),
+        physics_hz=cfg.physics_hz, lidar_hz=cfg.lidar_hz, imu_hz=cfg.imu_hz, cliff_hz=cfg.cliff_hz,
+        camera_hz=cfg.camera_hz,
+    )
+
+
+def default_wheels() -> tuple[WheelMotor, WheelMotor]:
+    """Two RMD-L-7015 motor models (first-order speed dynamics), the robot's real wheels."""
+    from atemr.io.motors.model import RmdMotorModel
+
+    return RmdMotorModel(), RmdMotorModel()
+
+
+def build_simulation(
+    world: str | Path | World,
+    seed: int,
+    *,
+    params: SimParams | None = None,
+    wheels: tuple[WheelMotor, WheelMotor] | None = None,
+) -> Simulation:
+    """A simulation of ``world`` (a shipped name, a world/map YAML path or a loaded `World`) seeded with ``seed``.
+
+    ``wheels`` default to two `RmdMotorModel`s; pass the motor emulator's models so CAN commands drive
+    the simulated base.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError(f"seed must be an integer >= 0, got {seed!r}", path="sim.seed")
+    params = params or SimParams()
+    loaded = world if isinstance(world, World) else load_world(world, robot_radius_m=params.base.footprint_radius_m)
+    left, right = wheels if wheels is not None else default_wheels()
+    return Simulation(loaded, left, right, np.random.default_rng(seed), params)
