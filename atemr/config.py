@@ -41,6 +41,22 @@ class SimConfig:
     speed: float = field(
         default=1.0, metadata={"min": 0.01, "max": 1000.0, "help": "real-time factor when locked to real time"}
     )
+    physics_hz: float = field(default=100.0, metadata={"min": 10.0, "max": 2000.0, "help": "base physics rate"})
+    lidar_hz: float = field(default=10.0, metadata={"min": 0.5, "max": 100.0, "help": "lidar revolutions per second"})
+    lidar_beams: int = field(default=360, metadata={"min": 8, "max": 8192, "help": "beams per revolution"})
+    lidar_noise_m: float = field(default=0.01, metadata={"min": 0.0, "max": 0.5, "help": "lidar range noise (std)"})
+    lidar_dropout: float = field(
+        default=0.005, metadata={"min": 0.0, "max": 0.9, "help": "fraction of beams returned as inf"}
+    )
+    imu_hz: float = field(default=50.0, metadata={"min": 1.0, "max": 1000.0})
+    cliff_hz: float = field(default=20.0, metadata={"min": 1.0, "max": 1000.0})
+    camera_hz: float = field(default=10.0, metadata={"min": 0.0, "max": 60.0, "help": "camera frames/s (0: off)"})
+    camera_width: int = field(default=640, metadata={"min": 16, "max": 4096})
+    camera_height: int = field(default=480, metadata={"min": 16, "max": 4096})
+    wheel_slip: float = field(default=0.02, metadata={"min": 0.0, "max": 0.4, "help": "typical wheel slip fraction"})
+    odom_noise: float = field(
+        default=0.01, metadata={"min": 0.0, "max": 0.4, "help": "encoder speed noise (fraction, std)"}
+    )
 
 
 @dataclass(frozen=True)
