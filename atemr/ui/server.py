@@ -72,9 +72,10 @@ class DashboardServer:
             return
         try:
             self._server = make_server(self.config.ui.host, self.config.ui.port, self.app, threaded=True)
-        except OSError as exc:
+        except (OSError, SystemExit) as exc:  # werkzeug exits (!) when the port is taken
+            why = exc.strerror if isinstance(exc, OSError) else "the address is in use or not available"
             raise HardwareError(
-                f"cannot listen on {self.config.ui.host}:{self.config.ui.port}: {exc.strerror}", component=self.name
+                f"cannot listen on {self.config.ui.host}:{self.config.ui.port}: {why}", component=self.name
             ) from None
         self._thread = threading.Thread(target=self._server.serve_forever, name="atemr-dashboard", daemon=True)
         self._thread.start()

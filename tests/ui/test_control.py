@@ -1,0 +1,59 @@
+"""Control and Mapping pages and the robot products fetched over HTTP (state, map image, screen)."""
+
+from __future__ import annotations
+
+from atemr.msgs import Pose2D
+from atemr.ui.gateway import MapImage
+
+
+def test_pages_render_for_users(alice):
+    for path in ("/control", "/mapping"):
+        html = alice.get(path).get_data(as_text=True)
+        assert 'id="joystick"' in html and 'id="map"' in html and 'id="mode-toggle"' in html, path
+    assert 'id="sim-panel"' in alice.get("/control").get_data(as_text=True)  # simulation by default
+    assert 'id="save-dialog"' in alice.get("/mapping").get_data(as_text=True)
+
+
+def test_index_goes_to_control(alice):
+    assert alice.get("/").location.endswith("/control")
+
+
+def test_state_json(alice, gateway):
+    gateway.snapshot["agent_state"] = "MAPPING"
+    body = alice.get("/api/state").get_json()
+    assert body["connected"] is True and body["agent_state"] == "MAPPING"
+
+
+def test_map_meta_and_png(alice, gateway):
+    assert alice.get("/api/map").get_json() is None
+    assert alice.get("/api/map.png").status_code == 404
+    gateway.map = MapImage(b"\x89PNG fake", 40, 20, 0.05, Pose2D(-1.0, -0.5, 0.0), 7)
+    meta = alice.get("/api/map").get_json()
+    assert meta == {"width_px": 40, "height_px": 20, "resolution_m": 0.05,
+                    "origin": {"x_m": -1.0, "y_m": -0.5, "yaw_rad": 0.0}, "version": 7}
+    png = alice.get("/api/map.png")
+    assert png.mimetype == "image/png" and png.data == b"\x89PNG fake"
+    assert png.headers["Cache-Control"] == "no-store"
+
+
+def test_secondary_screen(alice, gateway):
+    assert alice.get("/api/secondary-screen.png").status_code == 404
+    gateway.screen = b"\x89PNG screen"
+    assert alice.get("/api/secondary-screen.png").data == b"\x89PNG screen"
+
+
+def test_static_assets_are_served(alice):
+    for path in ("/static/css/dashboard.css", "/static/js/socket.js", "/static/js/statusbar.js",
+                 "/static/js/mapview.js", "/static/js/panel.js", "/static/js/media.js",
+                 "/static/control/control.js", "/static/mapping/mapping.js"):
+        response = alice.get(path)
+        assert response.status_code == 200, path
+        response.close()
+
+
+def test_mapping_page_lists_maps(alice, app):
+    maps = app.config["ATEMR_CONFIG"].data_dir / "maps"
+    maps.mkdir(parents=True)
+    (maps / "kitchen.yaml").write_text("image: kitchen.pgm\n")
+    html = alice.get("/mapping").get_data(as_text=True)
+    assert '<option value="kitchen">kitchen.yaml</option>' in html

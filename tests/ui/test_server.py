@@ -1,0 +1,56 @@
+"""The dashboard server component: real HTTP on a free port in a thread, pushes on tick, clean shutdown."""
+
+from __future__ import annotations
+
+import urllib.request
+
+import pytest
+
+from atemr.errors import HardwareError
+from atemr.ui.server import PUSH_RATE_HZ, DashboardServer
+
+
+def test_serves_on_a_free_port_and_shuts_down(tmp_path, gateway, ui):
+    server = DashboardServer(ui.make_config(tmp_path, port=0), gateway, hash_method=ui.FAST_SCRYPT)
+    with pytest.raises(HardwareError, match="not started"):
+        _ = server.port
+    server.start()
+    try:
+        assert server.running and server.port > 0
+        with urllib.request.urlopen(f"{server.url}/auth/first-start", timeout=5) as response:
+            assert response.status == 200 and b"First start" in response.read()
+        server.tick(0.0)
+        assert server.pushes == 1
+    finally:
+        server.shutdown()
+    assert not server.running
+    server.shutdown()  # idempotent
+    assert PUSH_RATE_HZ == 10.0
+
+
+def test_port_in_use_is_a_hardware_error(tmp_path, gateway, ui):
+    first = DashboardServer(ui.make_config(tmp_path, port=0), gateway, hash_method=ui.FAST_SCRYPT)
+    first.start()
+    try:
+        second = DashboardServer(ui.make_config(tmp_path, port=first.port), gateway, hash_method=ui.FAST_SCRYPT)
+        with pytest.raises(HardwareError, match="cannot listen"):
+            second.start()
+    finally:
+        first.shutdown()
+
+
+def test_works_as_a_scheduler_component(tmp_path, gateway, ui):
+    from atemr.clock import SimClock
+    from atemr.scheduler import Scheduler
+
+    clock = SimClock()
+    sched = Scheduler(clock)
+    server = DashboardServer(ui.make_config(tmp_path, port=0), gateway, clock=clock, hash_method=ui.FAST_SCRYPT)
+    sched.add(server, PUSH_RATE_HZ)
+    sched.start()
+    try:
+        sched.run(duration=1.0)
+    finally:
+        sched.shutdown()
+    assert server.pushes == 11  # t = 0.0, 0.1, ..., 1.0
+    assert not server.running

@@ -1,0 +1,190 @@
+"""Socket.IO: the connect check, every event (accepted, refused by role, refused for a bad payload),
+pushes at 10 Hz to logged-in clients only, camera frames to watchers only, same-origin handshakes."""
+
+from __future__ import annotations
+
+import base64
+import math
+
+import pytest
+
+from atemr.msgs import Pose2D, Twist
+from atemr.ui import sockets
+
+
+def sio(app, client):
+    return app.extensions["socketio"].test_client(app, flask_test_client=client)
+
+
+def test_connect_refused_without_a_session(app):
+    assert not sio(app, app.test_client()).is_connected()
+
+
+def test_connect_refused_for_a_user_without_access(app, ui):
+    client = app.test_client()
+    ui.login(client, "bob", ui.USER_PW)  # denied: no session
+    assert not sio(app, client).is_connected()
+
+
+def test_connect_accepted_with_a_session(app, alice):
+    ws = sio(app, alice)
+    assert ws.is_connected()
+    ws.disconnect()
+
+
+# (event, payload, gateway call expected)
+EVENTS = [
+    ("joystick", {"linear_mps": 0.3, "angular_radps": -0.5}, ("joystick", (Twist(0.3, -0.5),))),
+    ("mode", {"mode": "AUTO"}, ("set_mode", ("AUTO",))),
+    ("mode", {"mode": "MANUAL"}, ("set_mode", ("MANUAL",))),
+    ("goal", {"x_m": 1.0, "y_m": 2.0, "yaw_rad": 0.5}, ("set_goal", (Pose2D(1.0, 2.0, 0.5),))),
+    ("initial_pose", {"x_m": -1.0, "y_m": 0.0, "yaw_rad": 0.0}, ("set_initial_pose", (Pose2D(-1.0, 0.0, 0.0),))),
+    ("cancel_goal", None, ("cancel_goal", ())),
+    ("capture_image", None, ("capture_image", ())),
+    ("record_video", {"on": True}, ("record_video", (True,))),
+    ("mission_start", {"name": "patrol"}, ("start_mission", ("patrol",))),
+    ("mission_stop", None, ("stop_mission", ())),
+    ("sim_button", {"hold_s": 1.2}, ("sim_button", (1.2,))),
+    ("sim_obstacle", {"x_m": 1.5, "y_m": -0.5}, ("sim_drop_obstacle", (1.5, -0.5))),
+    ("sim_kidnap", {"x_m": 3.0, "y_m": 1.0, "yaw_rad": 3.0}, ("sim_kidnap", (Pose2D(3.0, 1.0, 3.0),))),
+    ("mapping_begin", None, ("begin_mapping", ())),
+    ("mapping_end", None, ("end_mapping", ())),
+    ("map_save", {"name": "kitchen"}, ("save_map", ("kitchen",))),
+    ("map_discard", None, ("discard_map", ())),
+    ("map_select", {"name": "kitchen.yaml"}, ("select_map", ("kitchen",))),
+]
+
+
+@pytest.mark.parametrize(("event", "data", "call"), EVENTS, ids=[e[0] + str(i) for i, e in enumerate(EVENTS)])
+def test_every_event_reaches_the_gateway(app, alice, gateway, event, data, call):
+    ws = sio(app, alice)
+    ack = ws.emit(event, data, callback=True)
+    assert ack == {"ok": True, "reason": ""}
+    assert gateway.calls == [call]
+    ws.disconnect()
+
+
+@pytest.mark.parametrize(("event", "data", "call"), EVENTS, ids=[e[0] + str(i) for i, e in enumerate(EVENTS)])
+def test_every_event_passes_on_the_robots_refusal(app, alice, gateway, event, data, call):
+    gateway.refuse[call[0]] = "not now"
+    ack = sio(app, alice).emit(event, data, callback=True)
+    assert ack == {"ok": False, "reason": "not now"}
+
+
+@pytest.mark.parametrize(("event", "data", "call"), EVENTS, ids=[e[0] + str(i) for i, e in enumerate(EVENTS)])
+def test_every_event_rechecks_the_role(app, alice, gateway, event, data, call):
+    ws = sio(app, alice)
+    app.extensions["atemr.users"].set_role("alice", "none")  # revoked behind the socket's back
+    ack = ws.emit(event, data, callback=True)
+    assert ack["ok"] is False and "needs the user role" in ack["reason"]
+    assert gateway.calls == []
+
+
+BAD = [
+    ("joystick", {"linear_mps": math.nan, "angular_radps": 0}),
+    ("joystick", {"linear_mps": 9.0, "angular_radps": 0}),
+    ("joystick", {"linear_mps": "0.2", "angular_radps": 0}),
+    ("joystick", {"linear_mps": True, "angular_radps": 0}),
+    ("joystick", [0.2, 0.0]),
+    ("joystick", None),
+    ("mode", {"mode": "TURBO"}),
+    ("goal", {"x_m": 1.0, "y_m": math.inf, "yaw_rad": 0}),
+    ("goal", {"x_m": 1.0}),
+    ("record_video", {"on": "yes"}),
+    ("mission_start", {"name": ""}),
+    ("sim_button", {"hold_s": 100}),
+    ("map_save", {"name": "../../etc/passwd"}),
+    ("map_save", {"name": "a b"}),
+    ("map_select", {"name": ".hidden"}),
+]
+
+
+@pytest.mark.parametrize(("event", "data"), BAD)
+def test_bad_payloads_are_refused_with_the_field_named(app, alice, gateway, event, data):
+    ack = sio(app, alice).emit(event, data, callback=True)
+    assert ack["ok"] is False
+    assert event in ack["reason"] or "unknown mode" in ack["reason"]
+    assert gateway.calls == []
+
+
+def test_yaw_is_wrapped(app, alice, gateway):
+    sio(app, alice).emit("goal", {"x_m": 0, "y_m": 0, "yaw_rad": 2 * math.pi + 0.25}, callback=True)
+    assert gateway.calls[0][1][0].yaw_rad == pytest.approx(0.25)
+
+
+def test_push_sends_state_to_logged_in_clients_only(app, alice, gateway):
+    ws = sio(app, alice)
+    other = app.test_client()
+    assert not sio(app, other).is_connected()
+    gateway.snapshot["agent_state"] = "EXEC"
+    assert sockets.push(app, gateway) == 1
+    received = [m for m in ws.get_received() if m["name"] == "state"]
+    assert received and received[-1]["args"][0]["agent_state"] == "EXEC"
+
+
+def test_push_reads_nothing_when_nobody_watches(app, gateway):
+    gateway.state = None  # would raise if called
+    assert sockets.push(app, gateway) == 0
+
+
+def test_a_failing_gateway_is_reported_not_fatal(app, alice, gateway):
+    ws = sio(app, alice)
+
+    def broken() -> dict:
+        raise RuntimeError("robot-side bug")
+
+    gateway.state = broken
+    sockets.push(app, gateway)
+    state = [m for m in ws.get_received() if m["name"] == "state"][-1]["args"][0]
+    assert "could not be read" in state["error"]
+
+
+def test_camera_frames_only_to_watchers(app, alice, gateway, ui):
+    gateway.jpeg = b"\xff\xd8jpeg\xff\xd9"
+    watcher = sio(app, alice)
+    second = app.test_client()
+    ui.login(second, "admin", ui.ADMIN_PW)
+    idle = sio(app, second)
+    assert watcher.emit("camera", {"on": True}, callback=True)["on"] is True
+    sockets.push(app, gateway)
+    frames = [m for m in watcher.get_received() if m["name"] == "camera"]
+    assert base64.b64decode(frames[-1]["args"][0]["jpeg"]) == gateway.jpeg
+    assert not [m for m in idle.get_received() if m["name"] == "camera"]
+    watcher.emit("camera", {"on": False}, callback=True)
+    sockets.push(app, gateway)
+    assert not [m for m in watcher.get_received() if m["name"] == "camera"]
+
+
+def test_logout_and_role_change_disconnect_the_users_sockets(app, alice, ui):
+    ws = sio(app, alice)
+    assert ws.is_connected()
+    ui.post(alice, "/auth/logout")
+    assert not ws.is_connected()
+    admin = app.test_client()
+    ui.login(admin, "admin", ui.ADMIN_PW)
+    carol = app.test_client()
+    app.extensions["atemr.users"].create("carol", "carol-pass", "user")
+    ui.login(carol, "carol", "carol-pass")
+    ws2 = sio(app, carol)
+    assert ws2.is_connected()
+    ui.post(admin, "/settings/users/carol/role", {"role": "none"})
+    assert not ws2.is_connected()
+
+
+def test_without_a_robot_events_are_refused(tmp_path, ui):
+    from atemr.ui.app import create_app
+
+    app = create_app(ui.make_config(tmp_path), None, hash_method=ui.FAST_SCRYPT)
+    app.extensions["atemr.users"].set_password("admin", ui.ADMIN_PW)
+    client = app.test_client()
+    ui.login(client, "admin", ui.ADMIN_PW)
+    ack = sio(app, client).emit("mode", {"mode": "AUTO"}, callback=True)
+    assert ack == {"ok": False, "reason": "no robot is connected to the dashboard"}
+
+
+def test_cross_origin_handshake_is_refused(app, alice):
+    ok = alice.get("/socket.io/?EIO=4&transport=polling", headers={"Origin": "http://localhost"})
+    assert ok.status_code == 200
+    evil = alice.get("/socket.io/?EIO=4&transport=polling", headers={"Origin": "http://evil.example"})
+    assert evil.status_code == 400
+    assert app.extensions["socketio"].server.eio.cors_allowed_origins != "*"
