@@ -21,10 +21,10 @@ from collections.abc import Sequence
 from types import FrameType
 from typing import TextIO
 
-import can
-
 from atemr.clock import WallClock
+from atemr.config import CanConfig
 from atemr.errors import AtemrError, HardwareError
+from atemr.io.can.bus import open_bus
 from atemr.msgs import CliffReadings
 from atemr.scheduler import Scheduler
 from secondary_core.board import BoardConfig, SecondaryCore
@@ -116,14 +116,6 @@ def _read_keys(core: SecondaryCore, scheduler: Scheduler, stream: TextIO) -> Non
     scheduler.stop()
 
 
-def open_bus(interface: str, channel: str, bitrate: int) -> can.BusABC:
-    """The python-can bus to run on; any failure becomes a `HardwareError` that says what to check."""
-    try:
-        return can.Bus(interface=interface, channel=channel, bitrate=bitrate)
-    except (can.CanError, OSError, ImportError, ValueError, NotImplementedError) as exc:
-        raise HardwareError(f"cannot open {interface} bus '{channel}': {exc}", component="CAN") from exc
-
-
 def main(argv: Sequence[str] | None = None, *, stdin: TextIO | None = None, stdout: TextIO | None = None) -> int:
     """Entry point of ``atemr-secondary``; returns the exit code (2 for a bus or configuration error)."""
     args = build_parser().parse_args(argv)
@@ -133,7 +125,7 @@ def main(argv: Sequence[str] | None = None, *, stdin: TextIO | None = None, stdo
         if not (math.isfinite(args.rate) and args.rate > 0):
             raise HardwareError(f"--rate must be > 0 Hz, got {args.rate}", component="secondary core")
         config = BoardConfig(robot_name=args.name, boot_s=args.boot_s)
-        bus = open_bus(args.interface, args.channel, args.bitrate)
+        bus = open_bus(CanConfig(interface=args.interface, channel=args.channel, bitrate=args.bitrate))
     except AtemrError as exc:
         print(f"atemr-secondary: error: {exc}", file=sys.stderr)
         return 2

@@ -65,7 +65,7 @@ class _Spy:
 class LinkBench:
     """Board + primary link + spy on one virtual bus; ``board_bus``/``link_bus`` may wrap the raw buses.
 
-    ``wrap_board_bus`` lets a test put a fault-injecting wrapper between the board and the bus.
+    ``wrap_board_bus(bus, clock)`` lets a test put a fault-injecting wrapper between the board and the bus.
     """
 
     def __init__(
@@ -75,14 +75,14 @@ class LinkBench:
         config: BoardConfig | None = None,
         cliff: CliffReadings | None = None,
         network: RecordingNetworkBackend | None = None,
-        wrap_board_bus: Callable[[can.BusABC], Any] | None = None,
+        wrap_board_bus: Callable[[can.BusABC, SimClock], Any] | None = None,
         link_kwargs: dict[str, Any] | None = None,
     ) -> None:
         self.channel = channel or unique_channel()
         self.clock = SimClock()
         self._buses = [can.Bus(interface="virtual", channel=self.channel) for _ in range(3)]
         raw_board, self.link_bus, self.spy = self._buses
-        self.board_bus = wrap_board_bus(raw_board) if wrap_board_bus else raw_board
+        self.board_bus = wrap_board_bus(raw_board, self.clock) if wrap_board_bus else raw_board
         self.cliff = cliff
         self.network = network or RecordingNetworkBackend()
         self.core = SecondaryCore(self.board_bus, cliff_source=lambda: self.cliff, config=config)

@@ -143,6 +143,7 @@ class PortalHost:
         self.app = app or create_portal_app(core)
         self._server: BaseWSGIServer | None = None
         self._thread: threading.Thread | None = None
+        self._stopping: list[threading.Thread] = []
         self.error: str | None = None
 
     @property
@@ -162,7 +163,11 @@ class PortalHost:
             self._stop_server(wait=False)
 
     def shutdown(self) -> None:
+        """Stop the server (if serving) and wait for every server thread to end."""
         self._stop_server(wait=True)
+        for thread in self._stopping:
+            thread.join(timeout=5)
+        self._stopping.clear()
 
     def _start_server(self) -> None:
         try:
@@ -194,4 +199,6 @@ class PortalHost:
         if wait:
             stop()
         else:
-            threading.Thread(target=stop, name="secondary-portal-stop", daemon=True).start()
+            stopper = threading.Thread(target=stop, name="secondary-portal-stop", daemon=True)
+            stopper.start()
+            self._stopping = [t for t in self._stopping if t.is_alive()] + [stopper]

@@ -162,6 +162,7 @@ class SecondaryLink:
         self._ssid_rx = SegmentedReceiver(SSID)
         self._password_rx = SegmentedReceiver(PASSWORD)
         self._ssid: tuple[float, str] | None = None
+        self._wifi_frame_t: float | None = None
         self._applying: deque[tuple[str, Future[None]]] = deque()
         self.wifi_results: deque[WifiResult] = deque(maxlen=50)
 
@@ -247,6 +248,7 @@ class SecondaryLink:
         self._send_heartbeat(now)
         self._check_heartbeat(now)
         self._send_status(now)
+        self._expire_wifi(now)
         self._collect_wifi(now)
 
     # -- internals ----------------------------------------------------------------------------
@@ -343,7 +345,23 @@ class SecondaryLink:
         elif isinstance(msg, WifiPasswordSegment):
             self._on_password_segment(msg, now)
 
+    def _expire_wifi(self, now: float) -> None:
+        """Give up on a transfer whose last frame never came, and on an SSID no password followed, so the
+        dashboard hears of the failure instead of waiting for ever."""
+        waiting = self._ssid_rx.in_progress or self._password_rx.in_progress
+        if waiting and self._wifi_frame_t is not None and now - self._wifi_frame_t > self._ssid_rx.max_gap_s:
+            ssid = self._ssid[1] if self._ssid else None
+            self._ssid_rx.reset()
+            self._password_rx.reset()
+            self._ssid = None
+            self._refuse(now, ssid, "transfer incomplete: its last frame never arrived")
+        elif self._ssid is not None and now - self._ssid[0] > self.credentials_pair_s:
+            ssid = self._ssid[1]
+            self._ssid = None
+            self._refuse(now, ssid, "SSID received but no password followed")
+
     def _on_ssid_segment(self, seg: WifiSsidSegment, now: float) -> None:
+        self._wifi_frame_t = now
         drops = self._ssid_rx.drops
         text = self._ssid_rx.feed(seg, now)
         if self._ssid_rx.drops != drops or seg.index == 0:
@@ -354,6 +372,7 @@ class SecondaryLink:
             self._ssid = (now, text)
 
     def _on_password_segment(self, seg: WifiPasswordSegment, now: float) -> None:
+        self._wifi_frame_t = now
         drops = self._password_rx.drops
         password = self._password_rx.feed(seg, now)
         ssid = self._ssid
