@@ -77,16 +77,24 @@ class Centroid(IntegralDefuzzifier):
 
 @dataclass(frozen=True)
 class Bisector(IntegralDefuzzifier):
-    """The x that splits the area in two halves: the sample(s) where the normalised cumulative area is
-    closest to 0.5, averaged (pyfuzzylite 8's vectorised definition)."""
+    """The x that splits the area in two equal halves.
+
+    Each sample stands for its cell at constant height (the same staircase Centroid integrates); the
+    cumulative area is linear inside a cell, so the half-area point is found exactly by interpolating
+    in the cell where the cumulative sum first reaches half of the total. NaN when the area is zero.
+    """
 
     def reduce(self, x: Array, y: Array) -> Array:
+        dx = x[1] - x[0] if len(x) > 1 else 1.0
+        area = np.cumsum(y, axis=1)
+        half = area[:, -1] / 2.0
+        i = np.argmax(area >= half[:, None], axis=1)
+        rows = np.arange(len(y))
+        before = np.where(i > 0, area[rows, i - 1], 0.0)
+        height = y[rows, i]
         with np.errstate(divide="ignore", invalid="ignore"):
-            area = np.cumsum(y, axis=1)
-            dist = np.abs(area / area[:, -1:] - 0.5)
-            best = dist == np.nanmin(np.where(np.isnan(dist), np.inf, dist), axis=1, keepdims=True)
-            count = best.sum(axis=1)
-            return np.where(count > 0, (best * x).sum(axis=1) / count, np.nan)
+            inside = np.where(height > 0, (half - before) / height, 0.5)
+            return np.where(half > 0, x[i] - dx / 2.0 + inside * dx, np.nan)
 
 
 def _maxima(y: Array) -> NDArray[np.bool_]:
