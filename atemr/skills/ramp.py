@@ -152,6 +152,7 @@ class SpeedRamp:
         self._last_now: float | None = None
         self._emergency = False
         self._clear_since: float | None = None
+        self._idle = False
         self.idle_detector = IdleDetector()
 
     @property
@@ -166,6 +167,11 @@ class SpeedRamp:
     @property
     def emergency(self) -> bool:
         return self._emergency
+
+    @property
+    def idle(self) -> bool:
+        """The idle flag as of the last `step`."""
+        return self._idle
 
     def set_limits(self, changes: Mapping[str, Any] | MotionLimits) -> MotionLimits:
         """Validate and apply new limits atomically; on `ConfigError` the old limits stay in force."""
@@ -196,7 +202,7 @@ class SpeedRamp:
         tv, tw = target.linear_mps, target.angular_radps
         if not (math.isfinite(tv) and math.isfinite(tw)):
             tv = tw = 0.0
-        idle = self.idle_detector.observe(now, command, lim.idle_after_s)
+        idle = self._idle = self.idle_detector.observe(now, command, lim.idle_after_s)
 
         directions = _signs(self._v, tv)
         if clearance is None:
