@@ -165,12 +165,14 @@ def engine_from_fll(source: str | Path, text: str | None = None) -> Engine:
     in_terms = {v.name: [t.name for t in v.terms] for v in inputs}
     out_terms = {v.name: [t.name for t in v.terms] for v in outputs}
     blocks: list[RuleBlock] = []
+    lines: dict[str, int] = {}
     block_lines: list[int] = []
     for s in sections:
         if s.kind != "RuleBlock" or not _bool(s, "enabled", True, file):
             continue
         rules = []
-        for rtext, line in s.rules:
+        for ri, (rtext, line) in enumerate(s.rules):
+            lines[f"rule_blocks:{len(blocks)}.rules:{ri}"] = line
             try:
                 rules.append(parse_rule(rtext, in_terms, out_terms))
             except ConfigError as exc:
@@ -179,7 +181,7 @@ def engine_from_fll(source: str | Path, text: str | None = None) -> Engine:
         blocks.append(RuleBlock(s.name or f"block{len(blocks)}", tuple(rules), _operator(s, "conjunction"),
                                 _operator(s, "disjunction"), _operator(s, "implication"),
                                 s.props.get("activation", ("General", 0))[0] or "General"))
-    lines = {s.kind + ":" + s.name: s.line for s in sections}
+    lines.update({s.kind + ":" + s.name: s.line for s in sections})
     lines.update({f"rule_blocks:{i}": line for i, line in enumerate(block_lines)})
     try:
         return Engine(sections[0].name, tuple(inputs), tuple(outputs), tuple(blocks),
@@ -196,6 +198,8 @@ def _line_for(path: str, lines: dict[str, int]) -> int | None:
         return lines.get(f"OutputVariable:{parts[1]}")
     if parts[0] == "inputs" and len(parts) > 1:
         return lines.get(f"InputVariable:{parts[1]}")
+    if parts[0] == "rule_blocks" and len(parts) > 3 and parts[2] == "rules":
+        return lines.get(f"rule_blocks:{parts[1].rstrip(']')}.rules:{parts[3].rstrip(']')}")
     if parts[0] == "rule_blocks" and len(parts) > 1:
         return lines.get(f"rule_blocks:{parts[1].rstrip(']')}")
     return None

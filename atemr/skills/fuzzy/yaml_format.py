@@ -69,8 +69,8 @@ class _Doc:
             line, col = key_mark_of(container, key) if on_key else mark_of(container, key)
         return ConfigError(message, file=self.file, line=line, column=col, path=path)
 
-    def remember(self, path: str, container: Any, key: Any = None) -> None:
-        self.marks[path] = mark_of(container, key)
+    def remember(self, path: str, container: Any, key: Any = None, on_key: bool = False) -> None:
+        self.marks[path] = key_mark_of(container, key) if on_key else mark_of(container, key)
 
     def mapping(self, value: Any, path: str, parent: Any, key: Any, allowed: tuple[str, ...]) -> MarkedDict:
         if not isinstance(value, dict):
@@ -158,7 +158,7 @@ def _input(doc: _Doc, name: str, spec: Any, parent: Any) -> InputVariable:
     spec = doc.mapping(spec, path, parent, name, INPUT_KEYS)
     lo, hi = _range(doc, spec, path)
     lock = doc.boolean(spec["lock_range"], f"{path}.lock_range", spec, "lock_range") if "lock_range" in spec else False
-    doc.remember(path, parent, name)
+    doc.remember(path, parent, name, on_key=True)
     return InputVariable(name, lo, hi, _terms(doc, spec, path), lock)
 
 
@@ -187,7 +187,7 @@ def _output(doc: _Doc, name: str, spec: Any, parent: Any) -> OutputVariable:
             raise ConfigError("expected 'Name [parameter]' or {type:, resolution:}")
     except ConfigError as exc:
         raise doc.error(exc.reason, dpath, spec, "defuzzifier") from None
-    doc.remember(path, parent, name)
+    doc.remember(path, parent, name, on_key=True)
     for key in ("aggregation", "defuzzifier", "range"):
         if key in spec:
             doc.remember(f"{path}.{key}", spec, key)
