@@ -30,7 +30,6 @@ from atemr.errors import AtemrError, ConfigError
 from atemr.fsm.codes import state_code, top_level
 from atemr.fsm.machine import Lifecycle, TransitionRecord
 from atemr.fsm.spec import AgentSpec, StateSpec, load_agent
-from atemr.trees import leaves as _leaves  # registers the built-in behaviours
 from atemr.trees.behaviours import Leaf
 from atemr.trees.builder import build, setup_tree
 from atemr.trees.context import AGENT_NS, AgentContext, Event
@@ -38,7 +37,6 @@ from atemr.trees.ports import LinkPort, RobotPort
 
 log = logging.getLogger(__name__)
 Status = py_trees.common.Status
-_ = _leaves
 
 #: The agent document shipped with the package checkout.
 DEFAULT_AGENT_FILE = Path(__file__).resolve().parents[2] / "trees" / "agent.yaml"

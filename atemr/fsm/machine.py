@@ -170,3 +170,48 @@ class Lifecycle:
 def trace_dicts(records: Iterable[TransitionRecord]) -> list[dict[str, Any]]:
     """The trace as JSON-able dicts."""
     return [r.as_dict() for r in records]
+
+
+def replay(spec: AgentSpec, records: Iterable[TransitionRecord]) -> list[TransitionRecord]:
+    """Re-run the accepted transitions of a recorded trace on a fresh machine and return its records.
+
+    For each step the guards are set to what makes the recorded transition the one transitions picks
+    (its ``conditions`` hold, its ``unless`` guards do not); callbacks are not run. A trace recorded
+    from a different document, or edited, comes back with a refused or different record at that step.
+    """
+    recorded = list(records)
+    steps = [r for r in recorded if r.accepted and r.trigger != "(initial)"]
+    first = next((r for r in recorded if r.trigger == "(initial)"), None)
+    inputs: dict[str, bool] = {}
+
+    def answer(name: str) -> Guard:
+        def guard(g: GuardInput) -> str | None:
+            return None if inputs.get(name, True) else f"{name} was false when recorded"
+
+        return guard
+
+    guard_registry: Registry[Guard] = Registry("replay-guards")
+    for name in {g for t in spec.transitions for g in (*t.conditions, *t.unless)}:
+        guard_registry.add(name, answer(name))
+    callback_registry: Registry[Callback] = Registry("replay-callbacks")
+    names = {c for t in spec.transitions for c in (*t.before, *t.after)}
+    names |= {c for s in spec.states.values() for c in (*s.on_enter, *s.on_exit)}
+    def skip(g: GuardInput) -> None:
+        return None
+
+    for name in names:
+        callback_registry.add(name, skip)
+    context = AgentContext(port=None)  # type: ignore[arg-type]  # guards and callbacks here never use it
+    machine = Lifecycle(spec, context, guard_registry=guard_registry, callback_registry=callback_registry,
+                        initial=first.dest if first and first.dest else None)
+    out: list[TransitionRecord] = []
+    for record in steps:
+        context.now = record.t
+        inputs.clear()
+        for t in spec.transitions:
+            if t.trigger == record.trigger and spec.covers(t, machine.state) and spec.leaf_of(t.dest) == record.dest:
+                inputs.update({g: True for g in t.conditions})
+                inputs.update({g: False for g in t.unless})
+                break
+        out.append(machine.fire(record.trigger, reason=record.reason, origin=record.origin))
+    return out

@@ -25,12 +25,14 @@ from typing import Any, Literal
 import py_trees
 
 from atemr.errors import ConfigError
+from atemr.trees import leaves as _builtin_leaves  # registers the built-in leaves before any lookup
 from atemr.trees.behaviours import behaviours, parse_params
 from atemr.trees.context import AgentContext
 from atemr.trees.nodes import COMPOSITES, DECORATORS, TASK
 from atemr.typed import Source
 from atemr.yamlsafe import MarkedDict, mark_of
 
+_ = _builtin_leaves
 NodeKind = Literal["composite", "decorator", "leaf", "task"]
 _COMMON_KEYS = ("type", "name", "description")
 

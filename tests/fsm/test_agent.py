@@ -1,0 +1,315 @@
+"""The agent end to end on fake ports and a simulated clock: start-up, commands, faults, missions, mapping,
+restart, power-off, reload, snapshot and trace replay."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from atemr.clock import SimClock
+from atemr.errors import HardwareError
+from atemr.fsm.agent import Agent
+from atemr.fsm.machine import replay
+from atemr.fsm.spec import AgentSpec
+from atemr.io.can import PowerState, StateCode
+from atemr.msgs import Pose2D, Twist
+from atemr.scheduler import Scheduler
+from atemr.trees.fakes import RecordingLink, RecordingPort
+from atemr.trees.missions import parse_mission
+from atemr.trees.ports import ComponentHealth
+from atemr.yamlsafe import load_yaml
+
+AGENT_YAML = Path(__file__).resolve().parents[2] / "trees" / "agent.yaml"
+
+
+class Rig:
+    """An agent on a scheduler at 10 Hz with a simulated clock."""
+
+    def __init__(self, spec: AgentSpec, port: RecordingPort, link: RecordingLink) -> None:
+        self.clock = SimClock()
+        self.halts = 0
+        self.agent = Agent(spec, port, link, on_halt=self._halted)
+        link.time_source = self.clock.now
+        self.port, self.link = port, link
+        self.scheduler = Scheduler(self.clock)
+        self.scheduler.add(self.agent, 10.0)
+        self.scheduler.start()
+
+    def _halted(self) -> None:
+        self.halts += 1
+
+    def run(self, seconds: float) -> None:
+        self.scheduler.run(duration=seconds)
+
+    def command(self, trigger: str, **kwargs: object) -> object:
+        command_id = self.agent.submit(trigger, **kwargs)
+        self.scheduler.step()  # exactly one agent tick handles it
+        result = self.agent.result(command_id)
+        assert result is not None
+        return result
+
+
+@pytest.fixture
+def rig(agent_spec: AgentSpec, port: RecordingPort, link: RecordingLink) -> Rig:
+    return Rig(agent_spec, port, link)
+
+
+def idle(rig: Rig) -> Rig:
+    rig.run(0.3)
+    assert rig.agent.state == "IDLE.MANUAL"
+    return rig
+
+
+def test_start_up_checks_then_acknowledges_power_on(rig: Rig) -> None:
+    rig.run(0.2)
+    assert rig.agent.state == "IDLE.MANUAL"
+    assert [s for _, s in rig.link.power_states] == [PowerState.RUNNING]
+    assert rig.link.statuses[-1][1].state == StateCode.IDLE
+    assert rig.port.modes[-1] == "MANUAL"
+
+
+def test_a_critical_component_missing_at_start_up_powers_off(rig: Rig) -> None:
+    del rig.port.components["lidar"]
+    rig.run(4.9)
+    assert rig.agent.state == "STARTUP"
+    rig.run(1.0)
+    assert rig.agent.state == "SHUTDOWN.POWEROFF" and rig.agent.halted and rig.halts == 1
+    assert [s for _, s in rig.link.power_states] == [PowerState.POWER_OFF_ACK]
+    failure = next(r for r in rig.agent.trace if r.trigger == "critical_failure")
+    assert "lidar" in failure.reason and "not reported" in failure.reason
+    assert isinstance(rig.agent.context.error, HardwareError) and rig.agent.context.error.critical
+    assert rig.link.statuses[-1][1].state == StateCode.SHUTDOWN
+    ticks = rig.agent.ticks
+    rig.run(1.0)
+    assert rig.agent.ticks == ticks, "a halted agent does no more work"
+
+
+def test_a_trigger_invalid_in_the_state_is_refused_with_a_reason(rig: Rig) -> None:
+    idle(rig)
+    result = rig.command("goal", goal=Pose2D(1.0, 1.0, 0.0))
+    assert not result.accepted and result.dest is None  # type: ignore[attr-defined]
+    assert "'goal' is not valid in state IDLE.MANUAL" in result.reason  # type: ignore[attr-defined]
+    assert rig.agent.state == "IDLE.MANUAL"
+    assert rig.command("no_such_trigger").accepted is False  # type: ignore[attr-defined]
+
+
+def test_an_invalid_goal_goes_through_error_back_to_idle(rig: Rig) -> None:
+    idle(rig)
+    assert rig.command("set_auto").accepted  # type: ignore[attr-defined]
+    result = rig.command("goal", goal=Pose2D(math.nan, 0.0, 0.0))
+    assert result.dest == "ERROR" and "non-finite" in result.reason  # type: ignore[attr-defined]
+    rig.run(0.2)
+    assert rig.agent.state == "IDLE.MANUAL"
+    triggers = [r.trigger for r in rig.agent.trace if r.accepted]
+    assert triggers[-2:] == ["goal", "recover"]
+
+
+def test_set_auto_is_refused_while_a_motor_is_unhealthy(rig: Rig) -> None:
+    idle(rig)
+    rig.port.components["left_motor"] = ComponentHealth(False, "error flag: over-temperature")
+    rig.run(0.2)  # the Monitor reports the fault; the non-critical error returns to IDLE
+    result = rig.command("set_auto")
+    assert not result.accepted and "left_motor" in result.reason  # type: ignore[attr-defined]
+
+
+def test_a_motor_fault_stops_the_robot_and_passes_through_error(rig: Rig) -> None:
+    idle(rig)
+    stops = rig.port.stops
+    rig.port.components["right_motor"] = ComponentHealth(False, "silent")
+    rig.run(0.3)
+    fault = next(r for r in rig.agent.trace if r.trigger == "fault")
+    assert fault.dest == "ERROR" and "right_motor: silent" in fault.reason
+    assert rig.port.stops > stops
+    assert rig.agent.state == "IDLE.MANUAL"
+    assert sum(r.trigger == "fault" for r in rig.agent.trace) == 1, "a component still bad does not loop"
+
+
+def test_heartbeat_loss_is_a_fault_and_clears_the_heartbeat_bit(rig: Rig) -> None:
+    idle(rig)
+    rig.link.heartbeat = False
+    rig.run(0.3)
+    assert any(r.trigger == "fault" and "heartbeat" in r.reason for r in rig.agent.trace)
+    assert not rig.link.statuses[-1][1].agent_ok()["HEARTBEAT"]
+
+
+def test_status_0x153_at_2_hz_and_on_every_change(rig: Rig) -> None:
+    idle(rig)
+    start = len(rig.link.statuses)
+    rig.run(5.0)
+    periodic = rig.link.statuses[start:]
+    assert 9 <= len(periodic) <= 11
+    gaps = [b[0] - a[0] for a, b in itertools.pairwise(periodic)]
+    assert all(abs(g - 0.5) < 1e-6 for g in gaps)
+    before = len(rig.link.statuses)
+    rig.command("set_auto")
+    t, status = rig.link.statuses[-1]
+    assert len(rig.link.statuses) == before + 1 and status.auto_mode
+    assert t - periodic[-1][0] < 0.5, "a change is sent at once, not at the next period"
+
+
+def test_joystick_is_forwarded_in_manual_and_zeroed_when_leaving(rig: Rig) -> None:
+    idle(rig)
+    rig.port.joystick_command = (Twist(0.3, 0.1), rig.clock.now())
+    rig.run(0.1)
+    assert rig.port.commands[-1][:2] == ("joystick", Twist(0.3, 0.1))
+    rig.run(0.6)  # the joystick command is now older than 0.5 s
+    assert rig.port.commands[-1][:2] == ("joystick", Twist())
+    rig.port.joystick_command = (Twist(0.3, 0.1), rig.clock.now())
+    rig.command("set_auto")
+    joystick = [c for c in rig.port.commands if c[0] == "joystick"]
+    assert joystick[-1][1] == Twist(), "DriveJoystick commands zero in terminate"
+
+
+MISSION = """
+mission:
+  name: look-around
+  steps:
+    - capture_image: {label: front}
+    - rotate: {angle_rad: 1.5708}
+      timeout_s: 10
+    - capture_image: {label: left}
+    - wait: {duration_s: 1.0}
+"""
+
+
+def test_a_mission_runs_in_exec_and_returns_to_idle(rig: Rig) -> None:
+    idle(rig)
+    rig.port.dt_s = 0.1
+    rig.command("set_auto")
+    mission = parse_mission(load_yaml("m.yaml", text=MISSION), "m.yaml")
+    result = rig.command("start_mission", mission=mission)
+    assert result.dest == "EXEC", result  # type: ignore[attr-defined]
+    rig.run(10.0)
+    assert rig.agent.state == "IDLE.AUTO"
+    assert rig.port.images == ["images/front-0.jpg", "images/left-1.jpg"]
+    assert rig.port.current_pose is not None and abs(rig.port.current_pose.yaw_rad - math.pi / 2) < 0.06
+    reached = next(r for r in rig.agent.trace if r.trigger == "reached")
+    assert reached.source == "EXEC" and rig.agent.context.task is None
+
+
+def test_a_step_timeout_fails_the_mission_into_error(rig: Rig) -> None:
+    idle(rig)
+    rig.command("set_auto")
+    text = "mission:\n  name: too-slow\n  steps:\n    - wait: {duration_s: 5}\n      timeout_s: 1\n"
+    rig.command("start_mission", mission=parse_mission(load_yaml("s.yaml", text=text), "s.yaml"))
+    rig.run(1.5)
+    failed = next(r for r in rig.agent.trace if r.trigger == "failed")
+    assert failed.dest == "ERROR" and "timed out after 1 s" in failed.reason
+    rig.run(0.2)
+    assert rig.agent.state == "IDLE.MANUAL"
+
+
+def test_cancel_stops_the_task(rig: Rig) -> None:
+    idle(rig)
+    rig.port.dt_s = 0.01
+    rig.command("set_auto")
+    text = "mission:\n  name: spin\n  steps:\n    - rotate: {angle_rad: 12}\n"
+    rig.command("start_mission", mission=parse_mission(load_yaml("r.yaml", text=text), "r.yaml"))
+    rig.run(0.5)
+    assert rig.agent.state == "EXEC" and rig.port.commands[-1][1].angular_radps > 0
+    assert rig.command("cancel").dest == "IDLE.AUTO"  # type: ignore[attr-defined]
+    agent_cmds = [c for c in rig.port.commands if c[0] == "agent"]
+    assert agent_cmds[-1][1] == Twist(), "Rotate commands zero when interrupted"
+
+
+def test_a_mission_needing_navigation_is_refused_with_the_reason(rig: Rig) -> None:
+    idle(rig)
+    rig.command("set_auto")
+    text = "mission:\n  name: go\n  steps:\n    - go_to: {x_m: 1, y_m: 2}\n"
+    result = rig.command("start_mission", mission=parse_mission(load_yaml("g.yaml", text=text), "g.yaml"))
+    assert not result.accepted and "no behaviour GoToPose" in result.reason  # type: ignore[attr-defined]
+    assert rig.agent.state == "IDLE.AUTO"
+
+
+def test_mapping_begin_save_discard(rig: Rig) -> None:
+    idle(rig)
+    result = rig.command("begin_mapping")
+    assert not result.accepted and "mapping is not available" in result.reason  # type: ignore[attr-defined]
+    rig.port.mapping_available = True
+    assert rig.command("begin_mapping").dest == "MAPPING"  # type: ignore[attr-defined]
+    assert rig.link.statuses[-1][1].state == StateCode.MAPPING
+    bad = rig.command("save_map", name="../etc/passwd")
+    assert not bad.accepted and "map name" in bad.reason  # type: ignore[attr-defined]
+    assert rig.command("save_map", name="kitchen").dest == "IDLE.MANUAL"  # type: ignore[attr-defined]
+    rig.command("begin_mapping")
+    rig.command("discard_map")
+    assert rig.port.maps == ["kitchen", None] and rig.agent.state == "IDLE.MANUAL"
+
+
+def test_restart_runs_start_up_again(rig: Rig) -> None:
+    idle(rig)
+    assert rig.command("restart").dest == "SHUTDOWN.RESTART"  # type: ignore[attr-defined]
+    rig.run(0.5)
+    assert rig.agent.state == "IDLE.MANUAL"
+    states = [r.dest for r in rig.agent.trace if r.accepted]
+    assert states[-3:] == ["SHUTDOWN.RESTART", "STARTUP", "IDLE.MANUAL"]
+    assert [s for _, s in rig.link.power_states] == [PowerState.RUNNING, PowerState.INITIALISING,
+                                                     PowerState.RUNNING]
+
+
+def test_power_off_request_from_the_secondary_core(rig: Rig) -> None:
+    idle(rig)
+    rig.link.power_off = True
+    rig.run(0.3)
+    assert rig.agent.halted and rig.agent.state == "SHUTDOWN.POWEROFF"
+    assert rig.link.power_states[-1][1] == PowerState.POWER_OFF_ACK
+    assert rig.link.statuses[-1][1].state == StateCode.SHUTDOWN
+
+
+def test_snapshot_is_json_and_counts_ticks(rig: Rig) -> None:
+    idle(rig)
+    rig.run(1.0)
+    snap = json.loads(json.dumps(rig.agent.snapshot()))
+    assert snap["state"] == "IDLE.MANUAL" and snap["code"] == 2
+    assert snap["tree"]["name"] == "manual" and snap["tree"]["status"] == "RUNNING"
+    joystick = snap["tree"]["children"][1]
+    assert joystick["type"] == "DriveJoystick" and joystick["ticks"] >= 10
+    assert snap["monitor"]["ticks"] == rig.agent.ticks
+    assert snap["blackboard"]["/agent/state"] == "IDLE.MANUAL"
+    assert "/monitor/status" in snap["blackboard"]
+    assert snap["transitions"][-1]["dest"] == "IDLE.MANUAL" and "set_auto" in snap["valid_triggers"]
+
+
+def test_trace_replays_to_the_same_states(rig: Rig, agent_spec: AgentSpec) -> None:
+    idle(rig)
+    rig.command("set_auto")
+    rig.command("goal", goal=Pose2D(math.inf, 0, 0))
+    rig.run(0.3)
+    rig.command("restart")
+    rig.run(0.5)
+    rig.link.power_off = True
+    rig.run(0.3)
+    recorded = [r for r in rig.agent.trace if r.accepted and r.trigger != "(initial)"]
+    replayed = replay(agent_spec, rig.agent.trace)
+    assert [(r.trigger, r.source, r.dest) for r in replayed] == [(r.trigger, r.source, r.dest) for r in recorded]
+    tampered = [*rig.agent.trace]
+    tampered.insert(3, tampered[3].__class__(0.0, "reached", "IDLE.AUTO", "IDLE.AUTO", True))
+    assert any(not r.accepted for r in replay(agent_spec, tampered))
+
+
+def test_reload_applies_only_in_idle_and_only_when_valid(rig: Rig, tmp_path: Path) -> None:
+    idle(rig)
+    text = AGENT_YAML.read_text().replace("period_s: 0.5}", "period_s: 0.2}")
+    good = tmp_path / "agent.yaml"
+    good.write_text(text)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace("type: Halt", "type: Hault"))
+    result = rig.command("__reload__", path=str(bad))
+    assert not result.accepted and "bad.yaml:" in result.reason and "Halt" in result.reason  # type: ignore
+    rig.agent.submit_reload(good)
+    rig.scheduler.step()
+    assert rig.agent.results[-1].accepted and rig.agent.state == "IDLE.MANUAL"
+    start = len(rig.link.statuses)
+    rig.run(2.0)
+    assert len(rig.link.statuses) - start >= 9, "the new document's 5 Hz status is in force"
+    assert rig.agent.trace[0].trigger == "(initial)", "the trace survives the reload"
+    rig.command("set_auto")
+    rig.command("start_mission", mission=parse_mission(
+        load_yaml("w.yaml", text="mission:\n  name: w\n  steps:\n    - wait: {duration_s: 3}\n"), "w.yaml"))
+    rig.agent.submit_reload(good)
+    rig.scheduler.step()
+    assert not rig.agent.results[-1].accepted and "only in IDLE" in rig.agent.results[-1].reason
