@@ -22,6 +22,7 @@ from typing import Any, ClassVar, Self
 import can
 
 from atemr.errors import ProtocolError
+from atemr.io.can.trusted import trusted_constructor
 
 
 class CanId(IntEnum):
@@ -122,10 +123,11 @@ def _error(arbitration_id: int, problem: str) -> ProtocolError:
 
 
 def _frame(arbitration_id: int, data: bytes) -> can.Message:
-    return can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, check=False)
+    # a bytearray is kept as is by can.Message; bytes would be copied into one
+    return can.Message(arbitration_id=arbitration_id, data=bytearray(data), is_extended_id=False, check=False)
 
 
-def _payload(msg: can.Message, arbitration_id: int, lengths: tuple[int, ...]) -> bytes:
+def _payload(msg: can.Message, arbitration_id: int, lengths: tuple[int, ...]) -> bytes | bytearray:
     """The frame's data after checking ID, frame kind and length."""
     if msg.arbitration_id != arbitration_id:
         raise _error(arbitration_id, f"got a frame with ID 0x{msg.arbitration_id:X}")
@@ -133,7 +135,7 @@ def _payload(msg: can.Message, arbitration_id: int, lengths: tuple[int, ...]) ->
         raise _error(arbitration_id, "extended (29-bit) ID, the protocol uses standard IDs")
     if msg.is_remote_frame or msg.is_error_frame:
         raise _error(arbitration_id, "remote or error frame, expected a data frame")
-    data = bytes(msg.data) if msg.data is not None else b""
+    data = msg.data if msg.data is not None else b""  # bytearray: struct and indexing read it without a copy
     if len(data) not in lengths:
         want = " or ".join(str(n) for n in lengths)
         raise _error(arbitration_id, f"wrong length {len(data)} bytes, expected {want}")
@@ -175,7 +177,11 @@ class Power:
     @classmethod
     def decode(cls, msg: can.Message) -> Power:
         data = _payload(msg, cls.arbitration_id, (2,))
-        return cls(data[0], data[1])  # type: ignore[arg-type]  # validated into the enums
+        state = _POWER_STATE_BY_CODE.get(data[0])
+        request = _POWER_REQ_BY_CODE.get(data[1])
+        if state is None or request is None:
+            return cls(data[0], data[1])  # type: ignore[arg-type]  # raises, naming the bad byte
+        return _make_power(state, request)
 
     def fields(self) -> dict[str, Any]:
         return {"state": self.state.name, "request": self.request.name}
@@ -199,7 +205,9 @@ class IrFront:
     @classmethod
     def decode(cls, msg: can.Message) -> IrFront:
         left, right = _F32X2.unpack(_payload(msg, cls.arbitration_id, (8,)))
-        return cls(left, right)
+        if not (0.0 <= left < math.inf and 0.0 <= right < math.inf):  # also false for NaN
+            return cls(left, right)  # raises, naming the bad value
+        return _make_ir_front(left, right)
 
     def fields(self) -> dict[str, Any]:
         return {"left_cm": self.left_cm, "right_cm": self.right_cm}
@@ -220,7 +228,10 @@ class IrRear:
 
     @classmethod
     def decode(cls, msg: can.Message) -> IrRear:
-        return cls(_F32.unpack(_payload(msg, cls.arbitration_id, (4,)))[0])
+        distance = _F32.unpack(_payload(msg, cls.arbitration_id, (4,)))[0]
+        if not 0.0 <= distance < math.inf:
+            return cls(distance)  # raises, naming the bad value
+        return _make_ir_rear(distance)
 
     def fields(self) -> dict[str, Any]:
         return {"distance_cm": self.distance_cm}
@@ -259,7 +270,10 @@ class PrimaryStatus:
     @classmethod
     def decode(cls, msg: can.Message) -> PrimaryStatus:
         data = _payload(msg, cls.arbitration_id, (3,))
-        return cls(data[0], data[1], data[2])  # type: ignore[arg-type]  # validated into the flags
+        state = _STATE_BY_CODE.get(data[2])
+        if state is None or data[0] & ~_AGENT_USED:
+            return cls(data[0], data[1], data[2])  # type: ignore[arg-type]  # raises, naming the bad byte
+        return _make_status(_AGENT_FLAGS[data[0]], _HARDWARE_FLAGS[data[1]], state)
 
     @property
     def auto_mode(self) -> bool:
@@ -312,7 +326,7 @@ class _Segment:
     @classmethod
     def decode(cls, msg: can.Message) -> Self:
         data = _payload(msg, cls.arbitration_id, (8,))
-        return cls(data[0] & SEGMENT_MAX_INDEX, bool(data[0] & SEGMENT_LAST), data[1:])
+        return cls(data[0] & SEGMENT_MAX_INDEX, bool(data[0] & SEGMENT_LAST), bytes(data[1:]))
 
     def fields(self) -> dict[str, Any]:
         return {"index": self.index, "last": self.last, "data": self.data.hex()}
@@ -369,7 +383,7 @@ class IpAddress:
 
     @classmethod
     def decode(cls, msg: can.Message) -> IpAddress:
-        return cls(ipaddress.IPv4Address(_payload(msg, cls.arbitration_id, (4,))))
+        return cls(ipaddress.IPv4Address(bytes(_payload(msg, cls.arbitration_id, (4,)))))
 
     def fields(self) -> dict[str, Any]:
         return {"address": str(self.address)}
@@ -393,11 +407,20 @@ class Heartbeat:
         value = _payload(msg, cls.arbitration_id, (1,))[0]
         if value > 1:
             raise _error(cls.arbitration_id, f"value 0x{value:02X} is neither 0x01 (primary) nor 0x00 (secondary)")
-        return cls(value == 1)
+        return _HEARTBEATS[value]
 
     def fields(self) -> dict[str, Any]:
         return {"from_primary": self.from_primary}
 
+
+# Decoders build from checked wire values without validating twice (see atemr.io.can.trusted).
+_make_power = trusted_constructor(Power, "state", "request")
+_make_ir_front = trusted_constructor(IrFront, "left_cm", "right_cm")
+_make_ir_rear = trusted_constructor(IrRear, "distance_cm")
+_make_status = trusted_constructor(PrimaryStatus, "agent", "hardware", "state")
+_AGENT_FLAGS = [AgentBits(i) for i in range(_AGENT_USED + 1)]
+_HARDWARE_FLAGS = [HardwareBits(i) for i in range(256)]
+_HEARTBEATS = (Heartbeat(False), Heartbeat(True))  # immutable, so shared
 
 Message = Power | IrFront | IrRear | PrimaryStatus | WifiSsidSegment | WifiPasswordSegment | IpRequest | IpAddress \
     | Heartbeat

@@ -33,6 +33,7 @@ from typing import Any
 import can
 
 from atemr.errors import ProtocolError
+from atemr.io.can.trusted import trusted_constructor
 
 #: Requests and replies of motor ``n`` use ID ``RMD_BASE_ID + n``.
 RMD_BASE_ID = 0x140
@@ -141,15 +142,16 @@ class RmdRequest:
             data = _S_SPEED.pack(self.command, _radps_to_cdps(self.speed_radps))
         else:
             data = bytes((self.command, 0, 0, 0, 0, 0, 0, 0))
-        return can.Message(arbitration_id=RMD_BASE_ID + self.motor_id, data=data, is_extended_id=False, check=False)
+        return can.Message(arbitration_id=RMD_BASE_ID + self.motor_id, data=bytearray(data), is_extended_id=False,
+                           check=False)
 
     @classmethod
     def decode(cls, msg: can.Message) -> RmdRequest:
         motor_id, data = _checked(msg)
         command = _command(motor_id, data)
         if command is RmdCommand.SPEED_CONTROL:
-            return cls(motor_id, command, _cdps_to_radps(_S_SPEED.unpack(data)[1]))
-        return cls(motor_id, command)
+            return _make_request(motor_id, command, _cdps_to_radps(_S_SPEED.unpack(data)[1]))
+        return _make_request(motor_id, command, 0.0)
 
     def fields(self) -> dict[str, Any]:
         out: dict[str, Any] = {"motor": self.motor_id, "command": self.command.name}
@@ -172,8 +174,8 @@ class AckReply:
         object.__setattr__(self, "command", _COMMANDS[self.command])
 
     def encode(self) -> can.Message:
-        return can.Message(arbitration_id=RMD_BASE_ID + self.motor_id, data=bytes((self.command, 0, 0, 0, 0, 0, 0, 0)),
-                           is_extended_id=False, check=False)
+        return can.Message(arbitration_id=RMD_BASE_ID + self.motor_id,
+                           data=bytearray((self.command, 0, 0, 0, 0, 0, 0, 0)), is_extended_id=False, check=False)
 
     def fields(self) -> dict[str, Any]:
         return {"motor": self.motor_id, "command": self.command.name}
@@ -207,7 +209,8 @@ class Status1Reply:
     def encode(self) -> can.Message:
         data = _S_STATUS1.pack(self.command, self.temperature_c, 0, round(self.voltage_v / VOLTAGE_LSB_V), 0, 0,
                                self.errors)
-        return can.Message(arbitration_id=RMD_BASE_ID + self.motor_id, data=data, is_extended_id=False, check=False)
+        return can.Message(arbitration_id=RMD_BASE_ID + self.motor_id, data=bytearray(data), is_extended_id=False,
+                           check=False)
 
     def fields(self) -> dict[str, Any]:
         return {"motor": self.motor_id, "command": self.command.name, "temperature_c": self.temperature_c,
@@ -245,7 +248,8 @@ class Status2Reply:
     def encode(self) -> can.Message:
         data = _S_STATUS2.pack(self.command, self.temperature_c, round(self.current_a / IQ_LSB_A),
                                round(math.degrees(self.speed_radps)), self.encoder)
-        return can.Message(arbitration_id=RMD_BASE_ID + self.motor_id, data=data, is_extended_id=False, check=False)
+        return can.Message(arbitration_id=RMD_BASE_ID + self.motor_id, data=bytearray(data), is_extended_id=False,
+                           check=False)
 
     def fields(self) -> dict[str, Any]:
         return {"motor": self.motor_id, "command": self.command.name, "temperature_c": self.temperature_c,
@@ -255,6 +259,14 @@ class Status2Reply:
 
 RmdReply = AckReply | Status1Reply | Status2Reply
 RmdFrame = RmdRequest | RmdReply
+
+# Decoders build from wire values, which are in range and quantised by construction.
+_make_request = trusted_constructor(RmdRequest, "motor_id", "command", "speed_radps")
+_make_ack = trusted_constructor(AckReply, "motor_id", "command")
+_make_status1 = trusted_constructor(Status1Reply, "motor_id", "command", "temperature_c", "voltage_v", "errors")
+_make_status2 = trusted_constructor(Status2Reply, "motor_id", "command", "temperature_c", "current_a", "speed_radps",
+                                    "encoder")
+_FLAGS = [MotorErrorFlags(i) for i in range(256)]
 
 
 def _flag_names(flags: MotorErrorFlags) -> str:
@@ -273,7 +285,7 @@ def _int8_temperature(motor_id: int, value: int) -> int:
     return value
 
 
-def _checked(msg: can.Message) -> tuple[int, bytes]:
+def _checked(msg: can.Message) -> tuple[int, bytes | bytearray]:
     """Motor id and data of an RMD frame, after checking ID, frame kind and length."""
     motor_id = msg.arbitration_id - RMD_BASE_ID
     if motor_id not in MOTOR_IDS:
@@ -282,13 +294,13 @@ def _checked(msg: can.Message) -> tuple[int, bytes]:
         raise ProtocolError(f"{_where(motor_id)}: extended (29-bit) ID, RMD motors use standard IDs")
     if msg.is_remote_frame or msg.is_error_frame:
         raise ProtocolError(f"{_where(motor_id)}: remote or error frame, expected a data frame")
-    data = bytes(msg.data) if msg.data is not None else b""
+    data = msg.data if msg.data is not None else b""  # bytearray: read without a copy
     if len(data) != 8:
         raise ProtocolError(f"{_where(motor_id)}: wrong length {len(data)} bytes, expected 8")
     return motor_id, data
 
 
-def _command(motor_id: int, data: bytes) -> RmdCommand:
+def _command(motor_id: int, data: bytes | bytearray) -> RmdCommand:
     command = _COMMANDS.get(data[0])
     if command is None:
         raise ProtocolError(f"{_where(motor_id)}: unknown command byte 0x{data[0]:02X}")
@@ -305,14 +317,14 @@ def decode_reply(msg: can.Message) -> RmdReply:
     motor_id, data = _checked(msg)
     command = _command(motor_id, data)
     if command in _ECHO:
-        return AckReply(motor_id, command)
+        return _make_ack(motor_id, command)
     if command in _STATUS1:
         _, temperature, _, voltage, _, _, errors = _S_STATUS1.unpack(data)
-        return Status1Reply(motor_id, command, temperature, voltage * VOLTAGE_LSB_V, MotorErrorFlags(errors))
+        return _make_status1(motor_id, command, temperature, voltage * VOLTAGE_LSB_V, _FLAGS[errors])
     _, temperature, iq, dps, encoder = _S_STATUS2.unpack(data)
     if not -IQ_LIMIT <= iq <= IQ_LIMIT:
         raise ProtocolError(f"{_where(motor_id)}: torque current {iq} LSB outside ±{IQ_LIMIT}")
-    return Status2Reply(motor_id, command, temperature, iq * IQ_LSB_A, math.radians(dps), encoder)
+    return _make_status2(motor_id, command, temperature, iq * IQ_LSB_A, math.radians(dps), encoder)
 
 
 def decode_any(msg: can.Message) -> RmdFrame:

@@ -142,3 +142,19 @@ def test_power_and_heartbeat_bytes() -> None:
 def test_fields_name_every_value() -> None:
     assert p.Power(p.PowerState.RUNNING).fields() == {"state": "RUNNING", "request": "NORMAL"}
     assert p.PrimaryStatus(state=p.StateCode.MAPPING).fields()["state"] == "MAPPING"
+
+
+def test_trusted_constructor_needs_every_field() -> None:
+    from atemr.io.can.trusted import trusted_constructor
+
+    with pytest.raises(TypeError, match="must be all dataclass fields"):
+        trusted_constructor(p.Power, "state")
+    make = trusted_constructor(p.Power, "state", "request")
+    assert make(p.PowerState.RUNNING, p.PowerRequest.NORMAL) == p.Power(p.PowerState.RUNNING)
+
+
+def test_decoded_frames_do_not_share_the_frame_buffer() -> None:
+    msg = p.WifiSsidSegment(0, True, b"abcdefg").encode()
+    seg = p.decode(msg)
+    msg.data[1] = 0x7A
+    assert isinstance(seg, p.WifiSsidSegment) and seg.data == b"abcdefg"
