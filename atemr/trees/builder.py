@@ -70,10 +70,17 @@ def _error(source: Source, message: str, path: str, container: Any, key: Any = N
     return source.error(message, path, container, key, on_key=on_key)
 
 
-def _split_options(node: Mapping[str, Any], extra: Sequence[str], options_cls: type[Any]
-                   ) -> dict[str, Any]:
+def _split_options(node: Mapping[str, Any], extra: Sequence[str], options_cls: type[Any]) -> Mapping[str, Any]:
+    """The option keys of a composite/decorator node, keeping the YAML marks for error positions."""
     names = {f.name for f in dataclasses.fields(options_cls)}
-    return {k: v for k, v in node.items() if k in names and k not in extra}
+    keys = [k for k in node if k in names and k not in extra]
+    if not isinstance(node, MarkedDict):
+        return {k: node[k] for k in keys}
+    subset = MarkedDict((k, node[k]) for k in keys)
+    subset.file, subset.line, subset.column = node.file, node.line, node.column
+    subset.key_marks = {k: node.key_marks[k] for k in keys}
+    subset.value_marks = {k: node.value_marks[k] for k in keys}
+    return subset
 
 
 def parse_node(node: Any, source: Source, path: str, *, parent: Any = None, key: Any = None,

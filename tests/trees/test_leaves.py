@@ -1,0 +1,256 @@
+"""Every leaf through the py_trees lifecycle (setup → initialise → update → terminate) on fake ports.
+
+`test_every_registered_leaf_follows_the_lifecycle` is parametrised over the registry: a new leaf without a
+sample in `SAMPLES` fails, so no behaviour is registered without being exercised.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import py_trees
+import pytest
+
+from atemr.errors import AtemrError, ConfigError, HardwareError
+from atemr.io.can import PowerState, StateCode
+from atemr.msgs import Pose2D, Twist
+from atemr.trees.behaviours import Leaf, behaviours, parse_params
+from atemr.trees.context import AgentContext
+from atemr.trees.fakes import RecordingLink, RecordingPort
+from atemr.trees.leaves.checks import ClassifyError
+from atemr.trees.nodes import ClockTimeout
+from atemr.trees.ports import ComponentHealth
+from atemr.typed import Source
+
+Status = py_trees.common.Status
+
+#: Parameters each registered leaf is exercised with.
+SAMPLES: dict[str, dict[str, Any]] = {
+    "Wait": {"duration_s": 0.3},
+    "StopMotors": {},
+    "DriveJoystick": {},
+    "Rotate": {"angle_rad": 0.5},
+    "CheckComponent": {"component": "lidar", "timeout_s": 0.3},
+    "CheckHeartbeat": {"timeout_s": 0.3},
+    "ClassifyError": {},
+    "SetMode": {"mode": "AUTO"},
+    "CaptureImage": {"label": "door"},
+    "SetPowerState": {"state": "running"},
+    "Halt": {},
+    "PublishStatus": {},
+    "WatchPowerRequest": {},
+    "WatchHeartbeat": {},
+    "WatchHealth": {"components": ["left_motor"]},
+}
+#: Leaves that command a velocity, and on which mux input.
+DRIVING = {"DriveJoystick": "joystick", "Rotate": "agent"}
+
+
+class Bench:
+    """One leaf with a context on fake ports, ticked by hand at 10 Hz."""
+
+    def __init__(self, leaf: Leaf, *, port: RecordingPort | None = None, link: RecordingLink | None = None,
+                 state: str = "IDLE.MANUAL") -> None:
+        self.port = port or RecordingPort(dt_s=0.1)
+        self.link = link if link is not None else RecordingLink()
+        self.ctx = AgentContext(port=self.port, link=self.link, state=state)
+        self.link.time_source = lambda: self.ctx.now
+        self.leaf = leaf
+        py_trees.trees.setup(leaf, context=self.ctx)
+
+    def tick(self, n: int = 1) -> py_trees.common.Status:
+        for _ in range(n):
+            for _node in self.leaf.tick():
+                pass
+            self.ctx.now = round(self.ctx.now + 0.1, 9)
+        return self.leaf.status
+
+
+def make(name: str, **params: Any) -> Leaf:
+    cls = behaviours.get(name)
+    return cls(name, parse_params(cls.Params, params or SAMPLES[name], Source("argument"), "params"))
+
+
+def test_every_registered_leaf_has_a_sample() -> None:
+    assert sorted(behaviours) == sorted(SAMPLES), "add a sample (and a lifecycle test) for each new leaf"
+
+
+@pytest.mark.parametrize("name", sorted(SAMPLES))
+def test_every_registered_leaf_follows_the_lifecycle(name: str) -> None:
+    leaf = make(name)
+    with pytest.raises(ConfigError, match="before setup"):
+        _ = leaf.ctx
+    bench = Bench(leaf)
+    status = bench.tick(5)
+    assert status in (Status.RUNNING, Status.SUCCESS, Status.FAILURE)
+    if status == Status.RUNNING:
+        leaf.stop(Status.INVALID)
+        assert leaf.status == Status.INVALID
+    if name in DRIVING:
+        assert bench.port.commands, f"{name} drives the base"
+        assert bench.port.commands[-1][0] == DRIVING[name] and bench.port.commands[-1][1] == Twist()
+    assert bench.tick() in (Status.RUNNING, Status.SUCCESS, Status.FAILURE), "runs again after a stop"
+
+
+def test_wait_uses_the_injected_clock() -> None:
+    bench = Bench(make("Wait", duration_s=0.3))
+    assert [bench.tick() for _ in range(4)] == [Status.RUNNING] * 3 + [Status.SUCCESS]
+    assert bench.tick() == Status.RUNNING, "initialise restarts the wait"
+
+
+def test_stop_motors() -> None:
+    bench = Bench(make("StopMotors"))
+    assert bench.tick() == Status.SUCCESS and bench.port.stops == 1
+
+
+def test_drive_joystick_forwards_fresh_commands_only() -> None:
+    bench = Bench(make("DriveJoystick", timeout_s=0.25))
+    bench.port.joystick_command = (Twist(0.5, -0.2), 0.0)
+    assert bench.tick() == Status.RUNNING
+    assert bench.port.commands[-1] == ("joystick", Twist(0.5, -0.2), 0.0)
+    bench.tick(3)
+    assert bench.port.commands[-1][1] == Twist(), "older than timeout_s counts as absent"
+    bench.port.joystick_command = (Twist(0.2, 0.0), bench.ctx.now)
+    bench.tick()
+    bench.leaf.stop(Status.INVALID)
+    assert bench.port.commands[-1][1] == Twist()
+
+
+def test_rotate_turns_by_the_angle_through_the_wrap() -> None:
+    port = RecordingPort(current_pose=Pose2D(0, 0, math.pi - 0.2), dt_s=0.1)
+    bench = Bench(make("Rotate", angle_rad=math.pi), port=port)
+    for _ in range(100):
+        if bench.tick() != Status.RUNNING:
+            break
+    assert bench.leaf.status == Status.SUCCESS
+    assert port.current_pose is not None
+    turned = port.current_pose.yaw_rad - (math.pi - 0.2)
+    assert abs(turned - math.pi) <= 0.05
+    assert max(abs(c[1].angular_radps) for c in port.commands) <= 0.8
+    assert port.commands[-1][1] == Twist()
+
+
+def test_rotate_fails_without_a_pose() -> None:
+    bench = Bench(make("Rotate", angle_rad=1.0), port=RecordingPort(current_pose=None))
+    assert bench.tick() == Status.FAILURE and bench.leaf.reason == "no pose to steer by"
+
+
+def test_check_component_waits_then_fails_with_a_typed_error() -> None:
+    port = RecordingPort()
+    port.components["lidar"] = ComponentHealth(False, "no scans")
+    bench = Bench(make("CheckComponent", component="lidar", timeout_s=0.3), port=port)
+    assert [bench.tick() for _ in range(3)] == [Status.RUNNING] * 3
+    assert bench.tick() == Status.FAILURE
+    error = bench.ctx.error
+    assert isinstance(error, HardwareError) and error.critical and error.component == "lidar"
+    assert "no scans after 0.3 s" in bench.leaf.reason
+    port.components["lidar"] = ComponentHealth(True)
+    assert bench.tick() == Status.SUCCESS
+
+
+def test_check_heartbeat() -> None:
+    link = RecordingLink(heartbeat=False)
+    bench = Bench(make("CheckHeartbeat", timeout_s=0.1), link=link)
+    assert bench.tick() == Status.RUNNING
+    link.heartbeat = True
+    assert bench.tick() == Status.SUCCESS
+
+
+@pytest.mark.parametrize(("error", "expected"), [
+    (None, Status.SUCCESS),
+    (HardwareError("silent", component="left_motor"), Status.SUCCESS),
+    (HardwareError("silent", component="left_motor", critical=True), Status.FAILURE),
+    (AtemrError("unknown"), Status.SUCCESS),
+])
+def test_classify_error_by_type_and_flag(error: AtemrError | None, expected: py_trees.common.Status) -> None:
+    bench = Bench(ClassifyError("classify"))
+    bench.ctx.error = error
+    assert bench.tick() == expected
+
+
+def test_set_mode_and_capture_image() -> None:
+    bench = Bench(make("SetMode", mode="AUTO"))
+    assert bench.tick() == Status.SUCCESS and bench.port.modes == ["AUTO"] and bench.ctx.mode == "AUTO"
+    camera = Bench(make("CaptureImage", label="kitchen"))
+    assert camera.tick() == Status.SUCCESS and camera.port.images == ["images/kitchen-0.jpg"]
+    camera.port.camera_ok = False
+    assert camera.tick() == Status.FAILURE and "camera: no frame" in camera.leaf.reason  # type: ignore[attr-defined]
+    with pytest.raises(ConfigError, match="label must be"):
+        make("CaptureImage", label="../x")
+
+
+def test_power_state_and_halt() -> None:
+    bench = Bench(make("SetPowerState", state="poweroff_ack"))
+    assert bench.tick() == Status.SUCCESS and bench.link.power_states == [(0.0, PowerState.POWER_OFF_ACK)]
+    lonely = make("SetPowerState", state="running")
+    port = RecordingPort()
+    ctx = AgentContext(port=port, link=None)
+    py_trees.trees.setup(lonely, context=ctx)
+    for _ in lonely.tick():
+        pass
+    assert lonely.status == Status.FAILURE and "no secondary-core link" in lonely.reason
+    halt = Bench(make("Halt"))
+    assert halt.tick() == Status.SUCCESS and halt.ctx.halted
+
+
+def test_publish_status_periodic_and_on_change() -> None:
+    bench = Bench(make("PublishStatus", period_s=0.5), state="STARTUP")
+    bench.tick(10)
+    times = [t for t, _ in bench.link.statuses]
+    assert times == [0.0, 0.5]
+    assert bench.link.statuses[0][1].state == StateCode.STARTUP
+    bench.ctx.state = "IDLE.AUTO"
+    bench.tick()
+    assert bench.link.statuses[-1] == (1.0, bench.link.statuses[-1][1])
+    assert bench.link.statuses[-1][1].state == StateCode.IDLE
+    status = bench.link.statuses[-1][1]
+    assert status.hardware_ok() == dict.fromkeys(status.hardware_ok(), True)
+    assert status.agent_ok()["HEARTBEAT"] and status.agent_ok()["HARDWARE"] and not status.agent_ok()["LOCALIZATION"]
+
+
+def test_watch_power_request_posts_once_per_request() -> None:
+    bench = Bench(make("WatchPowerRequest"))
+    bench.tick(2)
+    assert bench.ctx.take_events() == []
+    bench.link.power_off = True
+    bench.tick(3)
+    events = bench.ctx.take_events()
+    assert [e.trigger for e in events] == ["power_off"] and "0x150" in events[0].reason
+
+
+def test_watch_heartbeat_only_in_active_states() -> None:
+    bench = Bench(make("WatchHeartbeat"), state="STARTUP")
+    bench.link.heartbeat = False
+    bench.tick(2)
+    assert bench.ctx.take_events() == []
+    bench.ctx.state = "EXEC"
+    bench.tick(3)
+    events = bench.ctx.take_events()
+    assert [e.trigger for e in events] == ["fault"]
+    assert isinstance(events[0].kwargs["error"], HardwareError) and not events[0].kwargs["error"].critical
+
+
+def test_watch_health_reports_each_onset() -> None:
+    bench = Bench(make("WatchHealth", components=["left_motor", "right_motor"], critical=True))
+    bench.tick()
+    bench.port.components["left_motor"] = ComponentHealth(False, "over-temperature")
+    bench.tick(3)
+    events = bench.ctx.take_events()
+    assert len(events) == 1 and events[0].kwargs["error"].critical
+    assert "left_motor: over-temperature" in events[0].reason
+    bench.port.components["left_motor"] = ComponentHealth(True)
+    bench.tick()
+    bench.port.components["left_motor"] = ComponentHealth(False, "again")
+    bench.tick()
+    assert len(bench.ctx.take_events()) == 1
+
+
+def test_clock_timeout_stops_its_child_on_the_agent_clock() -> None:
+    child = make("Rotate", angle_rad=12.0)
+    timeout = ClockTimeout("limit", child, 0.35)
+    bench = Bench(timeout)  # type: ignore[arg-type]
+    assert [bench.tick() for _ in range(4)] == [Status.RUNNING] * 4
+    assert bench.tick() == Status.FAILURE and child.status == Status.INVALID
+    assert bench.port.commands[-1][1] == Twist()
+    assert "timed out after 0.35 s" in timeout.feedback_message
