@@ -99,7 +99,22 @@ class TerminalView:
         self.out.flush()
 
 
-def _read_keys(core: SecondaryCore, scheduler: Scheduler, stream: TextIO) -> None:
+class _QuitWatcher:
+    """Stops the scheduler from inside a tick once ``quit`` is set (a stop asked before `Scheduler.run`
+    started would be lost, since run clears it)."""
+
+    name = "secondary_quit"
+
+    def __init__(self, scheduler: Scheduler, quit_event: threading.Event) -> None:
+        self.scheduler = scheduler
+        self.quit = quit_event
+
+    def tick(self, now: float) -> None:
+        if self.quit.is_set():
+            self.scheduler.stop()
+
+
+def _read_keys(core: SecondaryCore, quit_event: threading.Event, stream: TextIO) -> None:
     """Turn typed letters into button presses (runs in a daemon thread: input is an edge of the system)."""
     for line in stream:
         key = line.strip().lower()
@@ -113,7 +128,7 @@ def _read_keys(core: SecondaryCore, scheduler: Scheduler, stream: TextIO) -> Non
             core.reboot()
         elif key == "q":
             break
-    scheduler.stop()
+    quit_event.set()
 
 
 def main(argv: Sequence[str] | None = None, *, stdin: TextIO | None = None, stdout: TextIO | None = None) -> int:
@@ -142,11 +157,14 @@ def main(argv: Sequence[str] | None = None, *, stdin: TextIO | None = None, stdo
     if args.view != "none":
         header = f"ATEMR secondary core on {args.interface}:{args.channel}" + ("" if args.no_keys else f"\n{KEYS}")
         scheduler.add(TerminalView(core, out=out, pixels=args.view == "pixels", header=header), 5.0)
+    quit_event = threading.Event()
+    scheduler.add(_QuitWatcher(scheduler, quit_event), 10.0)
     if not args.no_keys:
-        threading.Thread(target=_read_keys, args=(core, scheduler, stdin or sys.stdin), daemon=True,
+        threading.Thread(target=_read_keys, args=(core, quit_event, stdin or sys.stdin), daemon=True,
                          name="secondary-keys").start()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
+        quit_event.set()
         scheduler.stop()
 
     in_main_thread = threading.current_thread() is threading.main_thread()
