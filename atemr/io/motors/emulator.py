@@ -54,6 +54,9 @@ class RmdMotorEmulator:
         self._last_t: float | None = None
         self._closed = False
 
+    def start(self) -> None:
+        """Nothing to start; present so a `Scheduler` also calls `shutdown` (it stops what it started)."""
+
     def tick(self, now: float) -> None:
         """Advance the physics to ``now`` and answer every pending request."""
         if self._last_t is not None and now > self._last_t:

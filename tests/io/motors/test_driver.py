@@ -50,6 +50,7 @@ def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     sched.start()
     yield Rig(clock, sched, driver, left, right, faults, events)
     sched.shutdown()
+    assert all(bus._is_shutdown for bus in (driver.bus, left.bus, right.bus))
 
 
 def command_for(rig: Rig, speeds: WheelSpeeds, seconds: float, period: float = 0.1) -> None:
