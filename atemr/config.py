@@ -86,6 +86,19 @@ class UiConfig:
 
 
 @dataclass(frozen=True)
+class SecondaryConfig:
+    """The secondary core: the emulated ESP32 board (simulation) and the primary's side of its link."""
+
+    emulate: bool = field(default=True, metadata={"help": "run the emulated board in simulation (robot: the ESP32)"})
+    robot_name: str = field(default="KAY", metadata={"help": "name on the board's screens"})
+    boot_s: float = field(default=3.0, metadata={"min": 0.0, "max": 60.0, "help": "length of the power-on sequence"})
+    portal_serve: bool = field(default=True, metadata={"help": "serve the emulated captive portal while in CONFIG"})
+    portal_host: str = field(default="127.0.0.1", metadata={"help": "captive portal address (0.0.0.0: all)"})
+    portal_port: int = field(default=5001, metadata={"min": 0, "max": 65535, "help": "captive portal TCP port"})
+    wifi_interface: str | None = field(default=None, metadata={"help": "WiFi device for nmcli (default: any)"})
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that can be configured; see README 'Configuration'."""
 
@@ -95,6 +108,7 @@ class Config:
     sim: SimConfig = field(default_factory=SimConfig)
     can: CanConfig = field(default_factory=CanConfig)
     ui: UiConfig = field(default_factory=UiConfig)
+    secondary: SecondaryConfig = field(default_factory=SecondaryConfig)
 
 
 def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:

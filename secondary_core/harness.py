@@ -131,6 +131,8 @@ class LinkBench:
         self.run(0.5)
 
     def close(self) -> None:
+        if self.board_bus is not self._buses[0] and hasattr(self.board_bus, "shutdown"):
+            self.board_bus.shutdown()  # a wrapper (fault injection) closes its inner bus too
         for bus in self._buses:
             bus.shutdown()
 
