@@ -158,17 +158,22 @@ def role_required(role: Role) -> Callable[[F], F]:
             if not user.can(role):
                 if wants_json:
                     abort(403)
-                return Response(
+                return html_response(
                     current_app.jinja_env.get_template("auth/no_access.html").render(
                         **_template_context(), user=user
                     ),
-                    status=403,
+                    403,
                 )
             return view(*args, **kwargs)
 
         return cast(F, wrapped)
 
     return decorate
+
+
+def html_response(body: str, status: int, headers: dict[str, str] | None = None) -> Response:
+    """A rendered page with a status other than 200 (a bare `Response` would be text/plain)."""
+    return Response(body, status=status, headers=headers, mimetype="text/html")
 
 
 def _template_context() -> dict[str, Any]:

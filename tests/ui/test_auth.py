@@ -65,7 +65,8 @@ def test_remember_username_cookie(client, ui):
 
 
 def test_wrong_password_and_unknown_user(client, ui):
-    assert ui.login(client, "alice", "nope-nope").status_code == 401
+    wrong = ui.login(client, "alice", "nope-nope")
+    assert wrong.status_code == 401 and wrong.mimetype == "text/html" and b"Wrong username" in wrong.data
     assert ui.login(client, "mallory", "whatever1").status_code == 401
     assert client.get("/control").status_code == 302
 

@@ -24,6 +24,7 @@ from atemr.ui import sockets
 from atemr.ui.security import (
     LoginRateLimiter,
     current_user,
+    html_response,
     is_local_address,
     login_user,
     logout_user,
@@ -64,17 +65,17 @@ def login() -> Any:
             "auth/login.html", username=username, remember=remember,
             error=f"Too many failed attempts: try again in {int(wait) + 1} s.",
         )
-        return Response(body, status=429, headers={"Retry-After": str(int(wait) + 1)})
+        return html_response(body, status=429, headers={"Retry-After": str(int(wait) + 1)})
     user = user_store().verify(username, password)
     if user is None:
         _limiter().failed(username, address)
         body = render_template("auth/login.html", username=username, remember=remember,
                                error="Wrong username or password.")
-        return Response(body, status=401)
+        return html_response(body, status=401)
     _limiter().succeeded(username, address)
     if not user.can("user"):
         # Log-in is denied: the account exists but has no access yet (thesis fig. 3.38).
-        return Response(render_template("auth/no_access.html", user=user), status=403)
+        return html_response(render_template("auth/no_access.html", user=user), status=403)
     login_user(user)
     response = redirect(_safe_next(request.args.get("next")))
     if remember:
@@ -102,19 +103,19 @@ def register() -> Any:
     username = request.form.get("username", "").strip()
     password = request.form.get("password", "")
     if password != request.form.get("confirm", ""):
-        return Response(render_template("auth/register.html", username=username,
+        return html_response(render_template("auth/register.html", username=username,
                                         error="The two passwords differ."), status=400)
     try:
         user_store().create(username, password)
     except UserError as exc:
-        return Response(render_template("auth/register.html", username=username, error=str(exc)), status=400)
+        return html_response(render_template("auth/register.html", username=username, error=str(exc)), status=400)
     flash(f"User {username} created. An administrator must grant access before you can log in.", "ok")
     return redirect(url_for("auth.login"))
 
 
 @bp.route("/no-access")
 def no_access() -> Response:
-    return Response(render_template("auth/no_access.html", user=current_user()), status=403)
+    return html_response(render_template("auth/no_access.html", user=current_user()), status=403)
 
 
 @bp.route("/first-start", methods=["GET", "POST"])
@@ -124,17 +125,17 @@ def first_start() -> Any:
     if not store.needs_root_password():
         return redirect(url_for("auth.login"))
     if not is_local_address(request.remote_addr):
-        return Response(render_template("auth/first_start.html", local=False), status=403)
+        return html_response(render_template("auth/first_start.html", local=False), status=403)
     if request.method == "GET":
         return render_template("auth/first_start.html", local=True)
     password = request.form.get("password", "")
     if password != request.form.get("confirm", ""):
-        return Response(render_template("auth/first_start.html", local=True, error="The two passwords differ."),
+        return html_response(render_template("auth/first_start.html", local=True, error="The two passwords differ."),
                         status=400)
     try:
         store.set_password(ROOT_USER, password)
     except UserError as exc:
-        return Response(render_template("auth/first_start.html", local=True, error=str(exc)), status=400)
+        return html_response(render_template("auth/first_start.html", local=True, error=str(exc)), status=400)
     root = store.get(ROOT_USER)
     assert root is not None
     login_user(root)

@@ -31,6 +31,7 @@
       const span = document.createElement("span");
       span.className = `led ${ok ? "ok" : "bad"}`;
       span.textContent = name.replace(/_/g, " ").toUpperCase();
+      if (name === "auto") { span.className = "led mode"; span.textContent = `M/A ${ok ? "AUTO" : "MANUAL"}`; }
       span.dataset.name = name;
       el.appendChild(span);
     }
@@ -50,7 +51,9 @@
     const w = s.wheel_speeds || {};
     $("wheel-left").textContent = A.fmt(w.left_radps);
     $("wheel-right").textContent = A.fmt(w.right_radps);
-    $("emergency-led").className = `led ${s.emergency ? "bad blink" : "ok"}`;
+    const em = $("emergency-led");
+    em.className = `led ${s.emergency ? "bad blink" : "ok"}`;
+    em.textContent = s.emergency ? "EMERGENCY" : "BRAKES OFF";
     graph.add(s.system);
   });
 

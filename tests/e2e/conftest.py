@@ -1,0 +1,312 @@
+"""Browser tests: Debian's chromium driven by Playwright against a real dashboard server on a free port.
+
+The server runs in a thread (`DashboardServer`), ticked with the robot it talks to by a `Scheduler` on a
+`RealTimeSimClock` in a second thread, as `atemr/robot.py` would. The robot is `KinematicGateway`, a test
+double: it integrates joystick commands into a pose, walks to goals and records every command. Tests
+skip with the reason when chromium or Playwright is missing; `./test` installs chromium when it can.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import shutil
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from PIL import Image, ImageDraw
+
+from atemr.clock import RealTimeSimClock
+from atemr.config import Config, UiConfig
+from atemr.msgs import Pose2D, Twist
+from atemr.scheduler import Scheduler
+from atemr.ui.gateway import CommandResult, MapImage
+from atemr.ui.server import PUSH_RATE_HZ, DashboardServer
+
+CHROMIUM = "/usr/bin/chromium"
+ROOT = Path(__file__).resolve().parents[2]
+OUTPUT = ROOT / "test-output" / "e2e"
+ADMIN_PW = "e2e-admin-pass"
+FAST_SCRYPT = "scrypt:1024:8:1"
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+def _png(img: Image.Image, fmt: str = "PNG") -> bytes:
+    buf = io.BytesIO()
+    img.save(buf, format=fmt)
+    return buf.getvalue()
+
+
+class KinematicGateway:
+    """A robot stand-in for browser tests: unicycle kinematics from joystick/goal commands, no physics."""
+
+    RES_M = 0.05
+
+    def __init__(self, clock: RealTimeSimClock) -> None:
+        self.clock = clock
+        self.lock = threading.Lock()
+        self.calls: list[tuple[str, tuple[Any, ...]]] = []
+        self.pose = Pose2D(1.0, 1.0, 0.0)
+        self.twist = Twist()
+        self.twist_t = -1.0
+        self.mode = "MANUAL"
+        self.agent = "IDLE"
+        self.goal: Pose2D | None = None
+        self.mapping = False
+        self.limits = (0.5, 1.0)
+        self.awareness = False
+        self.active_map = "room"
+        grid = Image.new("L", (120, 80), 254)
+        ImageDraw.Draw(grid).rectangle([0, 0, 119, 79], outline=0, width=2)
+        ImageDraw.Draw(grid).rectangle([60, 20, 70, 60], fill=0)
+        self.map = MapImage(_png(grid), 120, 80, self.RES_M, Pose2D(0.0, 0.0, 0.0), 1)
+        cam = Image.new("RGB", (640, 480), (40, 60, 90))
+        ImageDraw.Draw(cam).text((20, 20), "ATEMR camera (test)", fill=(255, 255, 255))
+        self.jpeg = _png(cam, "JPEG")
+
+    # -- the robot's side: a scheduler component ---------------------------------------------------------
+    name = "kinematic_robot"
+
+    def tick(self, now: float) -> None:
+        dt = 1.0 / PUSH_RATE_HZ
+        with self.lock:
+            twist = self.twist if now - self.twist_t <= 0.5 else Twist()  # the robot's 0.5 s joystick timeout
+            if self.mode == "AUTO" and self.goal is not None:
+                dx, dy = self.goal.x_m - self.pose.x_m, self.goal.y_m - self.pose.y_m
+                dist = math.hypot(dx, dy)
+                if dist < 0.25:
+                    self.goal, self.agent = None, "IDLE"
+                    twist = Twist()
+                else:
+                    step = min(dist, self.limits[0] * dt)
+                    yaw = math.atan2(dy, dx)
+                    self.pose = Pose2D(self.pose.x_m + step * math.cos(yaw), self.pose.y_m + step * math.sin(yaw), yaw)
+                    return
+            elif self.mode == "AUTO":
+                twist = Twist()
+            yaw = self.pose.yaw_rad + twist.angular_radps * dt
+            self.pose = Pose2D(self.pose.x_m + twist.linear_mps * dt * math.cos(yaw),
+                               self.pose.y_m + twist.linear_mps * dt * math.sin(yaw), yaw)
+
+    # -- what the dashboard reads ------------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        with self.lock:
+            p = self.pose
+            scan = [[p.x_m + 1.5 * math.cos(a / 10), p.y_m + 1.5 * math.sin(a / 10)] for a in range(0, 63, 3)]
+            goal = self.goal
+            return {
+                "agent_state": self.agent, "mode": self.mode, "simulation": True, "active_map": self.active_map,
+                "map_version": self.map.version, "pose": {"x_m": p.x_m, "y_m": p.y_m, "yaw_rad": p.yaw_rad},
+                "scan": scan, "global_path": [[p.x_m, p.y_m], [goal.x_m, goal.y_m]] if goal else [],
+                "local_path": [], "goal": goal and {"x_m": goal.x_m, "y_m": goal.y_m, "yaw_rad": goal.yaw_rad},
+                "wheel_speeds": {"left_radps": self.twist.linear_mps / 0.1, "right_radps": self.twist.linear_mps / 0.1},
+                "emergency": False,
+                "level1": {"heartbeat": True, "hardware": True, "auto": self.mode == "AUTO", "connectivity": True,
+                           "localization": True},
+                "level2": {k: True for k in ("left_motor", "right_motor", "imu", "lidar", "camera", "webserver",
+                                             "ir_front", "ir_rear")},
+                "system": {"t": math.floor(self.clock.now()), "cpu_percent": 20.0, "memory_percent": 40.0,
+                           "disk_percent": 60.0},
+                "limits": {"linear_mps": self.limits[0], "angular_radps": self.limits[1]},
+                "awareness": self.awareness, "wifi_ssid": "lab", "mapping": self.mapping, "recording": False,
+                "mission": None, "missions": ["patrol", "visit_kitchen"], "maps": ["room"], "events": [],
+            }
+
+    def map_image(self) -> MapImage | None:
+        return self.map
+
+    def camera_jpeg(self) -> bytes | None:
+        return self.jpeg
+
+    def secondary_screen_png(self) -> bytes | None:
+        img = Image.new("1", (128, 64), 0)
+        ImageDraw.Draw(img).text((4, 4), "OPS", fill=1)
+        return _png(img)
+
+    # -- commands ---------------------------------------------------------------------------------------
+    def _record(self, name: str, *args: Any) -> None:
+        with self.lock:
+            self.calls.append((name, args))
+
+    def count(self, name: str) -> int:
+        with self.lock:
+            return sum(1 for c in self.calls if c[0] == name)
+
+    def joystick(self, twist: Twist) -> CommandResult:
+        self._record("joystick", twist)
+        with self.lock:
+            if self.mode == "AUTO":
+                return CommandResult.refused("joystick ignored in AUTO")
+            self.twist, self.twist_t = twist, self.clock.now()
+        return CommandResult.accepted()
+
+    def set_mode(self, mode: str) -> CommandResult:
+        self._record("set_mode", mode)
+        with self.lock:
+            self.mode = mode
+        return CommandResult.accepted()
+
+    def set_goal(self, goal: Pose2D) -> CommandResult:
+        self._record("set_goal", goal)
+        with self.lock:
+            if self.mode != "AUTO":
+                return CommandResult.refused("switch to AUTO first")
+            self.goal, self.agent = goal, "EXEC"
+        return CommandResult.accepted()
+
+    def set_initial_pose(self, pose: Pose2D) -> CommandResult:
+        self._record("set_initial_pose", pose)
+        with self.lock:
+            self.pose = pose
+        return CommandResult.accepted()
+
+    def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:
+        self._record("set_limits", linear_mps, angular_radps)
+        with self.lock:
+            self.limits = (linear_mps, angular_radps)
+        return CommandResult.accepted()
+
+    def begin_mapping(self) -> CommandResult:
+        self._record("begin_mapping")
+        with self.lock:
+            self.mapping, self.agent = True, "MAPPING"
+        return CommandResult.accepted()
+
+    def end_mapping(self) -> CommandResult:
+        self._record("end_mapping")
+        with self.lock:
+            self.mapping = False
+        return CommandResult.accepted()
+
+    def save_map(self, name: str) -> CommandResult:
+        self._record("save_map", name)
+        with self.lock:
+            self.agent, self.active_map = "IDLE", name
+        return CommandResult.accepted()
+
+    def discard_map(self) -> CommandResult:
+        self._record("discard_map")
+        with self.lock:
+            self.agent = "IDLE"
+        return CommandResult.accepted()
+
+    def __getattr__(self, name: str) -> Any:
+        """The remaining commands are recorded and accepted."""
+        if name.startswith("_"):
+            raise AttributeError(name)
+
+        def command(*args: Any) -> CommandResult:
+            self._record(name, *args)
+            return CommandResult.accepted()
+
+        return command
+
+    def maps_changed(self) -> None:
+        self._record("maps_changed")
+
+
+class Site:
+    """A running dashboard + robot stand-in, and where screenshots go."""
+
+    def __init__(self, data_dir: Path, clock: RealTimeSimClock) -> None:
+        self.data_dir = data_dir
+        self.robot = KinematicGateway(clock)
+        config = Config(data_dir=data_dir, ui=UiConfig(port=0))
+        self.server = DashboardServer(config, self.robot, clock=clock, hash_method=FAST_SCRYPT)
+        self.scheduler = Scheduler(clock)
+        self.scheduler.add(self.robot, PUSH_RATE_HZ)
+        self.scheduler.add(self.server, PUSH_RATE_HZ)
+        self.thread = threading.Thread(target=self.scheduler.run, name="e2e-scheduler", daemon=True)
+
+    @property
+    def url(self) -> str:
+        return self.server.url
+
+    @property
+    def users(self) -> Any:
+        return self.server.app.extensions["atemr.users"]
+
+    def start(self) -> None:
+        self.scheduler.start()
+        self.thread.start()
+
+    def stop(self) -> None:
+        self.scheduler.stop()
+        self.thread.join(timeout=5)
+        self.scheduler.shutdown()
+
+
+def _skip_reason() -> str | None:
+    if not Path(CHROMIUM).exists():
+        return f"{CHROMIUM} is missing (./test installs Debian's chromium when run as root)"
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        return "playwright (python) is not installed"
+    return None
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[Any]:
+    reason = _skip_reason()
+    if reason:
+        pytest.skip(reason)
+    from playwright.sync_api import sync_playwright
+
+    args = CHROMIUM_ARGS if os.geteuid() == 0 else CHROMIUM_ARGS[1:]
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=args, headless=True)
+        yield browser
+        browser.close()
+
+
+@pytest.fixture
+def site(tmp_path: Path) -> Iterator[Site]:
+    site = Site(tmp_path / "data", RealTimeSimClock(speed=1.0))
+    site.start()
+    yield site
+    site.stop()
+
+
+@pytest.fixture
+def ready_site(site: Site) -> Site:
+    """A site whose root admin password is already set."""
+    site.users.set_password("admin", ADMIN_PW)
+    return site
+
+
+@pytest.fixture
+def page(browser: Any) -> Iterator[Any]:
+    context = browser.new_context(viewport={"width": 1280, "height": 860}, accept_downloads=True)
+    page = context.new_page()
+    page.set_default_timeout(10_000)
+    yield page
+    context.close()
+
+
+@pytest.fixture(scope="session")
+def shots() -> Path:
+    shutil.rmtree(OUTPUT, ignore_errors=True)
+    OUTPUT.mkdir(parents=True, exist_ok=True)
+    return OUTPUT
+
+
+def login(page: Any, url: str, username: str, password: str) -> None:
+    page.goto(f"{url}/auth/login")
+    page.fill("#username-input", username)
+    page.fill("#password-input", password)
+    page.click("#login-button")
+
+
+@pytest.fixture
+def helpers() -> Any:
+    class Helpers:
+        ADMIN_PW = ADMIN_PW
+        login = staticmethod(login)
+
+    return Helpers

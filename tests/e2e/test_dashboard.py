@@ -1,0 +1,183 @@
+"""The dashboard in Debian's chromium: first start, login, users, settings, driving, AUTO goal, mapping,
+media, and a screenshot of every page (test-output/e2e/)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.e2e
+
+
+def wait_for(page, js: str, timeout: float = 8000) -> None:
+    page.wait_for_function(js, timeout=timeout)
+
+
+def test_first_start_sets_the_admin_password_then_login_remembers_the_user(site, page, shots, helpers):
+    page.goto(site.url)
+    assert page.url.endswith("/auth/first-start")
+    page.screenshot(path=str(shots / "first-start.png"), full_page=True)
+    page.fill("#admin-password", helpers.ADMIN_PW)
+    page.fill("#admin-confirm", helpers.ADMIN_PW)
+    page.click("#set-admin-password")
+    page.wait_for_url(re.compile(r"/control$"))
+    assert page.inner_text("#username") == "admin"
+    assert not site.users.needs_root_password()
+    page.click("#logout")
+    page.wait_for_url(re.compile(r"/auth/login"))
+    page.screenshot(path=str(shots / "login.png"), full_page=True)
+    page.fill("#username-input", "admin")
+    page.fill("#password-input", "wrong-password")
+    page.click("#login-button")
+    assert "Wrong username or password" in page.inner_text("main")
+    page.fill("#password-input", helpers.ADMIN_PW)
+    page.check("#remember")
+    page.click("#login-button")
+    page.wait_for_url(re.compile(r"/control$"))
+    page.click("#logout")
+    page.wait_for_url(re.compile(r"/auth/login"))
+    assert page.input_value("#username-input") == "admin"
+
+
+def test_control_page_shows_live_state_and_the_keyboard_joystick_drives(ready_site, page, shots, helpers):
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.wait_for_url(re.compile(r"/control$"))
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    wait_for(page, "document.getElementById('camera').src.startsWith('data:image/jpeg')")
+    wait_for(page, "document.querySelectorAll('#level1 .led.ok').length === 4")
+    x0 = page.evaluate("ATEMR.state.pose.x_m")
+    page.focus("#joystick")
+    page.keyboard.down("ArrowUp")
+    wait_for(page, f"ATEMR.state.pose.x_m > {x0} + 0.2")
+    page.keyboard.up("ArrowUp")
+    forward = [c for c in ready_site.robot.calls if c[0] == "joystick" and c[1][0].linear_mps > 0]
+    assert len(forward) >= 3  # resent while held
+    wait_for(page, "ATEMR.state.wheel_speeds.left_radps === 0")
+    last = [c for c in ready_site.robot.calls if c[0] == "joystick"][-1]
+    assert last[1][0].is_zero  # released: an explicit stop
+    page.keyboard.down("a")
+    wait_for(page, "ATEMR.state.pose.yaw_rad > 0.2")
+    page.keyboard.up("a")
+    wait_for(page, "document.querySelectorAll('#sysgraph').length === 1 && ATEMR.state.system.cpu_percent === 20")
+    page.screenshot(path=str(shots / "control.png"), full_page=True)
+
+
+def test_auto_mode_and_a_goal_by_click_and_drag(ready_site, page, shots, helpers):
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    page.click("#map-ctl")  # SEND CMD
+    page.click("#map-cmd")  # refused in MANUAL
+    assert "switch to AUTO first" in page.inner_text("#command-result")
+    page.click("#mode-toggle")
+    wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
+    page.click("#map-cmd")
+    assert page.inner_text("#map-cmd") == "SEND GOAL"
+    box = page.locator("#map").bounding_box()
+    page.mouse.move(box["x"] + box["width"] * 0.3, box["y"] + box["height"] * 0.5)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] * 0.35, box["y"] + box["height"] * 0.5, steps=4)
+    page.mouse.up()
+    wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
+    goal = [c for c in ready_site.robot.calls if c[0] == "set_goal"][-1][1][0]
+    assert abs(goal.yaw_rad) < 0.3  # dragged to the right: heading along +x
+    page.screenshot(path=str(shots / "control-auto-goal.png"), full_page=True)
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=20000)
+
+
+def test_mapping_begin_end_and_save(ready_site, page, shots, helpers):
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{ready_site.url}/mapping")
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    page.click("#mapping-toggle")
+    wait_for(page, "document.getElementById('mapping-toggle').textContent === 'END MAP'")
+    assert page.inner_text("#agent-state") == "MAPPING"
+    page.screenshot(path=str(shots / "mapping.png"), full_page=True)
+    page.click("#mapping-toggle")
+    page.wait_for_selector("#save-dialog[open]")
+    page.screenshot(path=str(shots / "mapping-save-dialog.png"))
+    page.fill("#save-name", "kitchen")
+    page.click("#save-map")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    assert ("save_map", ("kitchen",)) in ready_site.robot.calls
+
+
+def test_change_a_speed_limit(ready_site, page, shots, helpers):
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{ready_site.url}/settings")
+    assert page.input_value("#linear-limit") == "0.5"
+    page.fill("#linear-limit", "0.8")
+    page.click("#limits-update")
+    page.wait_for_selector("text=Speed limits: done")
+    assert ("set_limits", (0.8, 1.0)) in ready_site.robot.calls
+    assert page.input_value("#linear-limit") == "0.8"
+    page.screenshot(path=str(shots / "settings.png"), full_page=True)
+
+
+def test_new_user_waits_for_an_admin_to_grant_access(ready_site, browser, page, shots, helpers):
+    page.goto(f"{ready_site.url}/auth/login")
+    page.click("#create-user")
+    page.fill("input[name=username]", "nurse")
+    page.fill("input[name=password]", "nurse-pass-1")
+    page.fill("input[name=confirm]", "nurse-pass-1")
+    page.screenshot(path=str(shots / "create-user.png"), full_page=True)
+    page.click("button[type=submit]")
+    page.wait_for_selector("text=An administrator must grant access")
+    helpers.login(page, ready_site.url, "nurse", "nurse-pass-1")
+    page.wait_for_selector("#no-access")
+    page.screenshot(path=str(shots / "no-access.png"), full_page=True)
+
+    admin = browser.new_context().new_page()
+    helpers.login(admin, ready_site.url, "admin", helpers.ADMIN_PW)
+    admin.goto(f"{ready_site.url}/settings")
+    row = admin.locator('tr[data-user="nurse"]')
+    row.locator("select[name=role]").select_option("user")
+    row.locator("button.set-role").click()
+    admin.wait_for_selector("text=nurse is now user")
+    assert 'tr[data-user="admin"] button.remove-user' not in admin.content()
+    assert admin.locator('tr[data-user="admin"] select').count() == 0  # root admin cannot be demoted
+    admin.screenshot(path=str(shots / "settings-manage-users.png"), full_page=True)
+
+    helpers.login(page, ready_site.url, "nurse", "nurse-pass-1")
+    page.wait_for_url(re.compile(r"/control$"))
+    assert page.inner_text("#username") == "nurse"
+
+    admin.on("dialog", lambda d: d.accept())
+    admin.locator('tr[data-user="nurse"] button.remove-user').click()
+    admin.wait_for_selector("text=User nurse removed")
+    assert ready_site.users.get("nurse") is None
+    admin.context.close()
+
+
+def test_download_and_delete_a_capture(ready_site, page, shots, helpers):
+    images = ready_site.data_dir / "media" / "images"
+    images.mkdir(parents=True)
+    (images / "capture-1.jpg").write_bytes(ready_site.robot.jpeg)
+    (images / "capture-2.jpg").write_bytes(ready_site.robot.jpeg)
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{ready_site.url}/media")
+    page.screenshot(path=str(shots / "media.png"), full_page=True)
+    with page.expect_download() as info:
+        page.click('li[data-name="capture-1.jpg"] a.download')
+    download = info.value
+    assert download.suggested_filename == "capture-1.jpg"
+    assert Path(download.path()).read_bytes() == ready_site.robot.jpeg
+    page.click('li[data-name="capture-1.jpg"] button.delete-one')
+    page.wait_for_selector("text=Deleted capture-1.jpg")
+    assert not (images / "capture-1.jpg").exists() and (images / "capture-2.jpg").exists()
+
+
+def test_phone_sized_screen(ready_site, browser, shots, helpers):
+    context = browser.new_context(viewport={"width": 390, "height": 844}, is_mobile=True, has_touch=True)
+    page = context.new_page()
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.wait_for_url(re.compile(r"/control$"))
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    width = page.evaluate("document.documentElement.scrollWidth")
+    assert width <= 400  # one column, no sideways scrolling
+    joystick = page.locator("#joystick").bounding_box()
+    assert joystick["width"] >= 120
+    page.screenshot(path=str(shots / "control-phone.png"), full_page=True)
+    context.close()
