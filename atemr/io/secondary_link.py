@@ -24,12 +24,13 @@ import math
 import threading
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Executor, Future
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import can
 
+from atemr.config import Config
 from atemr.errors import AtemrError, ProtocolError
 from atemr.io.can import (
     PASSWORD,
@@ -52,7 +53,7 @@ from atemr.io.can import (
     decode,
     is_protocol_id,
 )
-from atemr.io.network import NetworkBackend, usable_ipv4
+from atemr.io.network import NetworkBackend, NmcliBackend, RecordingNetworkBackend, usable_ipv4
 from atemr.msgs import CliffReadings
 
 log = logging.getLogger(__name__)
@@ -414,3 +415,18 @@ class SecondaryLink:
             log.info("%s: joined WiFi network '%s'", self.name, result.ssid)
         if self.on_wifi_result is not None:
             self.on_wifi_result(result)
+
+
+def network_backend(config: Config) -> NetworkBackend:
+    """The robot's network: NetworkManager on the real robot, the recording fake in simulation."""
+    if config.simulation:
+        return RecordingNetworkBackend()
+    return NmcliBackend(ifname=config.secondary.wifi_interface)
+
+
+def build_secondary_link(config: Config, bus: can.BusABC, **callbacks: Any) -> SecondaryLink:
+    """The link as the robot wires it: on the real robot WiFi is joined in one worker thread, so nmcli
+    never stalls the control loop; in simulation everything runs inline and deterministic.
+    ``callbacks``: ``on_heartbeat``, ``on_power_off_request``, ``on_wifi_result``."""
+    executor = None if config.simulation else ThreadPoolExecutor(max_workers=1, thread_name_prefix="wifi")
+    return SecondaryLink(bus, network_backend(config), executor=executor, **callbacks)
