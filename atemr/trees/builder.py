@@ -70,17 +70,22 @@ def _error(source: Source, message: str, path: str, container: Any, key: Any = N
     return source.error(message, path, container, key, on_key=on_key)
 
 
-def _split_options(node: Mapping[str, Any], extra: Sequence[str], options_cls: type[Any]) -> Mapping[str, Any]:
-    """The option keys of a composite/decorator node, keeping the YAML marks for error positions."""
-    names = {f.name for f in dataclasses.fields(options_cls)}
-    keys = [k for k in node if k in names and k not in extra]
+def marked_subset(node: Mapping[str, Any], keys: Sequence[str]) -> Mapping[str, Any]:
+    """``{k: node[k] for k in keys}`` that keeps the YAML marks of a `MarkedDict`, for error positions."""
+    present = [k for k in keys if k in node]
     if not isinstance(node, MarkedDict):
-        return {k: node[k] for k in keys}
-    subset = MarkedDict((k, node[k]) for k in keys)
+        return {k: node[k] for k in present}
+    subset = MarkedDict((k, node[k]) for k in present)
     subset.file, subset.line, subset.column = node.file, node.line, node.column
-    subset.key_marks = {k: node.key_marks[k] for k in keys}
-    subset.value_marks = {k: node.value_marks[k] for k in keys}
+    subset.key_marks = {k: node.key_marks[k] for k in present}
+    subset.value_marks = {k: node.value_marks[k] for k in present}
     return subset
+
+
+def _split_options(node: Mapping[str, Any], extra: Sequence[str], options_cls: type[Any]) -> Mapping[str, Any]:
+    """The option keys of a composite/decorator node."""
+    names = {f.name for f in dataclasses.fields(options_cls)}
+    return marked_subset(node, [k for k in node if k in names and k not in extra])
 
 
 def parse_node(node: Any, source: Source, path: str, *, parent: Any = None, key: Any = None,

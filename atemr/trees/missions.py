@@ -40,7 +40,7 @@ from atemr.errors import ConfigError
 from atemr.fsm.guards import GO_TO_POSE
 from atemr.msgs import Pose2D
 from atemr.trees.behaviours import behaviours, parse_params
-from atemr.trees.builder import NodeSpec
+from atemr.trees.builder import NodeSpec, marked_subset
 from atemr.trees.leaves.media import CaptureImageParams
 from atemr.trees.leaves.motion import RotateParams
 from atemr.trees.leaves.timing import WaitParams
@@ -285,8 +285,7 @@ def _parse_step(node: Any, i: int, source: Source, raw: list[Any], *, home: Pose
     label = node.get("name", f"step {i}: {kind}")
     if not isinstance(label, str) or not label:
         raise source.error("'name' must be a non-empty string", f"{path}.name", node, "name")
-    common = parse_params(StepDefaults, {k: node[k] for k in ("timeout_s", "retries") if k in node}, source, path,
-                          container=node)
+    common = parse_params(StepDefaults, marked_subset(node, ("timeout_s", "retries")), source, path, container=node)
     timeout_s = common.timeout_s if "timeout_s" in node else defaults.timeout_s
     retries = common.retries if "retries" in node else defaults.retries
     compiler, needs = STEP_KINDS[kind]

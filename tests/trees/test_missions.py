@@ -1,0 +1,121 @@
+"""Mission files: the shipped examples, the compiled trees, and each validation error with its position."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from atemr.errors import ConfigError
+from atemr.io.sim.world import load_world
+from atemr.trees.missions import Mission, load_mission, parse_mission
+from atemr.yamlsafe import load_yaml
+
+MISSIONS = sorted((Path(__file__).resolve().parents[2] / "trees" / "missions").glob("*.yaml"))
+
+
+def parse(text: str) -> Mission:
+    return parse_mission(load_yaml("m.yaml", text=text), "m.yaml")
+
+
+def test_at_least_three_missions_ship_for_the_default_world() -> None:
+    worlds = [load_mission(p).world for p in MISSIONS]
+    assert worlds.count("studio") >= 3
+
+
+@pytest.mark.parametrize("path", MISSIONS, ids=[p.stem for p in MISSIONS])
+def test_shipped_mission_poses_are_in_free_space_with_clearance(path: Path) -> None:
+    mission = load_mission(path)
+    if mission.world is None:
+        pytest.skip("not tied to a world")
+    grid = load_world(mission.world).map
+    clearance_m = ndimage.distance_transform_edt(~grid.occupied) * grid.resolution_m
+    poses = [n.options for n in mission.spec.walk() if n.type == "GoToPose"]
+    assert poses
+    for pose in poses:
+        row, col = grid.world_to_cell(pose.x_m, pose.y_m)
+        assert grid.free[row, col], (pose, "not free")
+        assert clearance_m[row, col] >= 0.35, (pose, "too close to an obstacle for the robot")
+
+
+def test_look_around_is_runnable_in_this_build_and_navigation_missions_say_why_not() -> None:
+    reports = {load_mission(p).name: load_mission(p).report() for p in MISSIONS}
+    assert reports["look-around"]["runnable"] is True
+    kitchen = reports["kitchen-check"]
+    assert kitchen["runnable"] is False and kitchen["missing_behaviours"] == ["GoToPose"]
+    assert [s["runnable"] for s in kitchen["steps"]] == [False, True, True, True, True, False]
+
+
+def test_compiled_tree_wraps_steps_in_timeout_and_retry() -> None:
+    mission = parse("""
+mission:
+  name: t
+  home: {x_m: 0, y_m: 0}
+  defaults: {timeout_s: 30}
+  steps:
+    - go_to: {x_m: 1, y_m: 2, yaw_rad: 0.5}
+      retries: 2
+    - patrol: {waypoints: [{x_m: 1, y_m: 1}, {x_m: 2, y_m: 2}], loops: 0}
+    - wait: {duration_s: 1}
+      timeout_s: 5
+    - return_home: {}
+""")
+    first, patrol, wait, home = mission.spec.children
+    assert (first.type, first.options.num_failures) == ("Retry", 3)
+    assert (first.children[0].type, first.children[0].options.duration_s) == ("Timeout", 30.0)
+    assert first.children[0].children[0].options.pose().y_m == 2.0
+    repeat = patrol.children[0]
+    assert (repeat.type, repeat.options.num_success) == ("Repeat", -1)
+    assert [c.options.x_m for c in repeat.children[0].children] == [1.0, 2.0]
+    assert wait.options.duration_s == 5.0 and wait.children[0].options.duration_s == 1.0
+    assert home.children[0].options.x_m == 0.0
+    assert [s.line for s in mission.steps] == [7, 9, 10, 12]
+
+
+BAD = [
+    ("unknown kind", "    - goto: {x_m: 1, y_m: 2}\n", "goto", ["unknown step kind 'goto'", "'go_to'"]),
+    ("two kinds", "    - {wait: {duration_s: 1}, rotate: {angle_rad: 1}}\n", "{wait", ["exactly one kind"]),
+    ("missing parameter", "    - go_to: {x_m: 1}\n", "{x_m", ["missing required parameter: y_m"]),
+    ("bad parameter", "    - wait: {duration_s: -2}\n", "-2", ["must be at least 0"]),
+    ("unknown parameter", "    - wait: {duration_s: 2, speed: 1}\n", "speed", ["unknown key 'speed'"]),
+    ("return home without home", "    - return_home: {}\n", "return_home", ["needs the mission's 'home'"]),
+    ("bad loops", "    - patrol: {waypoints: [{x_m: 1, y_m: 1}], loops: -1}\n", "-1", ["'loops' must be"]),
+    ("bad waypoint", "    - visit: {waypoints: [{x_m: 1, y_m: 1}, 7]}\n", "7", ["a pose is a mapping"]),
+    ("bad timeout", "    - wait: {duration_s: 1}\n      timeout_s: 0\n", "0\n", ["must be at least 0.1"]),
+    ("bad label", "    - capture_image: {label: ../../etc}\n", "{label", ["label must be"]),
+]
+
+
+@pytest.mark.parametrize(("kind", "step", "at", "words"), BAD, ids=[b[0] for b in BAD])
+def test_mission_errors_point_at_the_step(kind: str, step: str, at: str, words: list[str]) -> None:
+    text = "mission:\n  name: bad\n  steps:\n    - wait: {duration_s: 1}\n" + step
+    with pytest.raises(ConfigError) as info:
+        parse(text)
+    index = text.index(at, text.index(step))
+    line = text.count("\n", 0, index) + 1
+    column = index - (text.rfind("\n", 0, index) + 1) + 1
+    assert (info.value.file, info.value.line, info.value.column) == ("m.yaml", line, column), str(info.value)
+    assert info.value.path and info.value.path.startswith("mission.steps[1]")
+    for word in words:
+        assert word in info.value.reason
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("steps: []\n", ["one top-level key, 'mission'"]),
+    ("mission:\n  name: x\n  step: []\n", ["unknown key 'step'", "'steps'"]),
+    ("mission:\n  name: x\n  steps: []\n", ["'steps' must be a non-empty list"]),
+    ("mission:\n  steps: [{wait: {duration_s: 1}}]\n", ["needs a non-empty 'name'"]),
+])
+def test_mission_document_errors(text: str, words: list[str]) -> None:
+    with pytest.raises(ConfigError) as info:
+        parse(text)
+    for word in words:
+        assert word in str(info.value)
+
+
+def test_missing_behaviours_are_reported_not_hidden() -> None:
+    mission = parse("mission:\n  name: x\n  steps:\n    - go_to: {x_m: 1, y_m: 1}\n    - wait: {duration_s: 1}\n")
+    assert mission.missing_behaviours() == ["GoToPose"]
+    assert np.array_equal([s["runnable"] for s in mission.report()["steps"]], [False, True])
