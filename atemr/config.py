@@ -70,6 +70,20 @@ class CanConfig:
 
 
 @dataclass(frozen=True)
+class MotorsConfig:
+    """The two RMD-L-7015 drive motors on the CAN bus (0x140 + id) and their driver's watchdogs."""
+
+    left_id: int = field(default=1, metadata={"min": 1, "max": 32, "help": "left motor's RMD id (not 16-23)"})
+    right_id: int = field(default=2, metadata={"min": 1, "max": 32, "help": "right motor's RMD id (not 16-23)"})
+    left_direction: int = field(default=1, metadata={"choices": (1, -1), "help": "+1/-1: shaft sign for forward"})
+    right_direction: int = field(default=-1, metadata={"choices": (1, -1), "help": "+1/-1: shaft sign for forward"})
+    rate_hz: float = field(default=50.0, metadata={"min": 10.0, "max": 500.0, "help": "driver tick rate"})
+    command_timeout_s: float = field(default=0.5, metadata={"min": 0.05, "max": 5.0, "help": "command watchdog"})
+    silence_timeout_s: float = field(default=0.3, metadata={"min": 0.05, "max": 5.0, "help": "silent motor → fault"})
+    status_period_s: float = field(default=0.2, metadata={"min": 0.02, "max": 5.0, "help": "status-1 poll period"})
+
+
+@dataclass(frozen=True)
 class UiConfig:
     """The operator dashboard (Flask + Socket.IO). Paths left empty live under ``data_dir``."""
 
@@ -107,6 +121,7 @@ class Config:
     simulation: bool = field(default=True, metadata={"help": "run in the built-in simulator (false: real robot)"})
     sim: SimConfig = field(default_factory=SimConfig)
     can: CanConfig = field(default_factory=CanConfig)
+    motors: MotorsConfig = field(default_factory=MotorsConfig)
     ui: UiConfig = field(default_factory=UiConfig)
     secondary: SecondaryConfig = field(default_factory=SecondaryConfig)
 
