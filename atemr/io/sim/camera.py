@@ -29,6 +29,8 @@ CEILING = np.array([235.0, 235.0, 228.0])
 FLOOR_A = np.array([176.0, 150.0, 118.0])
 FLOOR_B = np.array([160.0, 134.0, 102.0])
 DROP = np.array([25.0, 25.0, 30.0])
+#: What distant things fade into (exponential fog: ``exp(-distance / fog_m)`` of an object's own colour).
+HAZE = np.array([165.0, 162.0, 158.0])
 
 
 @dataclass(frozen=True)
@@ -41,7 +43,7 @@ class CameraParams:
     height_m: float = 1.0
     mount: Pose2D = field(default_factory=lambda: Pose2D(0.12, 0.0, 0.0))
     max_range_m: float = 15.0
-    fog_m: float = 12.0
+    fog_m: float = 15.0
 
     def __post_init__(self) -> None:
         if not (16 <= self.width <= 4096 and 16 <= self.height <= 4096):
@@ -119,8 +121,8 @@ class Camera:
             rel = self.row_slope * depth[None, :]
             mask = (rel >= -cam_z) & (rel <= (top - cam_z)[None, :]) & (depth[None, :] < zbuf)
             zbuf = np.where(mask, depth[None, :], zbuf)
-            fog = np.clip(1.0 - depth / p.fog_m, 0.25, 1.0)
-            col = (color * fog[:, None]).astype(np.float32)
+            fog = np.exp(-depth / p.fog_m)[:, None]
+            col = (color * fog + HAZE * (1.0 - fog)).astype(np.float32)
             rows, cols = np.nonzero(mask)
             img[rows, cols] = col[cols]
         return img.astype(np.uint8)
@@ -143,6 +145,6 @@ class Camera:
         drop = np.zeros(fx.shape, dtype=bool)
         drop[inside] = scene.drop_mask[row[inside], col[inside]]
         floor = np.where(drop[..., None], DROP, floor)
-        fog = np.clip(1.0 - depth / p.fog_m, 0.25, 1.0)[..., None]
-        img[self._floor_rows] = floor * fog
+        fog = np.exp(-dist / p.fog_m)[..., None]
+        img[self._floor_rows] = floor * fog + HAZE * (1.0 - fog)
         return img

@@ -270,7 +270,8 @@ def pixels_to_occupancy(
 def save_map(grid: OccupancyMap, path: str | Path, *, image_format: Literal["pgm", "png"] = "pgm") -> Path:
     """Write ``grid`` as ``path`` (the YAML) plus ``<stem>.pgm`` beside it, as ROS map_saver does.
 
-    Trinary output: occupied 0 (black), free 254 (white), unknown 205 (grey), thresholds 0.65 / 0.25.
+    Trinary output: occupied 0 (black), free 254 (white), unknown 205 (grey), thresholds 0.65 / 0.196 (205
+    reads as p = 0.19608, just above free_thresh: unknown, as map_saver intends).
     Returns the YAML path. Writes the image first and the YAML last, each to a temporary name renamed
     into place, so a reader never sees a YAML whose image is missing or half written.
     """
@@ -293,7 +294,7 @@ def save_map(grid: OccupancyMap, path: str | Path, *, image_format: Literal["pgm
         f"origin: [{o.x_m!r}, {o.y_m!r}, {o.yaw_rad!r}]\n"
         f"negate: 0\n"
         f"occupied_thresh: 0.65\n"
-        f"free_thresh: 0.25\n"
+        f"free_thresh: 0.196\n"
     )
     tmp_yaml = path.with_name(path.name + ".tmp")
     tmp_yaml.write_text(text, encoding="utf-8")

@@ -89,6 +89,9 @@ def cast_grid(
     x_step = np.where(dx > 0, 1.0, -1.0)
     y_step = np.where(dy > 0, 1.0, -1.0)
     x_off = np.where(dx > 0, 1, 0)  # +1 for the padding border
+    # Where a crossing lands exactly on a grid corner, the cell entered is the one the ray is heading into.
+    nudge_x = np.copysign(1e-9, dx)
+    nudge_y = np.copysign(1e-9, dy)
     y_off = np.where(dy > 0, 1, 0)
 
     # Where each ray leaves the grid (when it starts inside it): nothing beyond can stop it.
@@ -113,7 +116,7 @@ def cast_grid(
         line = x_first[a, None] + x_step[a, None] * k
         tx = np.abs(line - gx0) * inv_dx[a, None]
         cx = np.clip(line.astype(np.intp) + x_off[a, None], 0, width + 1)
-        rx = np.clip(np.floor(gy0 + tx * dy[a, None]).astype(np.intp) + 1, 0, height + 1)
+        rx = np.clip(np.floor(gy0 + tx * dy[a, None] + nudge_y[a, None]).astype(np.intp) + 1, 0, height + 1)
         fx_idx = rx * stride + cx
         tx_hit = np.where(flat_grid[fx_idx] & (tx <= lim), tx, np.inf)
         jx = tx_hit.argmin(axis=1)
@@ -122,7 +125,7 @@ def cast_grid(
         line = y_first[a, None] + y_step[a, None] * k
         ty = np.abs(line - gy0) * inv_dy[a, None]
         ry = np.clip(line.astype(np.intp) + y_off[a, None], 0, height + 1)
-        cy = np.clip(np.floor(gx0 + ty * dx[a, None]).astype(np.intp) + 1, 0, width + 1)
+        cy = np.clip(np.floor(gx0 + ty * dx[a, None] + nudge_x[a, None]).astype(np.intp) + 1, 0, width + 1)
         fy_idx = ry * stride + cy
         ty_hit = np.where(flat_grid[fy_idx] & (ty <= lim), ty, np.inf)
         jy = ty_hit.argmin(axis=1)

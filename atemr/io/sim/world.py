@@ -144,8 +144,9 @@ class _Doc:
             if k not in known:
                 close = difflib.get_close_matches(str(k), list(known), n=1)
                 hint = f" (did you mean '{close[0]}'?)" if close else ""
-                raise self.error(f"unknown key '{k}'{hint}; known keys: {', '.join(known)}", value, k,
-                                 f"{path}.{k}", on_key=True)
+                where = f"{path}.{k}" if path else str(k)
+                raise self.error(f"unknown key '{k}'{hint}; known keys: {', '.join(known)}", value, k, where,
+                                 on_key=True)
         return value
 
     def numbers(self, container: Any, key: Any, path: str, count: int | None = None) -> tuple[float, ...]:
@@ -236,7 +237,7 @@ def _parse_world(doc: Any, path: Path) -> World:
     d = _Doc(file)
     if not isinstance(doc, dict):
         raise ConfigError(f"expected a world mapping with a 'map' key, got {type(doc).__name__}", file=file)
-    d.mapping(doc, doc, None, "(top)", _WORLD_KEYS)
+    d.mapping(doc, doc, None, "", _WORLD_KEYS)
     if "map" not in doc:
         raise ConfigError("missing required key 'map' (the map_server YAML of this world)", file=file)
     map_ref = doc["map"]

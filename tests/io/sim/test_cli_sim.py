@@ -1,0 +1,50 @@
+"""``atemr sim``: headless runs with a JSON summary, determinism, errors."""
+
+import json
+
+from atemr.cli.main import main
+
+
+def run_json(capsys, *args):
+    assert main(["sim", "--headless", "--json", *args]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_headless_json_summary(capsys):
+    out = run_json(capsys, "--duration", "2", "--seed", "3", "--camera-hz", "5", "--twist", "0.5", "0.2")
+    assert out["world"] == "studio" and out["seed"] == 3
+    assert out["sim_seconds"] == 2.0
+    assert out["wall_seconds"] > 0 and out["real_time_factor"] > 0
+    assert out["scans"] == 21 and out["imu_samples"] == 101 and out["cliff_readings"] == 41 and out["frames"] == 11
+    assert out["collisions"] == len(out["collision_events"])
+    assert set(out["final_pose"]) == {"x_m", "y_m", "yaw_rad"}
+    assert out["distance_m"] > 0.5
+
+
+def test_same_seed_same_final_pose(capsys):
+    a = run_json(capsys, "--duration", "1", "--seed", "5", "--camera-hz", "0", "--twist", "0.4", "0.3")
+    b = run_json(capsys, "--duration", "1", "--seed", "5", "--camera-hz", "0", "--twist", "0.4", "0.3")
+    assert a["final_pose"] == b["final_pose"]
+
+
+def test_external_map_as_world(capsys, shared_dir):
+    path = shared_dir / "worlds" / "external" / "nav2_tb3_sandbox.yaml"
+    out = run_json(capsys, "--world", str(path), "--duration", "0.5", "--camera-hz", "0")
+    assert out["world"] == "nav2_tb3_sandbox" and out["scans"] == 6
+
+
+def test_bad_world_is_a_one_line_error(capsys, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("image: missing.pgm\nresolution: 0.05\norigin: [0, 0]\nnegate: 0\n"
+                   "occupied_thresh: 0.65\nfree_thresh: 0.2\n")
+    assert main(["sim", "--headless", "--world", str(bad), "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}:3:9 origin: expected three numbers" in err
+
+
+def test_real_time_run_is_paced(capsys):
+    # 0.2 simulated seconds at 4x real time: about 50 ms of wall time
+    assert main(["sim", "--duration", "0.2", "--speed", "4", "--camera-hz", "0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["wall_seconds"] >= 0.045
+    assert out["real_time_factor"] <= 4.5

@@ -1,0 +1,117 @@
+"""Ray casting against hand-made grids with known distances, a brute-force reference, and circles."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from atemr.io.sim.raycast import cast_circles, cast_grid
+
+RES = 0.1
+
+
+def room(rows: int = 40, cols: int = 60) -> np.ndarray:
+    """A 6 m x 4 m room at 10 cm with one-cell walls: inner faces at x=0.1, x=5.9, y=0.1, y=3.9."""
+    g = np.zeros((rows, cols), dtype=bool)
+    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = True
+    return g
+
+
+def test_axis_beams_in_a_room_hit_the_inner_faces():
+    angles = np.array([0.0, math.pi / 2, math.pi, -math.pi / 2])
+    hits = cast_grid(room(), RES, (2.0, 1.5), angles, 10.0)
+    np.testing.assert_allclose(hits.distance_m, [3.9, 2.4, 1.9, 1.4], atol=1e-9)
+    assert hits.side.tolist() == [0, 1, 0, 1]
+    assert hits.col.tolist() == [59, 20, 0, 20]
+    assert hits.row.tolist() == [15, 39, 15, 0]
+
+
+def test_diagonal_beam_distance_is_exact():
+    # 45° from (1.0, 1.0): meets the top face y=3.9 at x=3.9, before the right face at x=5.9
+    hits = cast_grid(room(), RES, (1.0, 1.0), np.array([math.pi / 4]), 10.0)
+    assert hits.distance_m[0] == pytest.approx(2.9 * math.sqrt(2), abs=1e-9)
+
+
+def test_single_block_and_range_limit():
+    g = np.zeros((50, 50), dtype=bool)
+    g[25, 40] = True  # cell covering x in [4.0, 4.1), y in [2.5, 2.6)
+    hits = cast_grid(g, RES, (1.0, 2.55), np.array([0.0, math.pi]), 10.0)
+    assert hits.distance_m[0] == pytest.approx(3.0)
+    assert hits.distance_m[1] == math.inf  # nothing behind, the grid just ends
+    short = cast_grid(g, RES, (1.0, 2.55), np.array([0.0]), 2.5)
+    assert short.distance_m[0] == math.inf
+    assert short.row[0] == -1 and short.side[0] == -1
+
+
+def test_ray_starting_in_a_wall_has_zero_distance():
+    hits = cast_grid(room(), RES, (0.05, 1.0), np.array([0.0, 1.0]), 10.0)
+    assert hits.distance_m.tolist() == [0.0, 0.0]
+
+
+def test_origin_outside_the_grid():
+    g = room()
+    hits = cast_grid(g, RES, (-1.0, 2.0), np.array([0.0, math.pi]), 10.0)
+    assert hits.distance_m[0] == pytest.approx(1.0)
+    assert hits.distance_m[1] == math.inf
+
+
+def reference(grid: np.ndarray, res: float, origin: tuple[float, float], angle: float, max_range: float) -> float:
+    """Brute force: march in steps of 1/2000 cell and report the first sample inside a blocked cell."""
+    step = res / 2000
+    t = np.arange(0.0, max_range, step)
+    x = origin[0] + t * math.cos(angle)
+    y = origin[1] + t * math.sin(angle)
+    r = np.floor(y / res).astype(int)
+    c = np.floor(x / res).astype(int)
+    ok = (r >= 0) & (r < grid.shape[0]) & (c >= 0) & (c < grid.shape[1])
+    blocked = np.zeros(t.shape, dtype=bool)
+    blocked[ok] = grid[r[ok], c[ok]]
+    idx = np.nonzero(blocked)[0]
+    return float(t[idx[0]]) if idx.size else math.inf
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    ox=st.floats(0.0, 3.0), oy=st.floats(0.0, 2.0),
+    density=st.floats(0.02, 0.3),
+)
+def test_matches_brute_force_on_random_grids(seed, ox, oy, density):
+    rng = np.random.default_rng(seed)
+    grid = rng.random((20, 30)) < density
+    grid[int(oy / RES) if oy < 2.0 else 19, int(ox / RES) if ox < 3.0 else 29] = False
+    angles = rng.uniform(-math.pi, math.pi, 12)
+    hits = cast_grid(grid, RES, (ox, oy), angles, 2.5)
+    for angle, got in zip(angles, hits.distance_m, strict=True):
+        want = reference(grid, RES, (ox, oy), angle, 2.5)
+        if math.isinf(want):
+            assert math.isinf(got) or got > 2.5 - RES / 1000
+        else:
+            assert got == pytest.approx(want, abs=RES / 1000)
+
+
+def test_many_chunks_long_corridor():
+    # a 0.5 m wide, 60 m long corridor: rays travel far and nearly parallel to the walls
+    g = np.zeros((7, 601), dtype=bool)
+    g[0, :] = g[-1, :] = True
+    g[:, -1] = True
+    angles = np.array([0.0, 0.003, -0.003])
+    hits = cast_grid(g, RES, (0.05, 0.35), angles, 100.0)
+    assert hits.distance_m[0] == pytest.approx(59.95)
+    for angle, d in zip(angles[1:], hits.distance_m[1:], strict=True):
+        assert d == pytest.approx(reference(g, RES, (0.05, 0.35), angle, 100.0), abs=RES / 1000)
+
+
+def test_circles():
+    centres = np.array([[3.0, 0.0], [1.5, 1.0]])
+    radii = np.array([0.5, 0.2])
+    d, which = cast_circles((0.0, 0.0), np.array([0.0, math.atan2(1.0, 1.5), math.pi]), centres, radii, 10.0)
+    assert d[0] == pytest.approx(2.5) and which[0] == 0
+    assert d[1] == pytest.approx(math.hypot(1.5, 1.0) - 0.2) and which[1] == 1
+    assert math.isinf(d[2]) and which[2] == -1
+    inside, _ = cast_circles((3.0, 0.1), np.array([1.0]), centres, radii)
+    assert inside[0] == 0.0
+    none, idx = cast_circles((0.0, 0.0), np.array([0.0]), np.zeros((0, 2)), np.zeros(0))
+    assert math.isinf(none[0]) and idx[0] == -1

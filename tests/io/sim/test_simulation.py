@@ -1,0 +1,106 @@
+"""The simulation as scheduler components: rates, determinism, default RMD wheels, subscribers."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from atemr.clock import SimClock
+from atemr.config import SimConfig
+from atemr.errors import ConfigError
+from atemr.io.motors.model import RmdMotorModel
+from atemr.io.sim.simulation import SimParams, build_simulation, params_from_config
+from atemr.scheduler import Scheduler
+
+
+def drive(seed, *, camera_hz=0.0, seconds=3.0, world="studio"):
+    sim = build_simulation(world, seed, params=SimParams(camera_hz=camera_hz))
+    trajectory = []
+    sim.physics.subscribe(lambda truth: trajectory.append((truth.t, truth.pose.x_m, truth.pose.y_m,
+                                                           truth.pose.yaw_rad)))
+    sched = Scheduler(SimClock())
+    sim.attach(sched)
+    sim.command_twist(0.6, 0.4)
+    sched.run(duration=seconds)
+    return sim, np.array(trajectory)
+
+
+def test_same_seed_same_world_same_trajectory():
+    _, a = drive(7)
+    _, b = drive(7)
+    assert a.shape == (301, 4)
+    assert np.array_equal(a, b)
+
+
+def test_another_seed_another_trajectory():
+    _, a = drive(7)
+    _, b = drive(8)
+    assert not np.array_equal(a, b)
+    assert np.abs(a - b).max() < 0.2  # same commands: only noise differs
+
+
+def test_the_camera_does_not_change_the_trajectory():
+    sim_off, a = drive(7, seconds=1.0)
+    sim_on, b = drive(7, camera_hz=10.0, seconds=1.0)
+    assert np.array_equal(a, b)
+    assert sim_off.camera_source.count == 0 and sim_on.camera_source.count == 11
+
+
+def test_components_and_rates():
+    sim = build_simulation("studio", 0, params=SimParams(camera_hz=5.0))
+    sched = Scheduler(SimClock())
+    sim.attach(sched)
+    sched.run(duration=2.0)
+    counts = {c.name: c.ticks for c in sched.stats()}
+    assert counts == {"sim.physics": 201, "sim.lidar": 21, "sim.imu": 101, "sim.cliff": 41, "sim.camera": 11}
+    assert sim.lidar_source.latest is not None and sim.lidar_source.latest.t == 2.0
+    assert sim.camera_source.latest.shape == (480, 640, 3)
+
+
+def test_default_wheels_are_rmd_motor_models_with_first_order_dynamics():
+    sim = build_simulation("studio", 0)
+    assert isinstance(sim.left, RmdMotorModel) and isinstance(sim.right, RmdMotorModel)
+    sched = Scheduler(SimClock())
+    sim.attach(sched)
+    sim.command_wheels(10.0, 10.0)
+    tau = sim.left.params.time_constant_s
+    sched.run(duration=tau)
+    assert sim.left.speed_radps == pytest.approx(10.0 * (1 - np.exp(-1)), rel=1e-6)
+
+
+def test_a_failing_subscriber_does_not_stop_the_others(caplog):
+    sim = build_simulation("studio", 0)
+    got = []
+
+    def broken(scan):
+        raise RuntimeError("boom")
+
+    sim.lidar_source.subscribe(broken)
+    sim.lidar_source.subscribe(got.append)
+    sim.lidar_source.tick(0.0)
+    assert len(got) == 1
+    assert "a subscriber failed" in caplog.text
+
+
+def test_people_walk_and_pets_wander():
+    sim = build_simulation("studio", 4)
+    start = sim.movers.centres.copy()
+    sched = Scheduler(SimClock())
+    sim.attach(sched)
+    sched.run(duration=5.0)
+    moved = np.hypot(*(sim.movers.centres - start).T)
+    assert moved[0] > 1.0  # the carer walks 0.6 m/s along the path
+    assert moved[1] > 0.0  # the cat has wandered
+
+
+def test_config_becomes_params():
+    cfg = dataclasses.replace(SimConfig(), lidar_beams=400, camera_hz=0.0, wheel_slip=0.0)
+    params = params_from_config(cfg)
+    assert params.lidar.beams == 400 and params.camera_hz == 0.0 and params.base.slip_std == 0.0
+
+
+def test_bad_seed_and_rates():
+    with pytest.raises(ConfigError, match=r"sim\.seed"):
+        build_simulation("studio", -1)
+    with pytest.raises(ConfigError, match=r"sim\.lidar_hz"):
+        SimParams(lidar_hz=0.0)
