@@ -55,7 +55,25 @@
     em.className = `led ${s.emergency ? "bad blink" : "ok"}`;
     em.textContent = s.emergency ? "EMERGENCY" : "BRAKES OFF";
     graph.add(s.system);
+    events(s.events);
   });
+
+  // -- the latest events, newest first -------------------------------------------------------------
+  let lastEvents = "";
+  function events(list) {
+    const el = $("events");
+    if (!el || !Array.isArray(list)) return;
+    const key = JSON.stringify(list.slice(-8));
+    if (key === lastEvents) return;
+    lastEvents = key;
+    el.innerHTML = "";
+    for (const e of list.slice(-8).reverse()) {
+      const li = document.createElement("li");
+      li.className = `event ${e.kind || ""}`;
+      li.textContent = `${A.fmt(e.t, 1)} s  ${e.kind || ""}: ${e.text || ""}`;
+      el.appendChild(li);
+    }
+  }
 
   // -- joystick ------------------------------------------------------------------------------------
   const pad = $("joystick");
