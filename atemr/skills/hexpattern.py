@@ -15,10 +15,14 @@ is built"), which the text copy lacks; so the angles below are this project's re
   one sector is centred on each side (Left-*Center*, Right-*Center*), two rear sectors meet on the -x
   axis: boundaries at 0°, ±60°, ±120°, 180°.
 * HEX (``hex``) is HEX-90 turned back by 90° (HEX-90 = HEX rotated +90°, as the thesis says), each name
-  kept on its hexagon face. Its boundaries fall at ±30°, ±90°, 150°, so the ±90° line splits it into a
-  front half (three sectors) and a rear half (three sectors) exactly; that is why the speed ramp, which
-  the thesis feeds with HEX, reads its per-direction clearance from it. In HEX the names label faces,
-  not directions: the face straight ahead is called LC.
+  kept on its hexagon face. Its boundaries fall at ±30°, ±90°, 150°: one face straight ahead, one
+  straight behind, two on each side. In HEX the names label faces, not directions: the face straight
+  ahead is called LC. It is kept for consumers that want a sector centred on the heading.
+
+The speed ramp's zones use HEX-90 by direction (`HexSectors.nearest_by_direction`): its front pair
+FL+FR covers bearings within ±60°, which is the path a round footprint sweeps when it drives straight,
+seen from the stop distance (KAY's 0.25 m footprint radius at 0.28 m: asin(0.25/0.28) ≈ 63°); an
+obstacle beside the base (LC, RC) is passed, not hit.
 
 The layouts are data in `HEX_LAYOUTS` (a registry), so a third layout is one entry and the README draws
 them from the same table (`ascii_drawing`).
@@ -126,23 +130,21 @@ class HexSectors:
         """``{"FR": mean, ...}``: the input mapping of the fuzzy engines."""
         return {name: float(v) for name, v in zip(SECTORS, self.mean_m, strict=True)}
 
-    def nearest_front_rear_m(self) -> tuple[float, float]:
-        """Nearest return ahead of and behind the base's y axis, from the sectors' nearest values.
-
-        A sector whose bisector points ahead counts as front, behind as rear, exactly sideways as both
-        (so HEX-90's LC/RC guard both directions; HEX splits cleanly into halves).
-        """
-        front, rear = _front_rear_masks(self.layout)
-        f = float(self.nearest_m[front].min()) if front.any() else math.inf
-        r = float(self.nearest_m[rear].min()) if rear.any() else math.inf
-        return f, r
+    def nearest_by_direction(self) -> tuple[float, float, float]:
+        """(front, rear, side): nearest return of the sectors whose bisector lies within 45° of ahead, of
+        behind, and the rest. In HEX-90 that is FL+FR, RL+RR and LC+RC; in HEX the LC face, the RC face
+        and the four others. inf where there is none."""
+        out = []
+        for mask in _direction_masks(self.layout):
+            out.append(float(self.nearest_m[mask].min()) if mask.any() else math.inf)
+        return out[0], out[1], out[2]
 
 
 @lru_cache(maxsize=16)
-def _front_rear_masks(layout: HexLayout) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-    c = np.array([math.cos(math.radians(layout.centre_deg(s))) for s in SECTORS])
-    side = np.abs(c) < 1e-9
-    return (c > 0) | side, (c < 0) | side
+def _direction_masks(layout: HexLayout) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    c = np.abs(np.array([layout.centre_deg(s) for s in SECTORS]))
+    front, rear = c < 45.0, c > 135.0
+    return front, rear, ~(front | rear)
 
 
 @lru_cache(maxsize=16)

@@ -2,15 +2,17 @@
 
 Per tick, in this order:
 
-1. Zones. From the nearest obstacle *in the direction the base moves or is asked to move* (front when
-   going forward, rear when reversing, both when turning on the spot): closer than ``stop_distance_m``
-   (0.28 m) → emergency: output zero at once, bypassing the ramp, until that clearance has stayed
-   beyond the stop distance for ``resume_after_s`` (2 s). Closer than ``slow_distance_m`` (0.56 m) →
-   the target is limited to ``slow_linear_mps`` (0.35 m/s) and ``slow_angular_radps`` (1.6 rad/s).
-   Direction matters so that an operator can back away from the wall the base stopped at (after the
-   resume delay) and so that a person walking up behind a base that drives away does not brake it;
-   turning on the spot never triggers the stop zone (KAY's footprint is round about its axle) but is
-   slowed near obstacles.
+1. Zones. From the nearest obstacle *in the direction the base moves or is asked to move*: closer than
+   ``stop_distance_m`` (0.28 m) → emergency: output zero at once, bypassing the ramp, until that
+   clearance has stayed beyond the stop distance for ``resume_after_s`` (2 s). Closer than
+   ``slow_distance_m`` (0.56 m) → the target is limited to ``slow_linear_mps`` (0.35 m/s) and
+   ``slow_angular_radps`` (1.6 rad/s). `Clearance` gives three directions (from the hex pattern):
+   front (ahead within ±60°), rear, side. Going forward the stop zone watches the front, reversing the
+   rear, and the slow zone also the sides; turning on the spot never triggers the stop zone (KAY's
+   footprint is round about its axle) but is slowed by anything near. Direction matters so that an
+   operator can back away from the wall the base stopped at (after the resume delay), so that a person
+   walking up behind a base that drives away does not brake it, and so that the base may pass beside
+   an obstacle it is steering round.
 2. Ramp. Linear and angular velocity each move towards the (limited) target by at most their
    acceleration limit times the elapsed time: linear in time, as the thesis' figure 3.23 shows.
 3. Idle. No state-changing command (a non-zero command, or one that differs from the previous one)
@@ -86,10 +88,15 @@ def checked_limits(changes: Mapping[str, Any] | MotionLimits, base: MotionLimits
 
 @dataclass(frozen=True)
 class Clearance:
-    """Nearest obstacle ahead of and behind the base's y axis, metres from the base origin (inf: none)."""
+    """Nearest obstacle ahead, behind and beside the base, metres from the base origin (inf: none).
+
+    From `atemr.skills.hexpattern.HexSectors.nearest_by_direction`: ahead is within ±60° of the heading,
+    the path a round footprint sweeps.
+    """
 
     front_m: float = math.inf
     rear_m: float = math.inf
+    side_m: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -211,7 +218,8 @@ class SpeedRamp:
         else:
             by_dir = {1: clearance.front_m, -1: clearance.rear_m}
             stop_guard = min((by_dir[d] for d in directions), default=math.inf)
-            guard = stop_guard if directions else min(clearance.front_m, clearance.rear_m)
+            around = min(clearance.front_m, clearance.rear_m)
+            guard = min(stop_guard, clearance.side_m) if directions else min(around, clearance.side_m)
 
         if stop_guard < lim.stop_distance_m:
             self._emergency = True

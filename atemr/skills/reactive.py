@@ -39,7 +39,8 @@ class ReactiveParams:
         default=MANUAL_ENGINE_SPEED_LIMIT_MPS, metadata={"min": 0.0, "max": 0.5, "help": "speed scale and limit"}
     )
     idle_max_angular_radps: float = field(default=1.0, metadata={"min": 0.0, "max": 3.0})
-    manual_max_angular_radps: float = field(default=1.0, metadata={"min": 0.0, "max": 3.0})
+    #: As the slow zone's 1.6 rad/s: the engine often steers where the ramp is already in the slow zone.
+    manual_max_angular_radps: float = field(default=1.6, metadata={"min": 0.0, "max": 3.0})
     tau_max: float = field(default=0.8, metadata={"min": 0.0, "max": 1.0, "help": "engine weight when very near"})
 
     def __post_init__(self) -> None:

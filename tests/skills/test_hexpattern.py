@@ -84,15 +84,15 @@ def test_sensor_pose_moves_points_to_the_base_frame():
 def test_empty_scan_reads_clear():
     h = hex_pattern(LaserScan(0.0, np.array([]), 0.0, INC, 0.15, 8.0), "hex")
     assert np.all(h.mean_m == 1.2) and np.all(np.isinf(h.nearest_m)) and h.count.sum() == 0
-    assert h.nearest_front_rear_m() == (math.inf, math.inf)
+    assert h.nearest_by_direction() == (math.inf, math.inf, math.inf)
 
 
-def test_front_rear_clearance_from_sector_geometry():
-    h = hex_pattern(scan_with({0.5: 0.9, 100.5: 0.5, 180.5: 0.6}), "hex")
-    assert h.nearest_front_rear_m() == pytest.approx((0.9, 0.5))
-    # in HEX-90 LC is centred on +90°: it guards both directions
-    h90 = hex_pattern(scan_with({0.5: 0.9, 90.5: 0.3, 180.5: 0.6}), "hex90")
-    assert h90.nearest_front_rear_m() == pytest.approx((0.3, 0.3))
+def test_nearest_by_direction_from_sector_geometry():
+    h90 = hex_pattern(scan_with({10.5: 0.9, 300.5: 0.8, 90.5: 0.3, 230.5: 0.6}), "hex90")
+    assert h90.nearest_by_direction() == pytest.approx((0.8, 0.6, 0.3))
+    # HEX: only the face straight ahead is front, only the one behind is rear
+    h = hex_pattern(scan_with({0.5: 0.9, 45.5: 0.4, 180.5: 0.7}), "hex")
+    assert h.nearest_by_direction() == pytest.approx((0.9, 0.7, 0.4))
 
 
 @pytest.mark.parametrize(

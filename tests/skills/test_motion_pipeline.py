@@ -1,0 +1,313 @@
+"""The safe-motion pipeline in closed loop against a tiny kinematic world: the thesis behaviours.
+
+The double is deliberately simple: perfect wheels (the commanded wheel speeds are the actual ones),
+circles and wall segments seen by an analytic 360-beam lidar 0.10 m ahead of the axle, rectangular
+drop zones under the three IR sensors. Time is a plain float advanced 20 ms per tick (50 Hz).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+
+from atemr.errors import ConfigError
+from atemr.msgs import CliffReadings, LaserScan, Pose2D, Twist
+from atemr.skills.cliff import CliffGeometry
+from atemr.skills.diff_drive import DiffDrive, arc_step
+from atemr.skills.motion_pipeline import ControlInputs, ControlResult, MotionPipeline, PipelineSettings, TimedTwist
+from atemr.skills.ramp import MotionLimits
+
+DT = 0.02
+FOOTPRINT_M = 0.25
+LIDAR = Pose2D(0.10, 0.0, 0.0)
+N_BEAMS = 400  # 0.9° resolution, as KAY's lidar
+INC = 2 * math.pi / N_BEAMS
+
+
+@dataclass
+class Disc:
+    x: float
+    y: float
+    r: float
+    vx: float = 0.0
+    vy: float = 0.0
+
+
+@dataclass
+class World:
+    """Robot pose, obstacles, drop zones; advances with the wheel speeds the pipeline commands."""
+
+    pose: Pose2D = field(default_factory=Pose2D)
+    discs: list[Disc] = field(default_factory=list)
+    walls_x: list[float] = field(default_factory=list)  # infinite walls x = c (in front of the start)
+    drops: list[tuple[float, float, float, float]] = field(default_factory=list)  # xmin, xmax, ymin, ymax
+    t: float = 0.0
+    drive: DiffDrive = field(default_factory=DiffDrive)
+    collided: bool = False
+
+    def scan(self) -> LaserScan:
+        p = self.pose
+        ox = p.x_m + LIDAR.x_m * math.cos(p.yaw_rad)
+        oy = p.y_m + LIDAR.x_m * math.sin(p.yaw_rad)
+        a = p.yaw_rad + (-math.pi + INC * np.arange(N_BEAMS))
+        dx, dy = np.cos(a), np.sin(a)
+        best = np.full(N_BEAMS, np.inf)
+        for d in self.discs:
+            fx, fy = ox - d.x, oy - d.y
+            b = fx * dx + fy * dy
+            c = fx * fx + fy * fy - d.r * d.r
+            disc = b * b - c
+            with np.errstate(invalid="ignore"):
+                hit = -b - np.sqrt(disc)
+            best = np.where((disc >= 0) & (hit > 0), np.minimum(best, hit), best)
+        for wx in self.walls_x:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                hit = (wx - ox) / dx
+            best = np.where(hit > 0, np.minimum(best, hit), best)
+        ranges = np.where(best > 8.0, np.inf, best)
+        return LaserScan(self.t, ranges, -math.pi, INC, 0.15, 8.0, LIDAR)
+
+    def cliff(self) -> CliffReadings:
+        g = CliffGeometry()
+        out = []
+        c, s = math.cos(self.pose.yaw_rad), math.sin(self.pose.yaw_rad)
+        for mx, my in (g.front_left_xy, g.front_right_xy, g.rear_xy):
+            x = self.pose.x_m + c * mx - s * my
+            y = self.pose.y_m + s * mx + c * my
+            over = any(x0 <= x <= x1 and y0 <= y <= y1 for x0, x1, y0, y1 in self.drops)
+            out.append(math.inf if over else 0.06)
+        return CliffReadings(self.t, *out)
+
+    def clearance(self) -> float:
+        """Gap between the footprint and the nearest obstacle (negative: overlapping)."""
+        gaps = [math.hypot(self.pose.x_m - d.x, self.pose.y_m - d.y) - d.r - FOOTPRINT_M for d in self.discs]
+        gaps += [abs(wx - self.pose.x_m) - FOOTPRINT_M for wx in self.walls_x]
+        return min(gaps, default=math.inf)
+
+    def step(self, result: ControlResult) -> None:
+        v, w = self.drive.twist(result.wheels.left_radps, result.wheels.right_radps)
+        x, y, th = arc_step(self.pose.x_m, self.pose.y_m, self.pose.yaw_rad, v, w, dt_s=DT)
+        self.pose = Pose2D(float(x), float(y), float(th))
+        for d in self.discs:
+            d.x += d.vx * DT
+            d.y += d.vy * DT
+        self.t = round(self.t + DT, 9)
+        self.collided |= self.clearance() < 0
+
+
+def centre_distance_to_wall(world: World) -> float:
+    return world.walls_x[0] - world.pose.x_m
+
+
+class Loop:
+    """Ticks pipeline and world together; the joystick is re-sent every tick unless ``joy_until``."""
+
+    def __init__(self, world: World, pipeline: MotionPipeline | None = None, **inputs) -> None:
+        self.world = world
+        self.pipeline = pipeline or MotionPipeline()
+        self.inputs = inputs
+        self.log: list[tuple[float, Pose2D, ControlResult]] = []
+
+    def run(self, seconds: float, joy: Twist | None = None, joy_until: float = math.inf, **change) -> ControlResult:
+        self.inputs.update(change)
+        result = None
+        for _ in range(round(seconds / DT)):
+            w = self.world
+            joystick = None
+            if joy is not None:
+                joystick = TimedTwist(joy, min(w.t, joy_until))
+            result = self.pipeline.tick(
+                ControlInputs(now=w.t, scan=w.scan(), cliff=w.cliff(), joystick=joystick, **self.inputs)
+            )
+            self.log.append((w.t, w.pose, result))
+            w.step(result)
+        assert result is not None
+        return result
+
+
+# ---- scenarios ----------------------------------------------------------------------------------------
+
+
+def test_slows_near_a_wall_and_stops_at_the_stop_distance():
+    world = World(walls_x=[3.0])
+    loop = Loop(world)
+    loop.run(8.0, joy=Twist(0.8, 0.0))
+    # the lidar sees the wall from 0.10 m ahead of the axle: the stop distance is measured from the base origin
+    distance = centre_distance_to_wall(world)
+    assert 0.27 <= distance < 0.28
+    assert not world.collided
+    last = loop.log[-1][2]
+    assert last.emergency and last.twist.is_zero and last.source == "joystick"
+    # inside the slow zone nothing faster than 0.35 m/s once the ramp has brought the speed down
+    for _, pose, r in loop.log:
+        gap = world.walls_x[0] - pose.x_m
+        if gap < 0.56 - 0.8 * 0.45:  # 0.8 → 0.35 m/s at 1 m/s² takes 0.45 s
+            assert r.twist.linear_mps <= 0.35 + 1e-9
+        if gap < 0.56:
+            assert r.slow or r.emergency
+    assert max(r.twist.linear_mps for _, _, r in loop.log) == pytest.approx(0.8)
+
+
+def test_stop_zone_resumes_two_seconds_after_the_obstacle_leaves():
+    box = Disc(2.0, 0.0, 0.2)
+    world = World(discs=[box])
+    loop = Loop(world)
+    loop.run(6.0, joy=Twist(0.3, 0.0))
+    assert loop.log[-1][2].emergency and world.clearance() > 0
+    stopped_at = world.pose.x_m
+    box.y = 10.0  # the obstacle leaves
+    left_at = world.t
+    loop.run(3.0, joy=Twist(0.3, 0.0))
+    moving = [(t, r) for t, _, r in loop.log if t >= left_at and r.twist.linear_mps > 0]
+    assert moving, "never resumed"
+    first_move = moving[0][0]
+    assert first_move == pytest.approx(left_at + 2.0, abs=DT + 1e-9)
+    for t, pose, r in loop.log:
+        if left_at <= t < first_move:
+            assert r.emergency and pose.x_m == pytest.approx(stopped_at)
+    assert world.pose.x_m > stopped_at + 0.1
+
+
+def test_idle_after_eight_seconds_without_a_command():
+    loop = Loop(World())
+    loop.run(7.9, joy=Twist(0.0, 0.0))
+    assert not loop.log[-1][2].idle
+    loop.run(0.2, joy=Twist(0.0, 0.0))
+    assert loop.log[-1][2].idle
+    r = loop.run(0.04, joy=Twist(0.2, 0.0))
+    assert not r.idle
+
+
+def test_a_lost_joystick_stops_the_base_within_half_a_second():
+    world = World()
+    loop = Loop(world)
+    loop.run(2.0, joy=Twist(0.5, 0.2))
+    lost_at = loop.world.t - DT  # the last command was stamped on the last tick
+    loop.run(1.0, joy=Twist(0.5, 0.2), joy_until=lost_at)
+    for t, _, r in loop.log:
+        if lost_at < t < lost_at + 0.5 - 1e-9:
+            assert r.twist.linear_mps == pytest.approx(0.5)
+        if t >= lost_at + 0.5 - 1e-9:
+            assert r.wheels.left_radps == 0.0 and r.wheels.right_radps == 0.0
+            assert r.watchdog and r.source is None
+
+
+def test_a_drop_zone_stops_motion_towards_it_at_once_and_backing_off_works():
+    world = World(drops=[(1.5, 5.0, -5.0, 5.0)])  # stairs down beyond x = 1.5
+    loop = Loop(world)
+    loop.run(8.0, joy=Twist(0.4, 0.0))
+    r = loop.log[-1][2]
+    assert r.cliff_stop and r.twist.is_zero and r.cliff_drops[:2] == (True, True)
+    # the front sensors (0.20 m ahead of the axle) stopped within one tick's travel past the edge
+    assert 1.5 - 0.20 <= world.pose.x_m <= 1.5 - 0.20 + 0.4 * DT + 1e-9
+    before = world.pose.x_m
+    loop.run(1.0, joy=Twist(-0.2, 0.0))
+    assert world.pose.x_m < before - 0.05 and not loop.log[-1][2].cliff_stop
+
+
+def test_awareness_idle_base_moves_away_from_an_approaching_obstacle():
+    world = World()
+    loop = Loop(world, awareness=True)
+    loop.run(9.0)  # no operator: idle after 8 s, nothing near → the IDLE engine holds still
+    assert loop.log[-1][2].idle and world.pose == Pose2D()
+    person = Disc(1.8, 0.0, 0.2, vx=-0.12)  # walks up to the robot from the front
+    world.discs.append(person)
+    loop.run(14.0)
+    assert world.pose.x_m < -0.4, "did not back away"
+    assert not world.collided
+    sources = {r.source for _, _, r in loop.log[-500:]}
+    assert "reactive" in sources
+    # without awareness the same approach would leave the base where it is
+    world2 = World(discs=[Disc(2.5, 0.0, 0.2, vx=-0.12)])
+    loop2 = Loop(world2, awareness=False)
+    loop2.run(9.0)
+    assert world2.pose.x_m == 0.0
+
+
+@pytest.mark.parametrize("offset_m", [-0.12, 0.2])
+def test_awareness_steers_a_manually_driven_base_round_an_obstacle(offset_m):
+    # a pillar a little to one side of the path; the operator only pushes forward (thesis 4.6 video (v))
+    pillar = Disc(2.5, offset_m, 0.15)
+    world = World(discs=[pillar])
+    loop = Loop(world, awareness=True)
+    loop.run(16.0, joy=Twist(0.26, 0.0))
+    # the pillar ended up behind the base, which never touched it nor needed the stop zone
+    p = world.pose
+    ahead = (pillar.x - p.x_m) * math.cos(p.yaw_rad) + (pillar.y - p.y_m) * math.sin(p.yaw_rad)
+    assert ahead < -0.5, f"did not get past the pillar: {p}"
+    assert not world.collided
+    assert not any(r.emergency for _, _, r in loop.log)
+    assert max(abs(r.twist.linear_mps) for _, _, r in loop.log) <= 0.26 + 1e-9
+    turned = [r.twist.angular_radps for _, _, r in loop.log]
+    # it turned away from the side the pillar is on
+    assert (max(turned) > 0.3) if offset_m < 0 else (min(turned) < -0.3)
+    # without awareness the base drives straight at it and the stop zone ends the run
+    world2 = World(discs=[Disc(2.5, offset_m, 0.15)])
+    loop2 = Loop(world2, awareness=False)
+    loop2.run(16.0, joy=Twist(0.26, 0.0))
+    assert world2.pose.x_m < 2.5 and loop2.log[-1][2].emergency and not world2.collided
+
+
+# ---- the pipeline's own rules ----------------------------------------------------------------------
+
+
+def tick(p: MotionPipeline, now: float, **kw) -> ControlResult:
+    w = World(t=now)
+    return p.tick(ControlInputs(now=now, scan=w.scan(), cliff=w.cliff(), **kw))
+
+
+def test_mode_decides_between_joystick_and_navigation():
+    p = MotionPipeline()
+    joy = TimedTwist(Twist(0.2, 0.0), 0.0)
+    nav = TimedTwist(Twist(0.4, 0.0), 0.0)
+    assert tick(p, 0.0, joystick=joy, navigation=nav, mode="MANUAL").source == "joystick"
+    assert tick(p, 0.02, joystick=joy, navigation=nav, mode="AUTO").source == "navigation"
+    agent = TimedTwist(Twist(0.0, 0.5), 0.02)
+    assert tick(p, 0.04, joystick=joy, navigation=nav, agent=agent, mode="AUTO").source == "agent"
+    assert tick(p, 0.06, joystick=joy, navigation=nav, agent=agent, mode="MANUAL").source == "joystick"
+
+
+def test_safety_stop_bypasses_the_ramp():
+    p = MotionPipeline()
+    for k in range(100):
+        r = tick(p, k * DT, joystick=TimedTwist(Twist(0.5, 0.0), k * DT))
+    assert r.twist.linear_mps == pytest.approx(0.5)
+    r = tick(p, 2.0, joystick=TimedTwist(Twist(0.5, 0.0), 2.0), safety_stop=True)
+    assert r.safety_stop and r.source == "safety_stop" and r.twist.is_zero
+    r = tick(p, 2.02, joystick=TimedTwist(Twist(0.5, 0.0), 2.02))
+    assert r.twist.linear_mps == pytest.approx(0.02)  # ramps up again from zero
+
+
+def test_stale_scan_means_blind_slow_driving():
+    p = MotionPipeline()
+    old = World(t=0.0).scan()
+    for k in range(200):
+        r = p.tick(ControlInputs(now=1.0 + k * DT, scan=old, cliff=CliffReadings(1.0 + k * DT, 0.06, 0.06, 0.06),
+                                 joystick=TimedTwist(Twist(1.0, 0.0), 1.0 + k * DT), awareness=True))
+    assert r.blind and r.slow and r.twist.linear_mps == pytest.approx(0.35) and r.reactive is None
+
+
+def test_limits_change_at_run_time_and_a_rejected_value_keeps_the_old():
+    p = MotionPipeline()
+    tick(p, 0.0, limits={"max_linear_mps": 0.5})
+    assert p.limits.max_linear_mps == 0.5
+    with pytest.raises(ConfigError, match="max_linear_mps"):
+        tick(p, 0.02, limits={"max_linear_mps": 5.0})
+    assert p.limits.max_linear_mps == 0.5
+    assert p.set_limits(MotionLimits(max_linear_mps=1.0)).max_linear_mps == 1.0
+    with pytest.raises(ConfigError, match="mode"):
+        tick(p, 0.04, mode="DRIVE")
+    with pytest.raises(ConfigError, match="scan_max_age_s"):
+        PipelineSettings(scan_max_age_s=0.0)
+
+
+def test_telemetry_is_json_ready():
+    import json
+
+    r = tick(MotionPipeline(), 0.0, joystick=TimedTwist(Twist(0.1, 0.0), 0.0))
+    data = json.loads(json.dumps(r.telemetry()))
+    assert data["source"] == "joystick" and set(data["hex_m"]) == {"FR", "FL", "LC", "RL", "RR", "RC"}
+    assert data["clearance_m"] == {"front": None, "rear": None, "side": None}
