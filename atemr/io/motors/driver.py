@@ -20,6 +20,7 @@ from typing import Self
 
 import can
 
+from atemr.config import MotorsConfig
 from atemr.errors import BusError, HardwareError, ProtocolError
 from atemr.io.can.protocol import is_protocol_id
 from atemr.io.motors.rmd_codec import (
@@ -249,6 +250,16 @@ class RmdDriver(DriveMotors):
         self.bad_frames = 0
         self._last_status1_t: float | None = None
 
+    @classmethod
+    def from_config(cls, bus: can.BusABC, config: MotorsConfig, *,
+                    on_fault: Callable[[HardwareError], None] | None = None,
+                    on_watchdog: Callable[[WatchdogEvent], None] | None = None) -> RmdDriver:
+        """The driver described by the ``motors`` configuration section (schedule it at ``config.rate_hz``)."""
+        return cls(bus, left_id=config.left_id, right_id=config.right_id,
+                   directions=(config.left_direction, config.right_direction), status_period_s=config.status_period_s,
+                   command_timeout_s=config.command_timeout_s, silence_timeout_s=config.silence_timeout_s,
+                   on_fault=on_fault, on_watchdog=on_watchdog)
+
     # -- readings -------------------------------------------------------------------------------
     def feedback(self) -> WheelSpeeds:
         """Measured wheel speeds (rad/s, forward positive) from the last status-2 replies."""
@@ -308,6 +319,8 @@ class RmdDriver(DriveMotors):
         if self._last_status1_t is None or now - self._last_status1_t >= self.status_period_s - 1e-9:
             self._last_status1_t = now
             for side in SIDES:
+                if self.fault is not None:  # repeat the stop: the first one may have been lost with the link
+                    self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_STOP).encode())
                 self.bus.send(RmdRequest(self.ids[side], RmdCommand.READ_STATUS_1).encode())
 
     def _stop_now(self, now: float) -> None:
