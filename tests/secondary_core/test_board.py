@@ -322,3 +322,33 @@ def test_same_run_twice_gives_same_frames() -> None:
             return [(t, m.arbitration_id, bytes(m.data)) for t, m in b.frames]
 
     assert run() == run()
+
+
+def test_soft_emergency_brakes_the_emulated_motors(bench: LinkBench) -> None:
+    from atemr.io.motors.emulator import RmdMotorEmulator
+    from atemr.io.motors.model import MotorMode
+
+    motors = [RmdMotorEmulator(can.Bus(interface="virtual", channel=bench.channel), i) for i in (1, 2)]
+    try:
+        for motor in motors:
+            bench.scheduler.add(motor, 100.0)
+        bench.bring_up()
+        bench.run(1.0)
+        for motor in motors:  # the primary's driver had them driving at 5 rad/s
+            motor.model.set_speed(5.0)
+        bench.run(1.0)
+        assert all(m.model.speed_radps == pytest.approx(5.0, abs=0.01) for m in motors)
+        bench.pause("link")  # the primary hangs mid-drive
+        bench.run(2.5)
+        assert bench.core.soft_emergency
+        assert all(m.model.mode is MotorMode.STOPPED and abs(m.model.speed_radps) < 0.05 for m in motors)
+    finally:
+        for motor in motors:
+            motor.shutdown()
+
+
+def test_any_long_hold_in_ready_powers_on(bench: LinkBench) -> None:
+    bench.run(3.1)
+    bench.core.button.hold(6.0)
+    bench.run(6.1)
+    assert bench.core.state == "power_on"
