@@ -21,7 +21,9 @@ from typing import Any, Self
 
 import can
 
+from atemr.config import CanConfig
 from atemr.errors import ConfigError, ProtocolError
+from atemr.io.can.bus import open_bus
 from atemr.io.can.protocol import decode as decode_protocol
 from atemr.io.can.protocol import id_name, is_protocol_id
 from atemr.io.motors.rmd_codec import RMD_BASE_ID, decode_any, is_rmd_id
@@ -153,3 +155,14 @@ def describe(msg: can.Message) -> DescribedFrame:
     if not is_protocol_id(msg.arbitration_id):
         name = f"RMD motor {msg.arbitration_id - RMD_BASE_ID} {name}"
     return DescribedFrame(ts, msg.arbitration_id, data, name, decoded.fields())
+
+
+def recorder_from_config(config: CanConfig, *, threaded: bool = False) -> BusRecorder | None:
+    """A recorder on its own bus for ``can.log_file``, or None when no log file is configured.
+
+    Schedule it like any component (10 Hz is plenty in polled mode: it drains everything pending).
+    """
+    if config.log_file is None:
+        return None
+    check_log_path(config.log_file)  # before opening a bus that would then leak
+    return BusRecorder(open_bus(config), config.log_file, threaded=threaded)

@@ -60,3 +60,20 @@ def test_bad_paths(tmp_path: Path) -> None:
         check_log_path(tmp_path / "bus.txt2")
     with pytest.raises(ConfigError, match="no such log file"):
         list(read_log(tmp_path / "missing.log"))
+
+
+def test_recorder_from_config(tmp_path: Path) -> None:
+    from atemr.config import CanConfig
+    from atemr.io.can.bus import open_bus, unique_channel
+    from atemr.io.can.recording import recorder_from_config
+
+    assert recorder_from_config(CanConfig()) is None
+    config = CanConfig(channel=unique_channel("rec"), log_file=tmp_path / "run" / "bus.log")
+    recorder = recorder_from_config(config)
+    assert recorder is not None
+    with open_bus(config) as tx, recorder:
+        tx.send(Heartbeat(True).encode())
+        recorder.tick(0.5)
+    assert [m.arbitration_id for m in read_log(config.log_file)] == [0x157]  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="cannot record"):
+        recorder_from_config(CanConfig(log_file=tmp_path / "bus.docx"))
