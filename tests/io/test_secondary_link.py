@@ -30,7 +30,7 @@ from atemr.io.can import (
     encode_text,
 )
 from atemr.io.network import AppliedNetwork, RecordingNetworkBackend
-from atemr.io.secondary_link import IR_OUT_OF_RANGE_CM, SecondaryLink, ir_cm_to_m, ir_m_to_cm
+from atemr.io.secondary_link import IR_OUT_OF_RANGE_CM, SecondaryLink, WifiResult, ir_cm_to_m, ir_m_to_cm
 from secondary_core.harness import unique_channel
 
 DT = 0.02
@@ -199,7 +199,7 @@ def send_credentials(rig: Rig, ssid: str, password: str, *, drop: tuple[int, int
 
 
 def test_wifi_credentials_applied(rig: Rig) -> None:
-    results = []
+    results: list[WifiResult] = []
     rig.link.on_wifi_result = results.append
     send_credentials(rig, "Home network", "s3cret-passphrase")
     rig.step(1)
@@ -248,7 +248,7 @@ def test_wifi_applied_off_the_loop_with_an_executor() -> None:
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         rig = Rig(executor=pool)
-        rig.network = rig.link.network = SlowNetwork()  # type: ignore[misc]
+        rig.network = rig.link.network = SlowNetwork()
         try:
             send_credentials(rig, "Home", "s3cret-passphrase")
             rig.step(5)  # ticks go on while nmcli would be working

@@ -16,6 +16,7 @@ from atemr.clock import SimClock
 from atemr.io.can import CanId
 from atemr.io.can.faults import FaultInjectionBus, FaultPlan
 from atemr.io.network import AppliedNetwork
+from atemr.io.secondary_link import WifiResult
 from secondary_core.harness import LinkBench
 from secondary_core.portal import PortalHost, create_portal_app
 
@@ -83,7 +84,7 @@ def test_join_network_page(client: FlaskClient) -> None:
 
 
 def test_connect_end_to_end_applies_credentials(bench: LinkBench, client: FlaskClient) -> None:
-    results = []
+    results: list[WifiResult] = []
     bench.link.on_wifi_result = results.append
     page = connect(client, "Casa Ñandú 5G", "correct horse battery")
     assert page.status_code == 200 and "Sent" in page.get_data(as_text=True)
