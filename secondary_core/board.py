@@ -374,7 +374,8 @@ class SecondaryCore:
 
     def _on_message(self, msg: object, now: float) -> None:
         if isinstance(msg, Heartbeat):
-            if msg.from_primary and self.primary_power is PowerState.RUNNING:
+            # Answered in every state: the primary's StartUp checks the heartbeat before it reports running.
+            if msg.from_primary:
                 if self._send(Heartbeat(from_primary=False).encode()):
                     self.counters.heartbeats_answered += 1
                 self._t.last_heartbeat = now
@@ -394,7 +395,6 @@ class SecondaryCore:
             if previous is not PowerState.RUNNING:
                 # The heartbeat check starts the moment the primary says it is powered on (thesis 3.6.3).
                 self._t.heartbeat_window_start = now
-                self._t.last_heartbeat = None
             if self.state == "power_on_sequence":
                 if "primary_running" not in self._t.pending_ops:
                     self._t.pending_ops.append("primary_running")

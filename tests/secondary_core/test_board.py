@@ -352,3 +352,13 @@ def test_any_long_hold_in_ready_powers_on(bench: LinkBench) -> None:
     bench.core.button.hold(6.0)
     bench.run(6.1)
     assert bench.core.state == "power_on"
+
+
+def test_heartbeat_established_before_the_primary_reports_running(bench: LinkBench) -> None:
+    # DESIGN §3: StartUp checks the heartbeat first, then acknowledges power-on (0x150 byte 0 = 1).
+    bench.run(3.1)
+    bench.core.button.hold(1.0)
+    bench.run(2.0)
+    assert bench.core.state == "power_on" and bench.link.power_state is PowerState.INITIALISING
+    assert bench.link.heartbeat_established and bench.link.heartbeat_ok
+    assert bench.core.soft_emergency, "still braked: the primary has not reported running"
