@@ -248,6 +248,7 @@ class RmdDriver(DriveMotors):
         self._by_can_id = {motor_can_id(mid): side for side, mid in self.ids.items()}
         self.states = {side: MotorState(side, mid) for side, mid in self.ids.items()}
         self.bad_frames = 0
+        self.output_off = False
         self._last_status1_t: float | None = None
 
     @classmethod
@@ -311,11 +312,13 @@ class RmdDriver(DriveMotors):
         return None
 
     def _exchange(self, command: WheelSpeeds, now: float) -> None:
-        if self.fault is None:  # after a fault only status is polled, so the agent sees the motors recover
-            speeds = {"left": command.left_radps, "right": command.right_radps}
-            for side in SIDES:
+        speeds = {"left": command.left_radps, "right": command.right_radps}
+        for side in SIDES:
+            if self.fault is None and not self.output_off:
                 shaft = self.directions[side] * speeds[side]
                 self.bus.send(RmdRequest(self.ids[side], RmdCommand.SPEED_CONTROL, shaft).encode())
+            else:  # no speed commands after a fault or motor_off; status 2 keeps the feedback (odometry) fresh
+                self.bus.send(RmdRequest(self.ids[side], RmdCommand.READ_STATUS_2).encode())
         if self._last_status1_t is None or now - self._last_status1_t >= self.status_period_s - 1e-9:
             self._last_status1_t = now
             for side in SIDES:
@@ -326,6 +329,26 @@ class RmdDriver(DriveMotors):
     def _stop_now(self, now: float) -> None:
         for side in SIDES:
             self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_STOP).encode())
+
+    def brake(self, now: float) -> None:
+        """Emergency stop: MOTOR_STOP to both motors at once (no ramp) and zero as the command."""
+        self.stop(now)
+        self._stop_now(now)
+
+    def motor_on(self) -> None:
+        """MOTOR_RUN to both motors and speed commands again (after `motor_off`, or a MOTOR_STOP from another node)."""
+        self.output_off = False
+        for side in SIDES:
+            self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_RUN).encode())
+
+    def motor_off(self) -> None:
+        """MOTOR_OFF to both motors: output off, the wheels coast (power-off, after the robot has stopped).
+
+        No speed command is sent until `motor_on` (a speed command would switch a motor back on).
+        """
+        self.output_off = True
+        for side in SIDES:
+            self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_OFF).encode())
 
     def clear_motor_errors(self) -> None:
         """Send CLEAR_ERRORS to both motors (their replies refresh the error flags), then `reset_fault`."""

@@ -211,3 +211,29 @@ def test_motor_ids_may_not_collide_with_the_inter_core_protocol() -> None:
             RmdDriver(bus, left_id=16, right_id=2)
         with pytest.raises(HardwareError, match="0x157"):
             RmdMotorEmulator(bus, 23)
+
+
+def test_brake_on_off(rig: Rig) -> None:
+    from atemr.io.motors.model import MotorMode
+
+    command_for(rig, WheelSpeeds(3.0, 3.0), 0.5)
+    rig.driver.brake(rig.clock.now())
+    rig.run(0.02)
+    assert rig.left.model.target_radps == 0.0 and rig.right.model.target_radps == 0.0
+    assert rig.driver.commanded == WheelSpeeds()
+    rig.driver.motor_off()
+    command_for(rig, WheelSpeeds(2.0, 2.0), 0.3)  # ignored while off
+    assert rig.left.model.mode is MotorMode.OFF and rig.right.model.mode is MotorMode.OFF
+    rig.driver.motor_on()
+    command_for(rig, WheelSpeeds(1.0, 1.0), 1.0)
+    assert rig.left.model.speed_radps == pytest.approx(1.0, abs=0.02)
+
+
+def test_feedback_stays_fresh_after_a_fault(rig: Rig) -> None:
+    command_for(rig, WheelSpeeds(4.0, 4.0), 0.5)
+    rig.left.model.inject_error(MotorErrorFlags.UNDER_VOLTAGE)
+    rig.run(1.5)
+    assert rig.driver.fault is not None
+    state = rig.driver.states["right"]
+    assert state.last_feedback_t == pytest.approx(rig.clock.now(), abs=0.05)
+    assert abs(rig.driver.feedback().right_radps) < 0.05  # it stopped, and the feedback says so
