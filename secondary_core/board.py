@@ -105,6 +105,9 @@ class BoardConfig:
 
 CliffSource = Callable[[], CliffReadings | None]
 
+#: Frames read per tick at most, so a flooded bus cannot stall the scheduler.
+MAX_FRAMES_PER_TICK = 256
+
 
 def _due(now: float, t: float) -> bool:
     # A tolerance, so that a period of 0.05 s ticked at 50 Hz lands on the ticks instead of one late.
@@ -122,7 +125,7 @@ class _Counters:
     frames_in: int = 0
     frames_out: int = 0
     bad_frames: int = 0
-    send_errors: int = 0
+    bus_errors: int = 0
     heartbeats_answered: int = 0
     brake_frames: int = 0
     wifi_sent: int = 0
@@ -294,14 +297,15 @@ class SecondaryCore:
         self._publish_ir(now)
 
     # -- internals ----------------------------------------------------------------------------
-    def _power_up(self, now: float) -> None:
+    def _power_up(self, now: float, *, announce: bool = True) -> None:
         self._started = True
         self._t = _Timers(entered_at=now, boot_started=now, next_ir=now, next_brake=now)
         self.status = None
         self.primary_power = PowerState.INITIALISING
         self.robot_ip = None
         self.soft_emergency = False
-        self.events.emit(now, "screen", "POWER-ON SEQUENCE")
+        if announce:
+            self.events.emit(now, "screen", "POWER-ON SEQUENCE")
 
     def _after_state_change(self) -> None:
         now = self.now
@@ -337,25 +341,24 @@ class SecondaryCore:
         self.events.emit(now, "buzzer", "shutdown tone")
 
     def _enter_power_on_sequence(self, now: float) -> None:
-        self._started = False
-        self._power_up(now)
+        self._power_up(now, announce=False)  # power cycle: the screen event was just emitted
 
     def _send(self, msg: can.Message) -> bool:
         try:
             self.bus.send(msg)
         except can.CanError as exc:
-            self.counters.send_errors += 1
+            self.counters.bus_errors += 1
             log.warning("%s: cannot send 0x%03X: %s", self.name, msg.arbitration_id, exc)
             return False
         self.counters.frames_out += 1
         return True
 
     def _receive(self, now: float) -> None:
-        while True:
+        for _ in range(MAX_FRAMES_PER_TICK):  # a flooded bus cannot stall the scheduler
             try:
                 frame = self.bus.recv(timeout=0)
             except can.CanError as exc:
-                self.counters.send_errors += 1
+                self.counters.bus_errors += 1
                 log.warning("%s: receive failed: %s", self.name, exc)
                 return
             if frame is None:

@@ -64,6 +64,9 @@ IR_OUT_OF_RANGE_CM = 999.0
 
 T = TypeVar("T")
 
+#: Frames read per tick at most, so a flooded bus cannot stall the scheduler.
+MAX_FRAMES_PER_TICK = 256
+
 
 def ir_cm_to_m(distance_cm: float) -> float:
     """A distance from the wire (cm) in metres; the out-of-range marker becomes ``inf``."""
@@ -170,7 +173,7 @@ class SecondaryLink:
         self.frames_in = 0
         self.frames_out = 0
         self.bad_frames = 0
-        self.send_errors = 0
+        self.bus_errors = 0
         self.last_bad_frame: str | None = None
 
     # -- the agent's side (any thread) --------------------------------------------------------
@@ -227,7 +230,7 @@ class SecondaryLink:
             "heartbeat_ok": self._heartbeat_ok, "heartbeat_established": self.heartbeat_established,
             "heartbeat_losses": self.heartbeat_losses, "power_off_requested": self.power_off_requested,
             "power_state": self._power.name, "frames_in": self.frames_in, "frames_out": self.frames_out,
-            "bad_frames": self.bad_frames, "send_errors": self.send_errors, "last_bad_frame": self.last_bad_frame,
+            "bad_frames": self.bad_frames, "bus_errors": self.bus_errors, "last_bad_frame": self.last_bad_frame,
             "wifi": None if last is None else {"ssid": last.ssid, "ok": last.ok, "error": last.error, "t": last.t},
         }
 
@@ -257,7 +260,7 @@ class SecondaryLink:
         try:
             self.bus.send(msg)
         except can.CanError as exc:
-            self.send_errors += 1
+            self.bus_errors += 1
             log.warning("%s: cannot send 0x%03X: %s", self.name, msg.arbitration_id, exc)
             return False
         self.frames_out += 1
@@ -299,11 +302,11 @@ class SecondaryLink:
             self._next_power = now + self.status_period_s
 
     def _receive(self, now: float) -> None:
-        while True:
+        for _ in range(MAX_FRAMES_PER_TICK):  # a flooded bus cannot stall the scheduler
             try:
                 frame = self.bus.recv(timeout=0)
             except can.CanError as exc:
-                self.send_errors += 1
+                self.bus_errors += 1
                 log.warning("%s: receive failed: %s", self.name, exc)
                 return
             if frame is None:

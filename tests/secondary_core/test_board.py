@@ -362,3 +362,24 @@ def test_heartbeat_established_before_the_primary_reports_running(bench: LinkBen
     assert bench.core.state == "power_on" and bench.link.power_state is PowerState.INITIALISING
     assert bench.link.heartbeat_established and bench.link.heartbeat_ok
     assert bench.core.soft_emergency, "still braked: the primary has not reported running"
+
+
+class FailingSendBus:
+    """A bus whose transmit side is broken (bus-off): every send raises, receiving still works."""
+
+    def __init__(self, inner: can.BusABC) -> None:
+        self.inner = inner
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        raise can.CanOperationError("bus-off")
+
+    def recv(self, timeout: float | None = None) -> can.Message | None:
+        return self.inner.recv(timeout)
+
+
+def test_send_failures_are_counted_not_raised() -> None:
+    with LinkBench(wrap_board_bus=lambda bus, clock: FailingSendBus(bus)) as bench:
+        bench.run(4.0)  # brakes and IR frames all fail to go out
+        assert bench.core.state == "ready"
+        assert bench.core.counters.bus_errors > 10 and bench.core.counters.frames_out == 0
+        assert not bench.link.heartbeat_established, "the primary hears nothing from a board that cannot send"
