@@ -272,7 +272,7 @@ class SecondaryCore:
             "portal_active": self.portal_active, "portal_left_s": self.portal_left_s, "robot_ip": self.robot_ip,
             "status": self.status.fields() if self.status else None,
             "button_pressed": self.button.is_pressed,
-            "events": [str(e) for e in list(self.events.events)[-20:]],
+            "events": [str(e) for e in self.events.recent(20)],
         }
 
     # -- scheduler component ------------------------------------------------------------------

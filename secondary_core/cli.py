@@ -85,7 +85,7 @@ class TerminalView:
             flags.append(f"SOFT EMERGENCY ({core.emergency_reason})")
         if core.portal_active:
             flags.append(f"portal {int(core.portal_left_s or 0)} s")
-        events = [str(e) for e in list(core.events.events)[-6:]]
+        events = [str(e) for e in core.events.recent(6)]
         return "\n".join([self.header, body, " · ".join(flags), *events])
 
     def tick(self, now: float) -> None:

@@ -48,5 +48,9 @@ class EventLog:
                 log.exception("board event listener %r failed", listener)
         return event
 
+    def recent(self, n: int) -> list[BoardEvent]:
+        """The last ``n`` events; safe to call from another thread (the copy is taken in one C call)."""
+        return list(self.events.copy())[-n:] if n > 0 else []
+
     def of_kind(self, kind: EventKind) -> list[BoardEvent]:
-        return [e for e in self.events if e.kind == kind]
+        return [e for e in self.events.copy() if e.kind == kind]
