@@ -37,11 +37,13 @@ class RmdMotorEmulator:
     """Motor ``motor_id`` on ``bus`` (its own Bus instance on the robot's channel; closed by `shutdown`).
 
     ``model`` is the physics it reports; the simulator drives the wheel from the same object, so
-    what the driver reads over CAN is what the simulated robot does.
+    what the driver reads over CAN is what the simulated robot does. Exactly one owner may step a model:
+    the emulator does (``steps_model=True``, standalone and in tests) unless the simulator already
+    steps it, in which case pass ``steps_model=False`` and the emulator only answers.
     """
 
     def __init__(self, bus: can.BusABC, motor_id: int, model: RmdMotorModel | None = None, *,
-                 name: str | None = None, close_bus: bool = True) -> None:
+                 name: str | None = None, close_bus: bool = True, steps_model: bool = True) -> None:
         self.bus = bus
         self.motor_id = motor_id
         self.can_id = motor_can_id(motor_id)
@@ -49,6 +51,7 @@ class RmdMotorEmulator:
         self.model = model or RmdMotorModel()
         self.name = name or f"rmd_motor_{motor_id}"
         self.close_bus = close_bus
+        self.steps_model = steps_model
         self.requests = 0
         self.ignored = 0
         self._last_t: float | None = None
@@ -59,7 +62,7 @@ class RmdMotorEmulator:
 
     def tick(self, now: float) -> None:
         """Advance the physics to ``now`` and answer every pending request."""
-        if self._last_t is not None and now > self._last_t:
+        if self.steps_model and self._last_t is not None and now > self._last_t:
             self.model.step(now - self._last_t)
         self._last_t = now if self._last_t is None else max(self._last_t, now)
         for _ in range(MAX_FRAMES_PER_TICK):

@@ -237,3 +237,20 @@ def test_feedback_stays_fresh_after_a_fault(rig: Rig) -> None:
     state = rig.driver.states["right"]
     assert state.last_feedback_t == pytest.approx(rig.clock.now(), abs=0.05)
     assert abs(rig.driver.feedback().right_radps) < 0.05  # it stopped, and the feedback says so
+
+
+def test_emulator_can_leave_the_physics_to_the_simulator() -> None:
+    model = RmdMotorModel()
+    with can.Bus(interface="virtual", channel="motors-sim-owned") as host:
+        emu = RmdMotorEmulator(can.Bus(interface="virtual", channel="motors-sim-owned"), 1, model, steps_model=False)
+        host.send(RmdRequest(1, RmdCommand.SPEED_CONTROL, 2.0).encode())
+        emu.tick(0.0)
+        emu.tick(1.0)
+        assert model.command_radps == pytest.approx(2.0, abs=1e-3) and model.speed_radps == 0.0  # not stepped
+        model.step(1.0)  # the simulator's step
+        host.send(RmdRequest(1, RmdCommand.READ_STATUS_2).encode())
+        emu.tick(1.0)
+        host.recv(timeout=0)  # the 0xA2 reply
+        reply = host.recv(timeout=0)
+        assert reply is not None and reply.data[0] == 0x9C
+        emu.shutdown()
