@@ -75,6 +75,17 @@ _TRANSITIONS: list[dict[str, Any]] = [
 ]
 
 
+def mermaid_diagram() -> str:
+    """The board's state machine as Mermaid ``stateDiagram-v2`` text (renders on GitHub; no Graphviz needed)."""
+    lines = ["stateDiagram-v2", "    [*] --> power_on_sequence"]
+    for t in _TRANSITIONS:
+        sources = STATES if t["source"] == "*" else t["source"]
+        for source in [sources] if isinstance(sources, str) else sources:
+            if source != t["dest"]:
+                lines.append(f"    {source} --> {t['dest']}: {t['trigger']}")
+    return "\n".join(lines)
+
+
 @dataclass(frozen=True)
 class BoardConfig:
     """Timings and texts of the board; the defaults are the thesis' values (boot shortened from ~10 s)."""

@@ -27,7 +27,7 @@ from atemr.errors import AtemrError, HardwareError
 from atemr.io.can.bus import open_bus
 from atemr.msgs import CliffReadings
 from atemr.scheduler import Scheduler
-from secondary_core.board import BoardConfig, SecondaryCore
+from secondary_core.board import BoardConfig, SecondaryCore, mermaid_diagram
 from secondary_core.display import render_pixels, render_text
 from secondary_core.portal import DEFAULT_PORT, PortalHost
 
@@ -57,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-ir", action="store_true", help="do not publish IR frames")
     parser.add_argument("--view", choices=["text", "pixels", "none"], default="text", help="terminal view")
     parser.add_argument("--no-keys", action="store_true", help="do not read keys from standard input")
+    parser.add_argument("--diagram", action="store_true", help="print the board's state machine (Mermaid) and exit")
     parser.add_argument("--duration", type=float, help="stop after this many seconds (default: until q or Ctrl-C)")
     parser.add_argument("--log-level", default="WARNING", type=str.upper,
                         choices=["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"])
@@ -134,8 +135,11 @@ def _read_keys(core: SecondaryCore, quit_event: threading.Event, stream: TextIO)
 def main(argv: Sequence[str] | None = None, *, stdin: TextIO | None = None, stdout: TextIO | None = None) -> int:
     """Entry point of ``atemr-secondary``; returns the exit code (2 for a bus or configuration error)."""
     args = build_parser().parse_args(argv)
-    logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     out = stdout or sys.stdout
+    if args.diagram:
+        out.write(mermaid_diagram() + "\n")
+        return 0
+    logging.basicConfig(level=args.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:
         if not (math.isfinite(args.rate) and args.rate > 0):
             raise HardwareError(f"--rate must be > 0 Hz, got {args.rate}", component="secondary core")

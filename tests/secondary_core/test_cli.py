@@ -68,3 +68,13 @@ def test_terminal_view_redraws_only_on_change() -> None:
         first = out.getvalue()
         view.tick(bench.now)
         assert out.getvalue() == first and "█" in first and "SOFT EMERGENCY (starting up)" in first
+
+
+def test_diagram_lists_every_transition() -> None:
+    out = io.StringIO()
+    assert main(["--diagram"], stdout=out) == 0
+    text = out.getvalue()
+    assert text.startswith("stateDiagram-v2")
+    for edge in ("ready --> power_on: power_on_primary", "ops --> config: toggle", "config --> ops: portal_timeout",
+                 "power_off --> shutdown: shutdown_due", "shutdown --> power_on_sequence: power_cycle"):
+        assert edge in text
