@@ -2,7 +2,7 @@
 
 As in Flask's flaskr tutorial there is no app object at import time; each call makes a new app with
 its own user store, rate limiter and Socket.IO server, so tests get a fresh one per test. One blueprint
-per page group (auth, control, mapping, settings, media), each with its templates, static files and
+per page group (auth, control, mapping, settings, media, agent), each with its templates, static files and
 Socket.IO handlers beside it.
 """
 
@@ -95,13 +95,14 @@ def create_app(
     app.jinja_env.globals["csrf_token"] = csrf_token
     app.context_processor(_template_globals)
 
+    from atemr.ui.agent import bp as agent_bp
     from atemr.ui.auth import bp as auth_bp
     from atemr.ui.control import bp as control_bp
     from atemr.ui.mapping import bp as mapping_bp
     from atemr.ui.media import bp as media_bp
     from atemr.ui.settings import bp as settings_bp
 
-    for bp in (auth_bp, control_bp, mapping_bp, settings_bp, media_bp):
+    for bp in (auth_bp, control_bp, mapping_bp, settings_bp, media_bp, agent_bp):
         app.register_blueprint(bp)
     app.add_url_rule("/", "index", lambda: redirect(url_for("control.page")))
 

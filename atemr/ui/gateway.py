@@ -117,6 +117,17 @@ class RobotGateway(Protocol):
         """The secondary core's 128×64 screen as PNG (simulation), or None."""
         ...
 
+    def agent_snapshot(self) -> dict[str, Any] | None:
+        """The agent for the Agent view (sent at 10 Hz only while someone has that page open), or None.
+
+        The shape of `atemr.fsm.agent.Agent.snapshot` plus an optional ``machine``:
+        ``state`` (e.g. ``"IDLE.MANUAL"``), ``mode``, ``valid_triggers``, ``task``, ``error``,
+        ``tree`` and ``monitor`` (nested ``{name, type, status, ticks, feedback, reason?, children?}``),
+        ``transitions`` (``[{t, trigger, source, dest, accepted, reason, origin}]``), ``commands``,
+        ``errors`` and ``machine`` (``{"states": [name, ...], "transitions": [{trigger, source, dest}]}``).
+        """
+        ...
+
     # -- driving -----------------------------------------------------------------------------------
     def joystick(self, twist: Twist) -> CommandResult:
         """An operator velocity command; ignored by the robot in AUTO mode, expires after 0.5 s."""

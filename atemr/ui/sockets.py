@@ -7,7 +7,8 @@ revoked role takes effect on the next event), validates nothing else and turns t
 change or a removal disconnects that user's sockets at once (`disconnect_user`).
 
 Rooms: every accepted client joins ``operators`` (state at 10 Hz); a client that turned its camera on
-also joins ``camera`` (JPEG frames, base64 in JSON, only while someone watches).
+also joins ``camera`` (JPEG frames, base64 in JSON, only while someone watches), and the Agent view joins
+``agent`` (the agent's snapshot: lifecycle, trees, transitions).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ log = logging.getLogger(__name__)
 
 OPERATORS = "operators"
 CAMERA = "camera"
+AGENT = "agent"
 
 Handler = Callable[..., CommandResult | dict[str, Any]]
 _registrations: list[Callable[[SocketIO], None]] = []
@@ -43,6 +45,7 @@ class Sessions:
         self._lock = threading.Lock()
         self._by_sid: dict[str, str] = {}
         self.camera: set[str] = set()
+        self.agent: set[str] = set()
 
     def add(self, sid: str, username: str) -> None:
         with self._lock:
@@ -52,6 +55,7 @@ class Sessions:
         with self._lock:
             self._by_sid.pop(sid, None)
             self.camera.discard(sid)
+            self.agent.discard(sid)
 
     def of(self, username: str) -> list[str]:
         with self._lock:
@@ -121,21 +125,25 @@ def _disconnect(reason: Any = None) -> None:
     sessions_of(current_app).remove(cast(str, request.sid))  # type: ignore[attr-defined]
 
 
-def _camera(data: Any = None) -> dict[str, Any]:
-    """``camera {on: bool}``: join or leave the camera room (CAM ON/OFF)."""
-    user = current_user()
-    if user is None or not user.can("user"):
-        return CommandResult.refused("'camera' needs the user role").to_json()
-    sid = cast(str, request.sid)  # type: ignore[attr-defined]
-    on = bool(data.get("on")) if isinstance(data, dict) else False
-    sessions = sessions_of(current_app)
-    if on:
-        join_room(CAMERA)
-        sessions.camera.add(sid)
-    else:
-        leave_room(CAMERA)
-        sessions.camera.discard(sid)
-    return {"ok": True, "reason": "", "on": on}
+def _subscription(event: str, room: str, members: Callable[[Sessions], set[str]]) -> Callable[[Any], dict[str, Any]]:
+    """An ``{on: bool}`` event that joins or leaves ``room`` (camera frames, agent view)."""
+
+    def handler(data: Any = None) -> dict[str, Any]:
+        user = current_user()
+        if user is None or not user.can("user"):
+            return CommandResult.refused(f"'{event}' needs the user role").to_json()
+        sid = cast(str, request.sid)  # type: ignore[attr-defined]
+        on = isinstance(data, dict) and data.get("on") is True
+        sessions = sessions_of(current_app)
+        if on:
+            join_room(room)
+            members(sessions).add(sid)
+        else:
+            leave_room(room)
+            members(sessions).discard(sid)
+        return {"ok": True, "reason": "", "on": on}
+
+    return handler
 
 
 def init_app(app: Flask, socketio: SocketIO) -> None:
@@ -147,7 +155,8 @@ def init_app(app: Flask, socketio: SocketIO) -> None:
     app.extensions["atemr.sockets"] = Sessions()
     socketio.on_event("connect", _connect)
     socketio.on_event("disconnect", _disconnect)
-    socketio.on_event("camera", _camera)
+    socketio.on_event("camera", _subscription("camera", CAMERA, lambda s: s.camera))
+    socketio.on_event("agent_view", _subscription("agent_view", AGENT, lambda s: s.agent))
     for register in _registrations:
         register(socketio)
 
@@ -180,4 +189,11 @@ def push(app: Flask, robot: RobotGateway | None) -> int:
         frame = robot.camera_jpeg()
         if frame:
             socketio.emit("camera", {"jpeg": base64.b64encode(frame).decode("ascii")}, to=CAMERA)
+    if sessions.agent:
+        try:
+            agent = robot.agent_snapshot()
+        except Exception:
+            log.exception("gateway.agent_snapshot() failed")
+            agent = {"error": "the agent's state could not be read"}
+        socketio.emit("agent", agent, to=AGENT)
     return clients

@@ -123,6 +123,21 @@ class KinematicGateway:
     def camera_jpeg(self) -> bytes | None:
         return self.jpeg
 
+    def agent_snapshot(self) -> dict[str, Any] | None:
+        with self.lock:
+            running = "RUNNING"
+            return {
+                "state": f"{self.agent}.{self.mode}" if self.agent == "IDLE" else self.agent, "mode": self.mode,
+                "valid_triggers": ["goal", "begin_mapping"], "task": None, "error": None,
+                "tree": {"name": self.agent.title(), "type": "Sequence", "status": running, "children": [
+                    {"name": "ReadSensors", "type": "Leaf", "status": "SUCCESS"},
+                    {"name": "Drive", "type": "Leaf", "status": running, "feedback": f"mode {self.mode}"}]},
+                "monitor": {"name": "Monitor", "type": "Parallel", "status": running, "children": [
+                    {"name": "Heartbeat", "type": "Leaf", "status": "SUCCESS"}]},
+                "transitions": [{"t": 0.5, "trigger": "started", "source": "STARTUP", "dest": "IDLE",
+                                 "accepted": True, "reason": "all checks passed"}],
+            }
+
     def secondary_screen_png(self) -> bytes | None:
         img = Image.new("1", (128, 64), 0)
         ImageDraw.Draw(img).text((4, 4), "OPS", fill=1)

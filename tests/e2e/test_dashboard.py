@@ -181,3 +181,13 @@ def test_phone_sized_screen(ready_site, browser, shots, helpers):
     assert joystick["width"] >= 120
     page.screenshot(path=str(shots / "control-phone.png"), full_page=True)
     context.close()
+
+
+def test_agent_view_draws_the_lifecycle_and_tree(ready_site, page, shots, helpers):
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{ready_site.url}/agent")
+    wait_for(page, "document.querySelector('#machine .mstate.active') !== null")
+    assert page.inner_text("#machine .mstate.active") == "IDLE.MANUAL"
+    wait_for(page, "document.querySelectorAll('#agent-tree li.node').length === 3")
+    assert "all checks passed" in page.inner_text("#agent-transitions")
+    page.screenshot(path=str(shots / "agent.png"), full_page=True)

@@ -37,6 +37,7 @@ class RecordingGateway:
         self.map: MapImage | None = None
         self.jpeg: bytes | None = None
         self.screen: bytes | None = None
+        self.agent: dict[str, Any] | None = None
         self.maps_changed_count = 0
 
     def _cmd(self, name: str, *args: Any) -> CommandResult:
@@ -59,6 +60,9 @@ class RecordingGateway:
 
     def secondary_screen_png(self) -> bytes | None:
         return self.screen
+
+    def agent_snapshot(self) -> dict[str, Any] | None:
+        return self.agent
 
     def joystick(self, twist: Any) -> CommandResult:
         return self._cmd("joystick", twist)

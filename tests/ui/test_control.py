@@ -14,6 +14,11 @@ def test_pages_render_for_users(alice):
     assert 'id="save-dialog"' in alice.get("/mapping").get_data(as_text=True)
 
 
+def test_agent_page_renders(alice):
+    html = alice.get("/agent").get_data(as_text=True)
+    assert 'id="machine"' in html and 'id="agent-tree"' in html and 'id="agent-transitions"' in html
+
+
 def test_index_goes_to_control(alice):
     assert alice.get("/").location.endswith("/control")
 
@@ -45,7 +50,7 @@ def test_secondary_screen(alice, gateway):
 def test_static_assets_are_served(alice):
     for path in ("/static/css/dashboard.css", "/static/js/socket.js", "/static/js/statusbar.js",
                  "/static/js/mapview.js", "/static/js/panel.js", "/static/js/media.js",
-                 "/static/control/control.js", "/static/mapping/mapping.js"):
+                 "/static/control/control.js", "/static/mapping/mapping.js", "/static/agent/agent.js"):
         response = alice.get(path)
         assert response.status_code == 200, path
         response.close()

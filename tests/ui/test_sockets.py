@@ -188,3 +188,46 @@ def test_cross_origin_handshake_is_refused(app, alice):
     evil = alice.get("/socket.io/?EIO=4&transport=polling", headers={"Origin": "http://evil.example"})
     assert evil.status_code == 400
     assert app.extensions["socketio"].server.eio.cors_allowed_origins != "*"
+
+
+AGENT = {"state": "IDLE.MANUAL", "mode": "MANUAL", "valid_triggers": ["goal", "begin_mapping"],
+         "tree": {"name": "Idle", "type": "Sequence", "status": "RUNNING", "children": [
+             {"name": "Fuzzy", "type": "Leaf", "status": "SUCCESS"}]},
+         "transitions": [{"t": 1.0, "trigger": "started", "source": "STARTUP", "dest": "IDLE", "accepted": True,
+                          "reason": "all checks passed"}]}
+
+
+def test_agent_snapshot_only_to_agent_view_subscribers(app, alice, gateway, ui):
+    gateway.agent = AGENT
+    viewer = sio(app, alice)
+    other_client = app.test_client()
+    ui.login(other_client, "admin", ui.ADMIN_PW)
+    other = sio(app, other_client)
+    assert viewer.emit("agent_view", {"on": True}, callback=True)["on"] is True
+    sockets.push(app, gateway)
+    got = [m["args"][0] for m in viewer.get_received() if m["name"] == "agent"]
+    assert got == [AGENT]
+    assert not [m for m in other.get_received() if m["name"] == "agent"]
+    viewer.emit("agent_view", {"on": False}, callback=True)
+    sockets.push(app, gateway)
+    assert not [m for m in viewer.get_received() if m["name"] == "agent"]
+
+
+def test_subscriptions_recheck_the_role(app, alice):
+    ws = sio(app, alice)
+    app.extensions["atemr.users"].set_role("alice", "none")
+    for event in ("camera", "agent_view"):
+        ack = ws.emit(event, {"on": True}, callback=True)
+        assert ack["ok"] is False and "needs the user role" in ack["reason"]
+
+
+def test_a_failing_agent_snapshot_is_reported(app, alice, gateway):
+    def broken() -> dict:
+        raise RuntimeError("agent bug")
+
+    gateway.agent_snapshot = broken
+    ws = sio(app, alice)
+    ws.emit("agent_view", {"on": True}, callback=True)
+    sockets.push(app, gateway)
+    got = [m["args"][0] for m in ws.get_received() if m["name"] == "agent"]
+    assert "could not be read" in got[-1]["error"]
