@@ -49,6 +49,20 @@ def check_motor_ids(motor_ids: tuple[int, ...], *, component: str) -> None:
                                 f"use 1-15 or 24-32", component=component)
 
 
+def wheel_speeds_from_mps(left_mps: float, right_mps: float, wheel_radius_m: float) -> WheelSpeeds:
+    """Wheel rim speeds in m/s → wheel speeds in rad/s for a wheel of ``wheel_radius_m``."""
+    if not (math.isfinite(wheel_radius_m) and wheel_radius_m > 0):
+        raise HardwareError(f"wheel radius must be a finite number > 0 m, got {wheel_radius_m!r}", component="motors")
+    return WheelSpeeds(left_mps / wheel_radius_m, right_mps / wheel_radius_m)
+
+
+def wheel_speeds_to_mps(speeds: WheelSpeeds, wheel_radius_m: float) -> tuple[float, float]:
+    """Wheel speeds in rad/s → (left, right) rim speeds in m/s."""
+    if not (math.isfinite(wheel_radius_m) and wheel_radius_m > 0):
+        raise HardwareError(f"wheel radius must be a finite number > 0 m, got {wheel_radius_m!r}", component="motors")
+    return speeds.left_radps * wheel_radius_m, speeds.right_radps * wheel_radius_m
+
+
 @dataclass(frozen=True)
 class MotorState:
     """What is known about one motor from its last replies (wheel frame: forward positive)."""

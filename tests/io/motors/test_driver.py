@@ -254,3 +254,13 @@ def test_emulator_can_leave_the_physics_to_the_simulator() -> None:
         reply = host.recv(timeout=0)
         assert reply is not None and reply.data[0] == 0x9C
         emu.shutdown()
+
+
+def test_metres_per_second_helpers() -> None:
+    from atemr.io.motors.driver import wheel_speeds_from_mps, wheel_speeds_to_mps
+
+    speeds = wheel_speeds_from_mps(0.5, -0.25, 0.1)
+    assert speeds == WheelSpeeds(5.0, -2.5)
+    assert wheel_speeds_to_mps(speeds, 0.1) == pytest.approx((0.5, -0.25))
+    with pytest.raises(HardwareError, match="wheel radius"):
+        wheel_speeds_from_mps(1.0, 1.0, 0.0)
