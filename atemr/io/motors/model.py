@@ -1,6 +1,7 @@
 """A pure model of one MyActuator RMD-L-7015 hub motor: what the emulator answers and the simulator drives.
 
-Physics, deliberately simple but exact in time (so a simulation gives the same result at any step size):
+Physics, deliberately simple; speed and angle are exact in time (the same at any step size), current
+and temperature are accurate to first order in the step:
 
 * speed follows the commanded speed with first-order dynamics, time constant ``time_constant_s``
   (``coast_time_constant_s`` when the output is off); the step uses the exact exponential solution, and
@@ -92,7 +93,7 @@ class RmdMotorModel:
         return self._speed_radps
 
     def step(self, dt_s: float) -> None:
-        """Advance the model by ``dt_s`` seconds (exact for any step size while the target is constant)."""
+        """Advance by ``dt_s`` seconds: speed and angle exactly (target held constant), current and heat per step."""
         if not (math.isfinite(dt_s) and dt_s >= 0):
             raise HardwareError(f"step needs a finite dt >= 0, got {dt_s!r}", component="motor model")
         if dt_s == 0:
