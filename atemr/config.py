@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from atemr.errors import ConfigError
+from atemr.skills.ramp import MotionLimits
 from atemr.typed import Source, coerce, field_paths, merge_into, nest
 from atemr.yamlsafe import load_yaml
 
@@ -124,6 +125,9 @@ class Config:
     motors: MotorsConfig = field(default_factory=MotorsConfig)
     ui: UiConfig = field(default_factory=UiConfig)
     secondary: SecondaryConfig = field(default_factory=SecondaryConfig)
+    #: Speed limits, slow/stop zones, idle time (`atemr.skills.ramp`); start values, the settings page
+    #: changes them at run time through `MotionPipeline.set_limits`.
+    motion: MotionLimits = field(default_factory=MotionLimits)
 
 
 def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:
