@@ -193,6 +193,7 @@ class SecondaryCore:
         self.now = 0.0
         self._t = _Timers()
         self._started = False
+        self._send_failing = False
         self._lock = threading.Lock()
         self._commands: deque[tuple[str, tuple[str, ...]]] = deque()
         self.machine = Machine(
@@ -359,8 +360,14 @@ class SecondaryCore:
             self.bus.send(msg)
         except can.CanError as exc:
             self.counters.bus_errors += 1
-            log.warning("%s: cannot send 0x%03X: %s", self.name, msg.arbitration_id, exc)
+            # Warn when sending starts failing, not on every frame of a bus-off at 50 Hz.
+            level = logging.DEBUG if self._send_failing else logging.WARNING
+            self._send_failing = True
+            log.log(level, "%s: cannot send 0x%03X: %s", self.name, msg.arbitration_id, exc)
             return False
+        if self._send_failing:
+            self._send_failing = False
+            log.warning("%s: sending works again", self.name)
         self.counters.frames_out += 1
         return True
 

@@ -174,6 +174,7 @@ class SecondaryLink:
         self.frames_out = 0
         self.bad_frames = 0
         self.bus_errors = 0
+        self._send_failing = False
         self.last_bad_frame: str | None = None
 
     # -- the agent's side (any thread) --------------------------------------------------------
@@ -261,8 +262,14 @@ class SecondaryLink:
             self.bus.send(msg)
         except can.CanError as exc:
             self.bus_errors += 1
-            log.warning("%s: cannot send 0x%03X: %s", self.name, msg.arbitration_id, exc)
+            # Warn when sending starts failing, not on every frame of a bus-off at 50 Hz.
+            level = logging.DEBUG if self._send_failing else logging.WARNING
+            self._send_failing = True
+            log.log(level, "%s: cannot send 0x%03X: %s", self.name, msg.arbitration_id, exc)
             return False
+        if self._send_failing:
+            self._send_failing = False
+            log.warning("%s: sending works again", self.name)
         self.frames_out += 1
         return True
 
@@ -293,12 +300,12 @@ class SecondaryLink:
         with self._lock:
             status, power = self._status, self._power
         if status != self._sent_status or now + 1e-9 >= self._next_status:
-            if self._send(status.encode()):
-                self._sent_status = status
+            self._send(status.encode())  # a failed send is retried by the 2 Hz repeat, not every tick
+            self._sent_status = status
             self._next_status = now + self.status_period_s
         if power != self._sent_power or now + 1e-9 >= self._next_power:
-            if self._send(Power(power, PowerRequest.NORMAL).encode()):
-                self._sent_power = power
+            self._send(Power(power, PowerRequest.NORMAL).encode())
+            self._sent_power = power
             self._next_power = now + self.status_period_s
 
     def _receive(self, now: float) -> None:

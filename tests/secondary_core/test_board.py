@@ -377,9 +377,11 @@ class FailingSendBus:
         return self.inner.recv(timeout)
 
 
-def test_send_failures_are_counted_not_raised() -> None:
+def test_send_failures_are_counted_not_raised(caplog: pytest.LogCaptureFixture) -> None:
     with LinkBench(wrap_board_bus=lambda bus, clock: FailingSendBus(bus)) as bench:
         bench.run(4.0)  # brakes and IR frames all fail to go out
+        warnings = [r for r in caplog.records if r.levelname == "WARNING" and "cannot send" in r.getMessage()]
+        assert len(warnings) == 1, "warned once when sending started to fail, not on every frame"
         assert bench.core.state == "ready"
         assert bench.core.counters.bus_errors > 10 and bench.core.counters.frames_out == 0
         assert not bench.link.heartbeat_established, "the primary hears nothing from a board that cannot send"
