@@ -26,7 +26,7 @@ Decisions beyond the single skills (DESIGN §4, §10):
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -205,7 +205,7 @@ class MotionPipeline:
         now = inputs.now
         if inputs.mode not in MODE_INPUTS:
             raise ConfigError(f"motion pipeline: mode must be MANUAL or AUTO, got {inputs.mode!r}")
-        if inputs.limits is not None:
+        if inputs.limits is not None and inputs.limits != self.limits:
             self.set_limits(inputs.limits)
         if (inputs.mode, inputs.awareness) != (self._mode, self._awareness):
             if self._mode is not None:
@@ -275,12 +275,49 @@ class MotionPipeline:
         )
 
 
+class MotionControl:
+    """A scheduler component around a `MotionPipeline` (rate: 50 Hz), for wiring.
+
+    ``read(now)`` gathers this tick's `ControlInputs` (latest scan, cliff readings, commands, mode,
+    flags) from wherever the robot keeps them; ``command(wheels)`` hands the wheel speeds to the motor
+    driver. ``last`` is the latest `ControlResult` for telemetry. If the tick raises, zero is commanded
+    before the error reaches the scheduler, and `shutdown` commands zero too.
+    """
+
+    def __init__(
+        self,
+        pipeline: MotionPipeline,
+        read: Callable[[float], ControlInputs],
+        command: Callable[[WheelSpeeds], None],
+        *,
+        name: str = "motion",
+    ) -> None:
+        self.name = name
+        self.pipeline = pipeline
+        self.read = read
+        self.command = command
+        self.last: ControlResult | None = None
+
+    def tick(self, now: float) -> None:
+        try:
+            result = self.pipeline.tick(self.read(now))
+        except Exception:
+            self.command(WheelSpeeds())
+            raise
+        self.last = result
+        self.command(result.wheels)
+
+    def shutdown(self) -> None:
+        self.command(WheelSpeeds())
+
+
 __all__ = [
     "AGENT",
     "MODE_INPUTS",
     "ControlInputs",
     "ControlResult",
     "Mode",
+    "MotionControl",
     "MotionPipeline",
     "PipelineSettings",
     "TimedTwist",

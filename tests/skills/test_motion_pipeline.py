@@ -13,11 +13,21 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
+from atemr.clock import SimClock
+from atemr.config import Config
 from atemr.errors import ConfigError
-from atemr.msgs import CliffReadings, LaserScan, Pose2D, Twist
+from atemr.msgs import CliffReadings, LaserScan, Pose2D, Twist, WheelSpeeds
+from atemr.scheduler import Scheduler
 from atemr.skills.cliff import CliffGeometry
 from atemr.skills.diff_drive import DiffDrive, arc_step
-from atemr.skills.motion_pipeline import ControlInputs, ControlResult, MotionPipeline, PipelineSettings, TimedTwist
+from atemr.skills.motion_pipeline import (
+    ControlInputs,
+    ControlResult,
+    MotionControl,
+    MotionPipeline,
+    PipelineSettings,
+    TimedTwist,
+)
 from atemr.skills.ramp import MotionLimits
 
 DT = 0.02
@@ -311,3 +321,32 @@ def test_telemetry_is_json_ready():
     data = json.loads(json.dumps(r.telemetry()))
     assert data["source"] == "joystick" and set(data["hex_m"]) == {"FR", "FL", "LC", "RL", "RR", "RC"}
     assert data["clearance_m"] == {"front": None, "rear": None, "side": None}
+
+
+def test_motion_control_component_on_the_scheduler():
+    clock = SimClock()
+    sent: list[WheelSpeeds] = []
+    world = World()
+
+    def read(now: float) -> ControlInputs:
+        world.t = now
+        return ControlInputs(now=now, scan=world.scan(), cliff=world.cliff(),
+                             joystick=TimedTwist(Twist(0.3, 0.0), now) if now < 1.0 else None)
+
+    control = MotionControl(MotionPipeline(Config().motion), read, sent.append)
+    sched = Scheduler(clock)
+    sched.add(control, 50.0)
+    sched.run(duration=2.0)
+    assert len(sent) >= 100
+    assert max(w.left_radps for w in sent) == pytest.approx(0.3 / 0.085)
+    assert sent[-1] == WheelSpeeds(0.0, 0.0) and control.last is not None and control.last.watchdog
+    control.shutdown()
+    assert sent[-1] == WheelSpeeds()
+
+
+def test_motion_control_commands_zero_when_the_tick_fails():
+    sent: list[WheelSpeeds] = []
+    control = MotionControl(MotionPipeline(), lambda now: ControlInputs(now=now, mode="DRIVE"), sent.append)
+    with pytest.raises(ConfigError):
+        control.tick(0.0)
+    assert sent == [WheelSpeeds()]
