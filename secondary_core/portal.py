@@ -71,6 +71,11 @@ def _only_while_active() -> tuple[str, int] | None:
     return None
 
 
+@bp.get("/favicon.ico")
+def favicon() -> tuple[str, int]:
+    return "", 204  # no icon; without this route the browser's request would be redirected to the portal
+
+
 @bp.get("/")
 def index() -> tuple[str, int]:
     return _page("portal/index.html", ssid="", errors=[])

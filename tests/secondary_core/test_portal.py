@@ -204,6 +204,10 @@ def test_view_ip_and_refresh_twice(bench: LinkBench, client: FlaskClient) -> Non
     assert bench.core.robot_ip == "10.0.0.8"
 
 
+def test_favicon_is_empty_not_redirected(client: FlaskClient) -> None:
+    assert client.get("/favicon.ico").status_code == 204
+
+
 def test_unknown_urls_redirect_to_portal(client: FlaskClient) -> None:
     for probe in ("/generate_204", "/hotspot-detect.html", "/nothing/here"):
         page = client.get(probe)
