@@ -3,10 +3,15 @@
 Each ``tick(now)`` (10 Hz on the robot, any rate in simulation) does, in this order:
 
 1. take the commands submitted since the last tick (`Agent.submit`, thread-safe) and fire them;
-2. tick the current state's tree; when it finishes, post the state's ``on_success``/``on_failure`` trigger;
-3. fire the events posted so far (changing state stops the old tree, so its driving leaves command zero);
-4. tick the Monitor tree (status 0x153 out at 2 Hz and on every change, power-off requests and faults in);
-5. fire the Monitor's events and write the agent's keys to the blackboard.
+2. tick the Monitor tree (status 0x153 out at 2 Hz and on every change, power-off requests and faults in)
+   and fire the events it posted;
+3. tick the current state's tree, unless the state was entered after this tick's Monitor ran; when the
+   tree finishes, fire the state's ``on_success``/``on_failure`` trigger;
+4. write the agent's keys to the blackboard.
+
+Changing state stops the old tree (its driving leaves command zero in ``terminate``) and builds the new
+one. A new state's tree first runs after the Monitor has published the state, so every state the agent
+passes through appears in 0x153, even one (like Error) whose tree finishes in a single tick.
 
 Time comes only from ``now``; nothing here blocks or reads a clock. A refused trigger becomes a
 `CommandResult` (for commands) and a `TransitionRecord` in the trace (for everything), never an exception.
@@ -101,6 +106,7 @@ class Agent:
         self._monitor: py_trees.behaviour.Behaviour | None = None
         self._counts: dict[Any, int] = {}
         self._halt_reported = False
+        self._unpublished = False
         self._bb = py_trees.blackboard.Client(name=f"{name}/agent", namespace=AGENT_NS)
         for key in ("state", "code", "mode", "task", "error", "last_transition", "now"):
             self._bb.register_key(key, access=py_trees.common.Access.WRITE)
@@ -176,14 +182,16 @@ class Agent:
             if self.context.halted:
                 return
             self._drain_commands()
-            if self._tree is not None and not self._tree_done:
+            self._fire_events()
+            if self._monitor is not None:
+                self._tick(self._monitor)
+                self._unpublished = False
+                self._fire_events()
+            if self._tree is not None and not self._tree_done and not self._unpublished:
                 status = self._tick(self._tree)
                 if status in (Status.SUCCESS, Status.FAILURE):
                     self._tree_done = True
                     self._on_outcome(status)
-            self._fire_events()
-            if self._monitor is not None:  # also in the tick that halts, so the last status goes out
-                self._tick(self._monitor)
                 self._fire_events()
             self._write_blackboard()
             self.ticks += 1
@@ -284,6 +292,7 @@ class Agent:
         """Stop the old state's tree and build, set up and start the new state's."""
         self._stop_tree()
         self._tree, self._tree_state, self._tree_done = None, None, False
+        self._unpublished = self._monitor is not None
         tree_state = self.spec.tree_state(self.state)
         if tree_state is None or tree_state.tree is None:
             return

@@ -106,6 +106,8 @@ def test_an_invalid_goal_goes_through_error_back_to_idle(rig: Rig) -> None:
     assert rig.agent.state == "IDLE.MANUAL"
     triggers = [r.trigger for r in rig.agent.trace if r.accepted]
     assert triggers[-2:] == ["goal", "recover"]
+    codes = [k for k, _ in itertools.groupby(s.state for _, s in rig.link.statuses)]
+    assert codes[-3:] == [StateCode.IDLE, StateCode.ERROR, StateCode.IDLE], "even a one-tick state is published"
 
 
 def test_set_auto_is_refused_while_a_motor_is_unhealthy(rig: Rig) -> None:
@@ -145,7 +147,9 @@ def test_status_0x153_at_2_hz_and_on_every_change(rig: Rig) -> None:
     gaps = [b[0] - a[0] for a, b in itertools.pairwise(periodic)]
     assert all(abs(g - 0.5) < 1e-6 for g in gaps)
     before = len(rig.link.statuses)
-    rig.command("set_auto")
+    rig.command("set_auto")  # IDLE.AUTO's tree runs SetMode(AUTO) in the next tick ...
+    rig.scheduler.step()  # ... and the Monitor publishes the new AUTO bit in the one after
+    rig.scheduler.step()
     t, status = rig.link.statuses[-1]
     assert len(rig.link.statuses) == before + 1 and status.auto_mode
     assert t - periodic[-1][0] < 0.5, "a change is sent at once, not at the next period"
@@ -254,7 +258,7 @@ def test_restart_runs_start_up_again(rig: Rig) -> None:
 def test_power_off_request_from_the_secondary_core(rig: Rig) -> None:
     idle(rig)
     rig.link.power_off = True
-    rig.run(0.3)
+    rig.run(0.6)
     assert rig.agent.halted and rig.agent.state == "SHUTDOWN.POWEROFF"
     assert rig.link.power_states[-1][1] == PowerState.POWER_OFF_ACK
     assert rig.link.statuses[-1][1].state == StateCode.SHUTDOWN
