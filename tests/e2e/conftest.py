@@ -61,6 +61,7 @@ class KinematicGateway:
         self.limits = (0.5, 1.0)
         self.awareness = False
         self.active_map = "room"
+        self.maps = ["other", "room"]
         grid = Image.new("L", (120, 80), 254)
         ImageDraw.Draw(grid).rectangle([0, 0, 119, 79], outline=0, width=2)
         ImageDraw.Draw(grid).rectangle([60, 20, 70, 60], fill=0)
@@ -114,7 +115,8 @@ class KinematicGateway:
                            "disk_percent": 60.0},
                 "limits": {"linear_mps": self.limits[0], "angular_radps": self.limits[1]},
                 "awareness": self.awareness, "wifi_ssid": "lab", "mapping": self.mapping, "recording": False,
-                "mission": None, "missions": ["patrol", "visit_kitchen"], "maps": ["room"], "events": [],
+                "mission": None, "missions": ["patrol", "visit_kitchen"], "maps": list(self.maps),
+                "events": [{"t": 0.5, "kind": "info", "text": "agent started"}],
             }
 
     def map_image(self) -> MapImage | None:
@@ -202,6 +204,7 @@ class KinematicGateway:
         self._record("save_map", name)
         with self.lock:
             self.agent, self.active_map = "IDLE", name
+            self.maps = sorted({*self.maps, name})
         return CommandResult.accepted()
 
     def discard_map(self) -> CommandResult:

@@ -102,6 +102,10 @@ def test_mapping_begin_end_and_save(ready_site, page, shots, helpers):
     page.click("#save-map")
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
     assert ("save_map", ("kitchen",)) in ready_site.robot.calls
+    wait_for(page, "document.getElementById('map-select').value === 'kitchen'")
+    page.select_option("#map-select", "other")
+    wait_for(page, "document.getElementById('command-result').textContent === 'map_select: ok'")
+    assert ("select_map", ("other",)) in ready_site.robot.calls
 
 
 def test_change_a_speed_limit(ready_site, page, shots, helpers):

@@ -7,7 +7,21 @@
   const A = window.ATEMR;
   const toggle = $("mapping-toggle"), dialog = $("save-dialog"), select = $("map-select");
 
+  // The robot's own list of maps wins over the files this page was rendered with.
+  let knownMaps = "";
+  function syncMaps(names) {
+    const key = names.join("\n");
+    if (key === knownMaps || document.activeElement === select) return;
+    knownMaps = key;
+    select.innerHTML = "";
+    const none = document.createElement("option");
+    none.value = ""; none.textContent = "—";
+    select.appendChild(none);
+    for (const n of names) { const o = document.createElement("option"); o.value = o.textContent = n; select.appendChild(o); }
+  }
+
   A.onState((s) => {
+    if (Array.isArray(s.maps)) syncMaps(s.maps);
     toggle.textContent = s.mapping ? "END MAP" : "BEGIN MAP";
     toggle.classList.toggle("on", !!s.mapping);
     if (s.active_map && select.value !== s.active_map && document.activeElement !== select) {
@@ -34,7 +48,10 @@
     }
     const name = $("save-name").value.trim();
     const ack = await A.command("map_save", { name });
-    if (ack.ok) { dialog.close(); setTimeout(() => location.reload(), 300); }
+    if (ack.ok) {
+      dialog.close();
+      if (!Array.isArray(A.state.maps)) setTimeout(() => location.reload(), 300); // refresh the file list
+    }
   });
 
   select.addEventListener("change", () => { if (select.value) A.command("map_select", { name: select.value }); });
