@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from atemr.errors import ConfigError
 from atemr.io.sim.movers import Movers
-from atemr.io.sim.raycast import cast_circles, cast_grid
+from atemr.io.sim.raycast import cast_circles
 from atemr.io.sim.scene import Scene
 from atemr.msgs import Pose2D
 
@@ -92,13 +92,13 @@ class Camera:
         zbuf = np.full((h, w), np.inf)
         layers: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]] = []
 
-        wall = cast_grid(scene.walls, scene.resolution_m, (gx, gy), gyaw + self.col_angles, p.max_range_m)
+        wall = scene.walls_caster.cast((gx, gy), gyaw + self.col_angles, p.max_range_m)
         shade = np.where(wall.side == 1, 0.82, 1.0)
         wall_color = np.asarray(scene.label_colors[1])[None, :] * shade[:, None]
         layers.append((wall.distance_m, np.full(w, scene.world.wall_height_m), wall_color))
 
         if scene.furniture.any():
-            furn = cast_grid(scene.furniture, scene.resolution_m, (gx, gy), gyaw + self.col_angles, p.max_range_m)
+            furn = scene.furniture_caster.cast((gx, gy), gyaw + self.col_angles, p.max_range_m)
             hit = np.isfinite(furn.distance_m)
             labels = np.where(hit, scene.labels[np.maximum(furn.row, 0), np.maximum(furn.col, 0)], 0)
             fshade = np.where(furn.side == 1, 0.78, 1.0)

@@ -1,9 +1,9 @@
 """The three IR cliff sensors (Sharp GP2Y0A41SK0F, 4–30 cm): floor distance, or out of range over a drop.
 
 Each sensor looks straight down from under the base. Over normal floor it reads its mounting height
-(plus a little noise); over a drop zone the floor is ``depth_m`` lower, and once that is beyond the
-sensor's 30 cm the reading is +inf ("nothing in range"), exactly what the secondary core sends in CAN
-0x151/0x152 when the robot is at the top of the stairs.
+(plus a little noise); over a drop zone (resolved to the map's cells) the floor is ``depth_m`` lower,
+and once that is beyond the sensor's 30 cm the reading is +inf ("nothing in range"), exactly what the
+secondary core sends in CAN 0x151/0x152 when the robot is at the top of the stairs.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from atemr.errors import ConfigError
-from atemr.io.sim.world import DropZone
+from atemr.io.sim.scene import Scene
 from atemr.msgs import CliffReadings, Pose2D
 
 
@@ -42,30 +42,30 @@ class CliffParams:
 class CliffSensors:
     """Reads the three sensors at a pose against the world's drop zones."""
 
-    def __init__(self, params: CliffParams, zones: tuple[DropZone, ...], rng: np.random.Generator) -> None:
+    def __init__(self, params: CliffParams, scene: Scene, rng: np.random.Generator) -> None:
         self.params = params
-        self.zones = zones
+        self.scene = scene
         self.rng = rng
-        self._mount = np.array([params.front_left_xy, params.front_right_xy, params.rear_xy], dtype=np.float64)
+        self._mount = (params.front_left_xy, params.front_right_xy, params.rear_xy)
 
     def sensor_points(self, pose: Pose2D) -> np.ndarray:
         """(3, 2) world positions of front-left, front-right, rear."""
         c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-        mx, my = self._mount[:, 0], self._mount[:, 1]
+        mx = np.array([m[0] for m in self._mount])
+        my = np.array([m[1] for m in self._mount])
         return np.stack([pose.x_m + c * mx - s * my, pose.y_m + s * mx + c * my], axis=1)
 
-    def drop_depths(self, pose: Pose2D) -> np.ndarray:
-        """How far below the floor each sensor's spot is (0 on the floor; the deepest zone wins)."""
-        pts = self.sensor_points(pose)
-        depth = np.zeros(3)
-        for zone in self.zones:
-            depth = np.where(zone.contains(pts[:, 0], pts[:, 1]), np.maximum(depth, zone.depth_m), depth)
-        return depth
+    def drop_depths(self, pose: Pose2D) -> list[float]:
+        """How far below the floor each sensor's spot is (0 on the floor), to the map's cell size."""
+        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+        return [self.scene.drop_depth_at(pose.x_m + c * mx - s * my, pose.y_m + s * mx + c * my)
+                for mx, my in self._mount]
 
     def read(self, t: float, pose: Pose2D) -> CliffReadings:
         p = self.params
-        d = p.floor_distance_m + self.drop_depths(pose)
-        if p.noise_std_m:
-            d = d + self.rng.normal(0.0, p.noise_std_m, 3)
-        d = np.where(d > p.range_max_m, np.inf, np.maximum(d, p.range_min_m))
-        return CliffReadings(t, float(d[0]), float(d[1]), float(d[2]))
+        noise = self.rng.normal(0.0, p.noise_std_m, 3) if p.noise_std_m else (0.0, 0.0, 0.0)
+        out = []
+        for depth, n in zip(self.drop_depths(pose), noise, strict=True):
+            d = p.floor_distance_m + depth + float(n)
+            out.append(math.inf if d > p.range_max_m else max(d, p.range_min_m))
+        return CliffReadings(t, out[0], out[1], out[2])

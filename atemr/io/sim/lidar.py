@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from atemr.errors import ConfigError
-from atemr.io.sim.raycast import cast_circles, cast_grid
+from atemr.io.sim.raycast import cast_circles
 from atemr.io.sim.scene import Scene
 from atemr.msgs import LaserScan, Pose2D
 
@@ -60,7 +60,7 @@ class Lidar:
         world_angles = pose.yaw_rad + p.mount.yaw_rad + self.angles_rad
         gx, gy, gyaw = scene.to_grid_frame(sx, sy, pose.yaw_rad + p.mount.yaw_rad)
         grid_angles = gyaw + self.angles_rad
-        ranges = cast_grid(scene.blocked, scene.resolution_m, (gx, gy), grid_angles, p.range_max_m).distance_m
+        ranges = scene.blocked_caster.cast((gx, gy), grid_angles, p.range_max_m).distance_m
         if len(centres):
             d, _ = cast_circles((sx, sy), world_angles, centres, radii, p.range_max_m)
             ranges = np.minimum(ranges, d)

@@ -36,12 +36,6 @@ class Mover:
 class Movers:
     """All moving obstacles of a world, stepped together."""
 
-    #: (N, 2) positions and (N,) radii, refreshed after every step.
-    centres: np.ndarray
-    radii: np.ndarray
-    heights: np.ndarray
-    colors: np.ndarray
-
     def __init__(self, specs: tuple[MoverSpec, ...], scene: Scene, rng: np.random.Generator) -> None:
         self.scene = scene
         self.rng = rng
@@ -56,10 +50,17 @@ class Movers:
         self._sync()
 
     def _sync(self) -> None:
-        self.centres = np.array([(m.x_m, m.y_m) for m in self.items], dtype=np.float64).reshape(-1, 2)
+        self._centres: np.ndarray | None = None
         self.radii = np.array([m.spec.radius_m for m in self.items], dtype=np.float64)
         self.heights = np.array([m.spec.height_m for m in self.items], dtype=np.float64)
         self.colors = np.array([m.spec.color for m in self.items], dtype=np.float64).reshape(-1, 3)
+
+    @property
+    def centres(self) -> np.ndarray:
+        """(N, 2) positions, built when a sensor asks (not on every physics step)."""
+        if self._centres is None:
+            self._centres = np.array([(m.x_m, m.y_m) for m in self.items], dtype=np.float64).reshape(-1, 2)
+        return self._centres
 
     def _random_point(self, spec: MoverSpec) -> tuple[float, float]:
         """A point of the area with room for the pet (tries a few, falls back to the area's centre)."""
@@ -81,7 +82,7 @@ class Movers:
             if gap < 0.0 and gap < now_gap:
                 continue  # wait for the robot to get out of the way
             m.x_m, m.y_m = nx, ny
-        self._sync()
+        self._centres = None
 
     def _next(self, m: Mover, dt_s: float) -> tuple[float, float]:
         spec = m.spec

@@ -140,7 +140,7 @@ class Simulation:
                               file=world.source, path="start")
         self.lidar = Lidar(p.lidar, lidar_rng)
         self.imu = Imu(p.imu, imu_rng)
-        self.cliff = CliffSensors(p.cliff, world.drop_zones, cliff_rng)
+        self.cliff = CliffSensors(p.cliff, self.scene, cliff_rng)
         self.camera = Camera(p.camera)
         self.falls: list[Fall] = []
         self._last_t: float | None = None
