@@ -114,6 +114,14 @@ class SecondaryConfig:
 
 
 @dataclass(frozen=True)
+class AgentConfig:
+    """The agent (`atemr.fsm.agent.Agent`): its lifecycle/tree document and tick rate."""
+
+    file: Path | None = field(default=None, metadata={"help": "agent YAML (default: the shipped trees/agent.yaml)"})
+    rate_hz: float = field(default=10.0, metadata={"min": 1.0, "max": 100.0, "help": "agent tick rate"})
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that can be configured; see README 'Configuration'."""
 
@@ -125,6 +133,7 @@ class Config:
     motors: MotorsConfig = field(default_factory=MotorsConfig)
     ui: UiConfig = field(default_factory=UiConfig)
     secondary: SecondaryConfig = field(default_factory=SecondaryConfig)
+    agent: AgentConfig = field(default_factory=AgentConfig)
     #: Speed limits, slow/stop zones, idle time (`atemr.skills.ramp`); start values, the settings page
     #: changes them at run time through `MotionPipeline.set_limits`.
     motion: MotionLimits = field(default_factory=MotionLimits)
