@@ -19,6 +19,9 @@ Decisions beyond the single skills (DESIGN §4, §10):
   wake an idle base.
 * Hard stops bypass the ramp: the safety stop, the watchdog (no fresh input: a lost browser tab stops
   the base the moment its last command turns 0.5 s old), the stop zone and the cliff stop.
+* A scan is up to one lidar period old (0.1 s at 10 Hz): at 0.35 m/s the base has moved 3.5 cm since,
+  more than the 3 cm between KAY's footprint and the stop distance. So the front and rear clearances
+  are reduced by the distance the base has driven (by its own commands) since the scan was taken.
 * A scan older than ``scan_max_age_s`` is no scan: the ramp drives blind at slow-zone limits and the
   reactive engine is silent.
 """
@@ -182,6 +185,11 @@ class MotionPipeline:
         self._hex: HexSectors | None = None
         self._mode: str | None = None
         self._awareness: bool | None = None
+        # dead reckoning along the heading from our own commands, to age the scan's clearances
+        self._travel_m = 0.0
+        self._travel_at_scan_m = 0.0
+        self._last_now: float | None = None
+        self._last_v = 0.0
 
     @property
     def limits(self) -> MotionLimits:
@@ -198,11 +206,15 @@ class MotionPipeline:
         if scan is not self._scan or self._hex is None:
             self._hex = hex_pattern(scan, HEX90, self.settings.radius_m)
             self._scan = scan
+            self._travel_at_scan_m = self._travel_m - self._last_v * max(0.0, now - scan.t)
         return self._hex
 
     def tick(self, inputs: ControlInputs) -> ControlResult:
         """One control period at ``inputs.now``."""
         now = inputs.now
+        if self._last_now is not None and now > self._last_now:
+            self._travel_m += self._last_v * (now - self._last_now)
+        self._last_now = now
         if inputs.mode not in MODE_INPUTS:
             raise ConfigError(f"motion pipeline: mode must be MANUAL or AUTO, got {inputs.mode!r}")
         if inputs.limits is not None and inputs.limits != self.limits:
@@ -248,12 +260,17 @@ class MotionPipeline:
         watchdog = not chosen.fresh
         if watchdog or chosen.locked:
             self.ramp.halt()  # lost input or safety stop: stop now, not along the ramp
-        clearance = None if hexes is None else Clearance(*hexes.nearest_by_direction())
+        clearance = None
+        if hexes is not None:
+            front, rear, side = hexes.nearest_by_direction()
+            moved = self._travel_m - self._travel_at_scan_m
+            clearance = Clearance(front - max(moved, 0.0), rear - max(-moved, 0.0), side)
         ramped = self.ramp.step(now, chosen.twist, clearance, command=command)
         verdict = self.cliff.check(now, ramped.twist, inputs.cliff)
         if verdict.stopped:
             self.ramp.halt()
         final = verdict.twist
+        self._last_v = final.linear_mps
         return ControlResult(
             now=now,
             wheels=self.drive.command(final),
