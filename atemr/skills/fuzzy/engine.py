@@ -24,9 +24,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from atemr.errors import AtemrError, ConfigError
-from atemr.skills.fuzzy.defuzzifiers import Defuzzifier, IntegralDefuzzifier, WeightedDefuzzifier
+from atemr.skills.fuzzy.defuzzifiers import Centroid, Defuzzifier, IntegralDefuzzifier, WeightedDefuzzifier
+from atemr.skills.fuzzy.discrete_centroid import DiscreteCentroid
 from atemr.skills.fuzzy.norms import HEDGES, SNORMS, TNORMS, Norm, maximum
 from atemr.skills.fuzzy.rules import Rule
+from atemr.skills.fuzzy.separable import is_separable, separable_totals
 from atemr.skills.fuzzy.terms import Constant, Linear, Term
 
 Array = NDArray[np.float64]
@@ -107,7 +109,9 @@ class Engine:
     rule_blocks: tuple[RuleBlock, ...]
     description: str = ""
     type: str | None = None
-    _grids: dict[str, tuple[Array, dict[str, Array]]] = field(default_factory=dict, repr=False, compare=False)
+    _grids: dict[str, tuple[Array, dict[str, Array]]] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     def __post_init__(self) -> None:
         validate_engine(self)
@@ -227,6 +231,16 @@ class Engine:
             items = [(mu[t], d, imp) for (t, imp), d in grouped.items()]
         else:
             items = [(mu[c.term.name], c.degree, c.implication) for c in parts]
+        if isinstance(out.defuzzifier, DiscreteCentroid):
+            return out.defuzzifier.defuzzify_terms(x, items, n)
+        if type(out.defuzzifier) is Centroid and agg is maximum and items:
+            m = np.stack([i[0] for i in items])
+            implications = [i[2] for i in items]
+            if is_separable(m, implications):
+                totals = separable_totals(m, np.stack([i[1] for i in items], axis=1), implications,
+                                          np.stack([np.ones_like(x), x], axis=1))
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    return totals[:, 1] / totals[:, 0]
         crisp = np.full(n, np.nan)
         chunk = max(1, _CHUNK_SAMPLES // max(1, len(x)))
         for start in range(0, n, chunk):
@@ -348,6 +362,9 @@ def validate_engine(engine: Engine) -> None:
         where = f"outputs.{out.name}"
         if out.aggregation is not None and out.aggregation not in SNORMS:
             raise ConfigError(SNORMS.unknown_message(out.aggregation), path=f"{where}.aggregation")
+        if isinstance(out.defuzzifier, DiscreteCentroid) and out.aggregation not in (None, "Maximum"):
+            raise ConfigError("DiscreteCentroid aggregates with Maximum (like scikit-fuzzy)",
+                              path=f"{where}.aggregation")
         if isinstance(out.defuzzifier, WeightedDefuzzifier):
             kind = weighted_kind(out)
             for t in out.terms:
