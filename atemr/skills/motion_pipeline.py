@@ -212,6 +212,8 @@ class MotionPipeline:
     def tick(self, inputs: ControlInputs) -> ControlResult:
         """One control period at ``inputs.now``."""
         now = inputs.now
+        if not math.isfinite(now):
+            raise ConfigError(f"motion pipeline: now must be a finite time, got {now!r}")
         if self._last_now is not None and now > self._last_now:
             self._travel_m += self._last_v * (now - self._last_now)
         self._last_now = now
@@ -233,9 +235,8 @@ class MotionPipeline:
         # the operator's or planner's command this tick (for idle detection and the MANUAL engine)
         command: Twist | None = None
         for name in (JOYSTICK, AGENT) if inputs.mode == "MANUAL" else (AGENT, NAVIGATION):
-            latest = self.mux.select(now, {name})
-            if latest.fresh:
-                command = latest.twist
+            command = self.mux.fresh_command(name, now)
+            if command is not None:
                 break
 
         hexes = self._sectors(inputs.scan, now)
@@ -243,9 +244,9 @@ class MotionPipeline:
         tau = 0.0
         if inputs.awareness and hexes is not None:
             admissible.add(REACTIVE)
-            joystick = self.mux.select(now, {JOYSTICK})
-            if inputs.mode == "MANUAL" and joystick.fresh and not joystick.twist.is_zero:
-                assist = self.reactive.manual_assist(hexes, joystick.twist)
+            joystick = self.mux.fresh_command(JOYSTICK, now)
+            if inputs.mode == "MANUAL" and joystick is not None and not joystick.is_zero:
+                assist = self.reactive.manual_assist(hexes, joystick)
                 reactive, tau = assist.twist, assist.tau
             elif self.ramp.idle:
                 reactive = self.reactive.idle_twist(hexes)

@@ -107,9 +107,15 @@ class TwistMux:
 
     def is_fresh(self, name: str, now: float) -> bool:
         """Whether input ``name`` has a command younger than its timeout at ``now``."""
+        return self.fresh_command(name, now) is not None
+
+    def fresh_command(self, name: str, now: float) -> Twist | None:
+        """Input ``name``'s latest command if still fresh at ``now`` (locks ignored), else None."""
         spec = next((i for i in self.inputs if i.name == name), None)
         latest = self._latest.get(name)
-        return spec is not None and latest is not None and _fresh(latest[1], now, spec.timeout_s)
+        if spec is None or latest is None or not _fresh(latest[1], now, spec.timeout_s):
+            return None
+        return latest[0]
 
     def select(self, now: float, admissible: Collection[str] | None = None) -> MuxResult:
         """The winning command at ``now`` among ``admissible`` inputs (all when None).

@@ -321,6 +321,8 @@ def test_limits_change_at_run_time_and_a_rejected_value_keeps_the_old():
     assert p.set_limits(MotionLimits(max_linear_mps=1.0)).max_linear_mps == 1.0
     with pytest.raises(ConfigError, match="mode"):
         tick(p, 0.04, mode="DRIVE")
+    with pytest.raises(ConfigError, match="finite time"):
+        p.tick(ControlInputs(now=math.nan))
     with pytest.raises(ConfigError, match="scan_max_age_s"):
         PipelineSettings(scan_max_age_s=0.0)
 

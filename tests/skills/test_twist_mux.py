@@ -61,6 +61,9 @@ def test_non_finite_commands_are_dropped_and_clear_forgets():
     mux.publish(JOYSTICK, Twist(math.nan, 0.0), 0.1)
     assert mux.select(0.2).twist == JOY
     assert mux.is_fresh(JOYSTICK, 0.2) and not mux.is_fresh(JOYSTICK, 0.6)
+    mux.set_lock(SAFETY_STOP, True)
+    assert mux.fresh_command(JOYSTICK, 0.2) == JOY and mux.fresh_command(NAVIGATION, 0.2) is None
+    mux.set_lock(SAFETY_STOP, False)
     mux.clear(JOYSTICK)
     assert mux.select(0.2).source is None
 
