@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -67,9 +68,11 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
     x = inputs(twin, rows)
 
     def skfuzzy_run() -> dict[str, np.ndarray]:
-        sim = ctrl.ControlSystemSimulation(to_skfuzzy(twin), cache=False)
-        sim.inputs(x)
-        sim.compute()
+        with warnings.catch_warnings():  # scikit-fuzzy 0.5 uses np.maximum(a, b, out), deprecated in numpy 2.4
+            warnings.simplefilter("ignore", DeprecationWarning)
+            sim = ctrl.ControlSystemSimulation(to_skfuzzy(twin), cache=False)
+            sim.inputs(x)
+            sim.compute()
         return {k: np.asarray(v) for k, v in sim.output.items()}
 
     ours_s, ours = best_of(lambda: twin.process(x), 3)
