@@ -31,6 +31,7 @@ from typing import Any
 
 import py_trees
 
+from atemr.config import Config
 from atemr.errors import AtemrError, ConfigError
 from atemr.fsm.codes import state_code, top_level
 from atemr.fsm.machine import Lifecycle, TransitionRecord
@@ -38,7 +39,9 @@ from atemr.fsm.spec import AgentSpec, StateSpec, load_agent
 from atemr.trees.behaviours import Leaf
 from atemr.trees.builder import build, setup_tree
 from atemr.trees.context import AGENT_NS, AgentContext, Event
+from atemr.trees.missions import Mission
 from atemr.trees.ports import LinkPort, RobotPort
+from atemr.trees.progress import TaskProgress
 
 log = logging.getLogger(__name__)
 Status = py_trees.common.Status
@@ -46,6 +49,7 @@ Status = py_trees.common.Status
 #: The agent document shipped with the package checkout.
 DEFAULT_AGENT_FILE = Path(__file__).resolve().parents[2] / "trees" / "agent.yaml"
 RELOAD = "__reload__"
+_OUTCOMES = {"reached": "reached", "failed": "failed", "cancel": "cancelled"}
 
 
 @dataclass(frozen=True)
@@ -107,6 +111,10 @@ class Agent:
         self._counts: dict[Any, int] = {}
         self._halt_reported = False
         self._unpublished = False
+        self._progress: TaskProgress | None = None
+        self._tick_error: str | None = None
+        #: Reports of finished tasks (missions and goals), newest last: outcome, steps, times, errors.
+        self.task_reports: deque[dict[str, Any]] = deque(maxlen=history)
         self._bb = py_trees.blackboard.Client(name=f"{name}/agent", namespace=AGENT_NS)
         for key in ("state", "code", "mode", "task", "error", "last_transition", "now"):
             self._bb.register_key(key, access=py_trees.common.Access.WRITE)
@@ -115,6 +123,11 @@ class Agent:
     def from_file(cls, path: str | Path, port: RobotPort, link: LinkPort | None = None, **kwargs: Any) -> Agent:
         """An agent from a validated document (raises `ConfigError` before anything is built)."""
         return cls(load_agent(path), port, link, **kwargs)
+
+    @classmethod
+    def from_config(cls, config: Config, port: RobotPort, link: LinkPort | None = None, **kwargs: Any) -> Agent:
+        """The agent as the robot wires it: ``config.agent.file`` or the shipped ``trees/agent.yaml``."""
+        return cls.from_file(config.agent.file or DEFAULT_AGENT_FILE, port, link, **kwargs)
 
     # -- read-only views ---------------------------------------------------------------------------
     @property
@@ -189,6 +202,8 @@ class Agent:
                 self._fire_events()
             if self._tree is not None and not self._tree_done and not self._unpublished:
                 status = self._tick(self._tree)
+                if self._progress is not None:
+                    self._progress.update(self.context.now, self.context.port.pose())
                 if status in (Status.SUCCESS, Status.FAILURE):
                     self._tree_done = True
                     self._on_outcome(status)
@@ -272,6 +287,11 @@ class Agent:
         else:
             log.debug("refused %s in %s: %s", record.trigger, record.source, record.reason)
         if record.state_changed:
+            if self._progress is not None:
+                outcome = _OUTCOMES.get(record.trigger, record.trigger)
+                self._progress.finish(outcome, self.context.now, self.context.port.pose())
+                self.task_reports.append(self._progress.report())
+                self._progress = None
             self._enter_state()
         for listener in self.listeners:
             try:
@@ -297,8 +317,9 @@ class Agent:
         if tree_state is None or tree_state.tree is None:
             return
         task = getattr(self.context.task, "spec", None)
+        built_tasks: list[py_trees.behaviour.Behaviour] = []
         try:
-            root = build(tree_state.tree, task=task)
+            root = build(tree_state.tree, task=task, built_tasks=built_tasks)
             setup_tree(root, self.context)
         except AtemrError as exc:
             self.errors.append(f"cannot build the tree of {self.state}: {exc}")
@@ -307,6 +328,8 @@ class Agent:
                                   error=exc)
             return
         self._tree, self._tree_state = root, tree_state
+        if built_tasks and isinstance(self.context.task, Mission):
+            self._progress = TaskProgress(self.context.task, built_tasks[0], self.context.now)
 
     def _tick(self, root: py_trees.behaviour.Behaviour) -> Status:
         try:
@@ -315,6 +338,8 @@ class Agent:
         except Exception as exc:  # a leaf bug becomes the tree's failure, not a dead agent
             text = str(exc) if isinstance(exc, AtemrError) else f"internal error: {exc!r}"
             self.errors.append(f"{root.name}: {text}")
+            if root is self._tree:
+                self._tick_error = text
             log.exception("tree %s raised", root.name)
             if root.status == Status.RUNNING:
                 root.stop(Status.INVALID)
@@ -332,6 +357,8 @@ class Agent:
                 self.context.post(state.on_success, f"{self._tree.name} succeeded", origin)
             return
         why = failure_reason(self._tree)
+        if self._tick_error is not None:
+            why, self._tick_error = f"{why}: {self._tick_error}", None
         if state.on_failure:
             error = self.context.error or AtemrError(why)
             self.context.post(state.on_failure, why, origin, error=error)
@@ -361,6 +388,8 @@ class Agent:
                 "halted": self.context.halted,
                 "valid_triggers": self.lifecycle.valid_triggers(),
                 "task": getattr(self.context.task, "name", None),
+                "task_progress": self._progress.report() if self._progress is not None else None,
+                "last_task": self.task_reports[-1] if self.task_reports else None,
                 "error": str(self.context.error) if self.context.error else None,
                 "tree": self._node_dict(self._tree) if self._tree is not None else None,
                 "monitor": self._node_dict(self._monitor) if self._monitor is not None else None,

@@ -161,18 +161,26 @@ def _check_keys(node: Mapping[str, Any], source: Source, path: str, allowed: Seq
                          f"{', '.join(allowed)}", f"{path}.{key}", node, key, on_key=True)
 
 
-def build(spec: NodeSpec, *, task: NodeSpec | None = None) -> py_trees.behaviour.Behaviour:
-    """Build py_trees behaviours from a validated spec; ``Task`` nodes become ``task`` (or a failing leaf)."""
+def build(spec: NodeSpec, *, task: NodeSpec | None = None,
+          built_tasks: list[py_trees.behaviour.Behaviour] | None = None) -> py_trees.behaviour.Behaviour:
+    """Build py_trees behaviours from a validated spec; ``Task`` nodes become ``task`` (or a failing leaf).
+
+    Each built task root is appended to ``built_tasks`` so the caller can follow its progress.
+    """
     if spec.kind == "composite":
         _, composite = COMPOSITES[spec.type]
-        return composite(spec.name, spec.options, [build(c, task=task) for c in spec.children])
+        return composite(spec.name, spec.options,
+                         [build(c, task=task, built_tasks=built_tasks) for c in spec.children])
     if spec.kind == "decorator":
         _, decorator = DECORATORS[spec.type]
-        return decorator(spec.name, spec.options, build(spec.children[0], task=task))
+        return decorator(spec.name, spec.options, build(spec.children[0], task=task, built_tasks=built_tasks))
     if spec.kind == "task":
         if task is None:
             return NoTask(spec.name)
-        return build(task)
+        root = build(task)
+        if built_tasks is not None:
+            built_tasks.append(root)
+        return root
     return behaviours.get(spec.type)(spec.name, spec.options)
 
 

@@ -193,6 +193,14 @@ def test_a_mission_runs_in_exec_and_returns_to_idle(rig: Rig) -> None:
     assert rig.port.current_pose is not None and abs(rig.port.current_pose.yaw_rad - math.pi / 2) < 0.06
     reached = next(r for r in rig.agent.trace if r.trigger == "reached")
     assert reached.source == "EXEC" and rig.agent.context.task is None
+    report = rig.agent.task_reports[-1]
+    assert report["mission"] == "look-around" and report["outcome"] == "reached"
+    assert [s["status"] for s in report["steps"]] == ["reached"] * 4
+    rotate = report["steps"][1]
+    assert rotate["kind"] == "rotate" and 1.5 < rotate["duration_s"] < 6.0
+    assert rotate["final_pose"]["yaw_rad"] == pytest.approx(math.pi / 2, abs=0.06)
+    assert report["steps"][3]["duration_s"] == pytest.approx(1.0, abs=0.11)
+    assert json.loads(json.dumps(rig.agent.snapshot()))["last_task"]["outcome"] == "reached"
 
 
 def test_a_step_timeout_fails_the_mission_into_error(rig: Rig) -> None:
@@ -203,6 +211,9 @@ def test_a_step_timeout_fails_the_mission_into_error(rig: Rig) -> None:
     rig.run(1.5)
     failed = next(r for r in rig.agent.trace if r.trigger == "failed")
     assert failed.dest == "ERROR" and "timed out after 1 s" in failed.reason
+    report = rig.agent.task_reports[-1]
+    assert report["outcome"] == "failed" and report["steps"][0]["status"] == "failed"
+    assert report["steps"][0]["duration_s"] == pytest.approx(1.0, abs=0.11)
     rig.run(0.2)
     assert rig.agent.state == "IDLE.MANUAL"
 
@@ -215,9 +226,13 @@ def test_cancel_stops_the_task(rig: Rig) -> None:
     rig.command("start_mission", mission=parse_mission(load_yaml("r.yaml", text=text), "r.yaml"))
     rig.run(0.5)
     assert rig.agent.state == "EXEC" and rig.port.commands[-1][1].angular_radps > 0
+    progress = rig.agent.snapshot()["task_progress"]
+    assert progress["outcome"] == "running" and progress["steps"][0]["status"] == "running"
     assert rig.command("cancel").dest == "IDLE.AUTO"  # type: ignore[attr-defined]
     agent_cmds = [c for c in rig.port.commands if c[0] == "agent"]
     assert agent_cmds[-1][1] == Twist(), "Rotate commands zero when interrupted"
+    report = rig.agent.task_reports[-1]
+    assert report["outcome"] == "cancelled" and report["steps"][0]["status"] == "interrupted"
 
 
 def test_a_mission_needing_navigation_is_refused_with_the_reason(rig: Rig) -> None:
@@ -317,3 +332,55 @@ def test_reload_applies_only_in_idle_and_only_when_valid(rig: Rig, tmp_path: Pat
     rig.agent.submit_reload(good)
     rig.scheduler.step()
     assert not rig.agent.results[-1].accepted and "only in IDLE" in rig.agent.results[-1].reason
+
+
+class ExplodingPort(RecordingPort):
+    """A port whose camera has a bug (raises something that is not an AtemrError)."""
+
+    def capture_image(self, label: str) -> str:
+        raise RuntimeError("driver bug")
+
+
+def test_a_leaf_bug_fails_the_task_and_the_agent_carries_on(agent_spec: AgentSpec, link: RecordingLink) -> None:
+    rig = Rig(agent_spec, ExplodingPort(), link)
+    idle(rig)
+    rig.command("set_auto")
+    text = "mission:\n  name: photo\n  steps:\n    - capture_image: {label: x}\n"
+    rig.command("start_mission", mission=parse_mission(load_yaml("p.yaml", text=text), "p.yaml"))
+    rig.run(0.5)
+    failed = next(r for r in rig.agent.trace if r.trigger == "failed")
+    assert "driver bug" in failed.reason and rig.agent.state == "IDLE.MANUAL"
+    assert any("driver bug" in e for e in rig.agent.errors)
+
+
+def test_commands_from_many_threads_are_all_answered(rig: Rig) -> None:
+    import threading
+
+    idle(rig)
+    ids: list[int] = []
+    lock = threading.Lock()
+
+    def spam() -> None:
+        for _ in range(50):
+            command_id = rig.agent.submit("set_manual", origin="thread")
+            with lock:
+                ids.append(command_id)
+
+    threads = [threading.Thread(target=spam) for _ in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    rig.scheduler.step()
+    assert len(set(ids)) == 200
+    answered = {r.id: r for r in rig.agent.results}
+    assert all(i in answered and not answered[i].accepted for i in ids)
+
+
+def test_from_config_uses_the_shipped_document(port: RecordingPort, link: RecordingLink) -> None:
+    from atemr.config import load_config
+
+    agent = Agent.from_config(load_config(environ={}), port, link)
+    assert agent.spec.file is not None and agent.spec.file.endswith("trees/agent.yaml")
+    agent.tick(0.0)
+    assert agent.state == "IDLE.MANUAL"

@@ -1,0 +1,103 @@
+"""What Exec reports while a task runs and when it ends: each mission step's status, times and errors.
+
+`TaskProgress` watches the built task tree (one child per mission step, in order) after every agent tick:
+a step is ``pending`` until it first runs, ``running``, then ``reached`` or ``failed``; steps after a
+failure stay ``not run``. When a step ends, the robot's pose is recorded and, for steps that drive to a
+pose, the distance and heading error to that pose. `TaskProgress.report` is the JSON the dashboard shows
+and that a mission run prints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import py_trees
+
+from atemr.msgs import Pose2D
+from atemr.trees.leaves.motion import wrap_angle
+from atemr.trees.missions import Mission, PoseParams
+
+Status = py_trees.common.Status
+
+
+@dataclass
+class StepRecord:
+    """One step's outcome so far."""
+
+    index: int
+    kind: str
+    name: str
+    status: str = "pending"
+    started_s: float | None = None
+    finished_s: float | None = None
+    target: Pose2D | None = None
+    final_pose: Pose2D | None = None
+    position_error_m: float | None = None
+    heading_error_rad: float | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["duration_s"] = (None if self.started_s is None or self.finished_s is None
+                             else self.finished_s - self.started_s)
+        return out
+
+
+def _target(step_spec: Any) -> Pose2D | None:
+    poses = [n.options for n in step_spec.walk() if isinstance(n.options, PoseParams)]
+    return poses[-1].pose() if poses else None
+
+
+class TaskProgress:
+    """Follows ``root`` (the built task: a Sequence with one child per step of ``mission``)."""
+
+    def __init__(self, mission: Mission, root: py_trees.behaviour.Behaviour, started_s: float) -> None:
+        self.mission = mission
+        self.root = root
+        self.started_s = started_s
+        self.finished_s: float | None = None
+        self.outcome = "running"
+        self.steps = [StepRecord(s.index, s.kind, s.name, target=_target(s.spec)) for s in mission.steps]
+        self._nodes = list(root.children) if len(root.children) == len(self.steps) else [root]
+
+    def update(self, now: float, pose: Pose2D | None) -> None:
+        """Read the step nodes' statuses after a tick."""
+        for record, node in zip(self.steps, self._nodes, strict=False):
+            if node.status == Status.RUNNING and record.started_s is None:
+                record.started_s, record.status = now, "running"
+            elif node.status in (Status.SUCCESS, Status.FAILURE) and record.finished_s is None:
+                if record.started_s is None:
+                    record.started_s = now
+                record.finished_s = now
+                record.status = "reached" if node.status == Status.SUCCESS else "failed"
+                self._measure(record, pose)
+
+    def _measure(self, record: StepRecord, pose: Pose2D | None) -> None:
+        record.final_pose = pose
+        if pose is not None and record.target is not None:
+            record.position_error_m = pose.distance_to(record.target)
+            record.heading_error_rad = abs(wrap_angle(pose.yaw_rad - record.target.yaw_rad))
+
+    def finish(self, outcome: str, now: float, pose: Pose2D | None) -> None:
+        """The task ended (``reached``, ``failed``, ``cancelled``, or the trigger that interrupted it)."""
+        self.outcome, self.finished_s = outcome, now
+        for record in self.steps:
+            if record.status == "running":
+                record.status, record.finished_s = "interrupted", now
+                self._measure(record, pose)
+            elif record.status == "pending":
+                record.status = "not run"
+
+    def report(self) -> dict[str, Any]:
+        """JSON-able: the outcome, each step, and how long it all took."""
+        end = self.finished_s
+        return {
+            "mission": self.mission.name,
+            "file": self.mission.file,
+            "outcome": self.outcome,
+            "started_s": self.started_s,
+            "finished_s": end,
+            "duration_s": None if end is None else end - self.started_s,
+            "steps": [s.as_dict() for s in self.steps],
+        }
+
