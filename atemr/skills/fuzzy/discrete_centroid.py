@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,10 +37,11 @@ def _segments(xa: Array, xb: Array, ya: Array, yb: Array) -> tuple[Array, Array]
     return area, moment
 
 
-def _monotone_runs(values: Array) -> list[tuple[int, int, bool]]:
+@lru_cache(maxsize=256)
+def _monotone_runs(samples: bytes) -> list[tuple[int, int, bool]]:
     """Maximal strictly rising or falling stretches of a sampled term: (first node, last node, rising).
-    Flat cells never cross a level, so they end runs and belong to none."""
-    step = np.sign(np.diff(values))
+    Flat cells never cross a level, so they end runs and belong to none. Cached: terms do not change."""
+    step = np.sign(np.diff(np.frombuffer(samples, dtype=np.float64)))
     runs = []
     j = 0
     while j < len(step):
@@ -79,7 +81,7 @@ class DiscreteCentroid(IntegralDefuzzifier):
         d = np.stack([t[1] for t in terms], axis=1)  # (N, T)
         clip = [imp == "Minimum" for _, _, imp in terms]
         norms: list[Norm | None] = [TNORMS.get(imp) if imp else None for _, _, imp in terms]
-        runs = [_monotone_runs(m[t]) if clip[t] else [] for t in range(len(terms))]
+        runs = [_monotone_runs(m[t].tobytes()) if clip[t] else [] for t in range(len(terms))]
         out = np.empty(n)
         for start in range(0, n, _CHUNK_ROWS):
             stop = min(n, start + _CHUNK_ROWS)

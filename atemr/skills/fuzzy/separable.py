@@ -17,6 +17,7 @@ less than that fraction of the range.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,12 +46,22 @@ def separable_totals(m: Array, d: Array, implications: Sequence[str | None], wei
         if imp == "AlgebraicProduct":
             totals += c[:, None] * (m[t] @ weights)[None, :]
             continue
-        order = np.argsort(m[t], kind="stable")
-        mu = m[t][order]
-        w = weights[order]
-        zero = np.zeros((1, weights.shape[1]))
-        below = np.concatenate([zero, np.cumsum(w * mu[:, None], axis=0)])
-        rest = np.concatenate([np.cumsum(w[::-1], axis=0)[::-1], zero])
+        mu, below, rest = _tables(m[t].tobytes(), weights.tobytes(), weights.shape[1])
         j = np.searchsorted(mu, c, side="left")
         totals += below[j] + c[:, None] * rest[j]
     return totals
+
+
+@lru_cache(maxsize=256)
+def _tables(term: bytes, weights: bytes, columns: int) -> tuple[Array, Array, Array]:
+    """Sorted samples of one term with the prefix sums Σ w·μ below and the suffix sums Σ w above each
+    position; cached because an engine evaluates the same terms on every call."""
+    m = np.frombuffer(term, dtype=np.float64)
+    w_all = np.frombuffer(weights, dtype=np.float64).reshape(-1, columns)
+    order = np.argsort(m, kind="stable")
+    mu = m[order]
+    w = w_all[order]
+    zero = np.zeros((1, columns))
+    below = np.concatenate([zero, np.cumsum(w * mu[:, None], axis=0)])
+    rest = np.concatenate([np.cumsum(w[::-1], axis=0)[::-1], zero])
+    return mu, below, rest
