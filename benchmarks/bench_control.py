@@ -60,11 +60,7 @@ def scans(n: int, seed: int = 0) -> list[LaserScan]:
 class LoopHexPipeline(MotionPipeline):
     """The baseline: the same pipeline with the hex pattern written as a per-beam Python loop."""
 
-    def _sectors(self, scan: LaserScan | None, now: float) -> HexSectors | None:
-        if scan is None or not (now - scan.t <= self.settings.scan_max_age_s):
-            return None
-        if scan is self._scan and self._hex is not None:
-            return self._hex
+    def _hex_pattern(self, scan: LaserScan) -> HexSectors:
         radius = self.settings.radius_m
         sums = [0.0] * 6
         counts = [0] * 6
@@ -89,9 +85,7 @@ class LoopHexPipeline(MotionPipeline):
                         counts[k] += 1
                     break
         mean = np.array([sums[k] / counts[k] if counts[k] else radius for k in range(6)])
-        self._hex = HexSectors(HEX90, radius, mean, np.array(nearest), np.array(counts, dtype=np.int64))
-        self._scan = scan
-        return self._hex
+        return HexSectors(HEX90, radius, mean, np.array(nearest), np.array(counts, dtype=np.int64))
 
 
 def _inputs(case: str, k: int, scan: LaserScan) -> ControlInputs:

@@ -199,12 +199,16 @@ class MotionPipeline:
         """Validate and apply new limits (settings page); a rejected value keeps the old limits."""
         return self.ramp.set_limits(changes)
 
+    def _hex_pattern(self, scan: LaserScan) -> HexSectors:
+        """The HEX-90 sectors of one scan (a separate method so a benchmark can swap the algorithm)."""
+        return hex_pattern(scan, HEX90, self.settings.radius_m)
+
     def _sectors(self, scan: LaserScan | None, now: float) -> HexSectors | None:
         """HEX-90 sectors of the latest scan, recomputed only when a new scan arrives; None if stale."""
         if scan is None or not (now - scan.t <= self.settings.scan_max_age_s):
             return None
         if scan is not self._scan or self._hex is None:
-            self._hex = hex_pattern(scan, HEX90, self.settings.radius_m)
+            self._hex = self._hex_pattern(scan)
             self._scan = scan
             self._travel_at_scan_m = self._travel_m - self._last_v * max(0.0, now - scan.t)
         return self._hex
