@@ -303,8 +303,12 @@ def page(browser: Any) -> Iterator[Any]:
     context = browser.new_context(viewport={"width": 1280, "height": 860}, accept_downloads=True)
     page = context.new_page()
     page.set_default_timeout(10_000)
+    violations: list[str] = []
+    page.on("console", lambda m: violations.append(m.text) if "Content Security Policy" in m.text else None)
+    page.on("pageerror", lambda e: violations.append(f"uncaught: {e}"))
     yield page
     context.close()
+    assert not violations, f"the page broke its own CSP or threw: {violations}"
 
 
 @pytest.fixture(scope="session")

@@ -12,7 +12,14 @@ pytestmark = pytest.mark.e2e
 
 
 def wait_for(page, js: str, timeout: float = 8000) -> None:
-    page.wait_for_function(js, timeout=timeout)
+    """Poll ``js`` until true. (``page.wait_for_function`` evaluates strings with eval, which the
+    dashboard's Content-Security-Policy forbids; ``page.evaluate`` goes through the DevTools protocol.)"""
+    step_ms = 50
+    for _ in range(int(timeout / step_ms)):
+        if page.evaluate(js):
+            return
+        page.wait_for_timeout(step_ms)
+    raise AssertionError(f"still false after {timeout / 1000:.0f} s: {js}")
 
 
 def test_first_start_sets_the_admin_password_then_login_remembers_the_user(site, page, shots, helpers):

@@ -199,3 +199,25 @@ def test_too_short_secret_key_file_is_a_config_error(tmp_path, gateway, ui):
     (config.data_dir / "ui.key").write_bytes(b"short")
     with pytest.raises(ConfigError, match=r"ui\.key.*delete it"):
         create_app(config, gateway)
+
+
+def test_security_headers_on_every_response(client, ui):
+    for path in ("/auth/login", "/static/js/socket.js", "/control"):
+        response = client.get(path)
+        response.close()
+        csp = response.headers["Content-Security-Policy"]
+        assert "script-src 'self'" in csp and "frame-ancestors 'none'" in csp and "unsafe-inline" not in csp
+        assert response.headers["X-Frame-Options"] == "DENY"
+        assert response.headers["X-Content-Type-Options"] == "nosniff"
+
+
+def test_templates_have_no_inline_script_or_handlers(ui):
+    import re
+    from pathlib import Path
+
+    import atemr.ui
+
+    root = Path(atemr.ui.__file__).parent
+    for template in root.rglob("*.html"):
+        text = template.read_text()
+        assert not re.search(r"<script>|\son[a-z]+=|style=", text), template

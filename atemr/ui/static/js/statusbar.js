@@ -25,6 +25,12 @@
   };
   window.ATEMR = ATEMR;
 
+  // Forms that destroy something ask first (no inline handlers: the CSP forbids them).
+  document.addEventListener("submit", (e) => {
+    const question = e.target.dataset && e.target.dataset.confirm;
+    if (question && !window.confirm(question)) e.preventDefault();
+  }, true);
+
   const sock = document.getElementById("sock");
   const agent = document.getElementById("agent-state");
   const emergency = document.getElementById("emergency");
