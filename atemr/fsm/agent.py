@@ -398,6 +398,11 @@ class Agent:
                 "transitions": [r.as_dict() for r in list(self.lifecycle.trace)[-transitions:]],
                 "commands": [r.as_dict() for r in list(self.results)[-transitions:]],
                 "errors": list(self.errors)[-transitions:],
+                "machine": {
+                    "states": list(self.spec.states),
+                    "transitions": [{"trigger": t.trigger, "source": list(t.sources), "dest": t.dest}
+                                    for t in self.spec.transitions],
+                },
             }
 
     def _node_dict(self, node: py_trees.behaviour.Behaviour) -> dict[str, Any]:

@@ -291,6 +291,8 @@ def test_snapshot_is_json_and_counts_ticks(rig: Rig) -> None:
     assert snap["blackboard"]["/agent/state"] == "IDLE.MANUAL"
     assert "/monitor/status" in snap["blackboard"]
     assert snap["transitions"][-1]["dest"] == "IDLE.MANUAL" and "set_auto" in snap["valid_triggers"]
+    assert "SHUTDOWN.POWEROFF" in snap["machine"]["states"]
+    assert {"trigger": "cancel", "source": ["EXEC"], "dest": "IDLE.AUTO"} in snap["machine"]["transitions"]
 
 
 def test_trace_replays_to_the_same_states(rig: Rig, agent_spec: AgentSpec) -> None:
