@@ -2,6 +2,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from atemr.errors import ConfigError
 from atemr.msgs import CliffReadings, Twist
@@ -68,3 +70,13 @@ def test_bad_geometry():
         CliffGeometry(rear_xy=(0.1, 0.0))
     with pytest.raises(ConfigError, match="max_age_s"):
         CliffStop(max_age_s=math.inf)
+
+
+@settings(max_examples=80, deadline=None)
+@given(v=st.floats(-2, 2), w=st.floats(-4, 4),
+       readings_m=st.tuples(*[st.sampled_from([0.05, 0.06, 0.11, math.inf, math.nan])] * 3))
+def test_the_per_tick_check_agrees_with_the_vectorised_rule(v, w, readings_m):
+    verdict = CliffStop().check(0.0, Twist(v, w), CliffReadings(0.0, *readings_m))
+    dropped = drops(CliffReadings(0.0, *readings_m), G)
+    assert verdict.drops == tuple(bool(d) for d in dropped)
+    assert verdict.stopped == bool(blocked(v, w, dropped, G))

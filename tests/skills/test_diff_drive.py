@@ -31,6 +31,16 @@ def test_wheel_limit_scales_both_wheels_and_keeps_curvature():
 
 
 @settings(max_examples=50, deadline=None)
+@given(st.floats(-3, 3), st.floats(-8, 8))
+def test_command_agrees_with_the_vectorised_wheel_speeds(v, w):
+    drive = DiffDrive()  # with the wheel limit
+    left, right = drive.wheel_speeds(v, w)
+    cmd = drive.command(Twist(v, w))
+    assert cmd.left_radps == pytest.approx(float(left), abs=1e-12)
+    assert cmd.right_radps == pytest.approx(float(right), abs=1e-12)
+
+
+@settings(max_examples=50, deadline=None)
 @given(st.floats(-2, 2), st.floats(-4, 4))
 def test_twist_wheel_round_trip(v, w):
     back = DRIVE.measured(DRIVE.command(Twist(v, w)))
