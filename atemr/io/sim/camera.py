@@ -68,14 +68,27 @@ class Camera:
         #: Column angle relative to the optical axis (left positive) and the factor turning ray length into depth.
         self.col_angles = np.arctan((w / 2 - u) / f)
         self.col_cos = np.cos(self.col_angles)
+        self._col_tan = np.tan(self.col_angles).astype(np.float32)
         v = np.arange(h, dtype=np.float64) + 0.5
         #: Vertical slope of each row's ray (up positive): a point at depth D and height z is on row v when
         #: ``z - cam_z = slope[v] * D``.
         self.row_slope = ((h / 2 - v) / f)[:, None]
+        self._rows = np.arange(h, dtype=np.int32)[:, None]
         below = self.row_slope[:, 0] < 0
-        self._floor_rows = np.nonzero(below)[0]
+        self._n_sky = int(np.count_nonzero(~below))
+        # Everything about the background that does not depend on the pose, computed once: the ceiling,
+        # and the floor's three looks (two tiles, a drop) already faded with each pixel's distance.
+        fade = np.clip(1.0 - 0.35 * np.abs(self.row_slope[~below, 0]), 0.7, 1.0)
+        self._ceiling = np.ascontiguousarray(
+            np.broadcast_to((CEILING[None, :] * fade[:, None])[:, None, :], (self._n_sky, w, 3))
+        ).astype(np.uint8)
         #: Depth of the floor seen by each floor row.
-        self._floor_depth = (params.height_m / -self.row_slope[below, 0])[:, None]
+        self._floor_depth = (params.height_m / -self.row_slope[below, 0]).astype(np.float32)[:, None]
+        dist = self._floor_depth / self.col_cos[None, :].astype(np.float32)
+        fog = np.exp(-dist / params.fog_m)[..., None]
+        self._floor_looks = [
+            (color * fog + HAZE * (1.0 - fog)).astype(np.uint8) for color in (FLOOR_A, FLOOR_B, DROP)
+        ]
 
     def render(self, pose: Pose2D, scene: Scene, movers: Movers | None = None) -> NDArray[np.uint8]:
         """The image seen from the robot at ``pose``, with the moving obstacles as cylinders."""
@@ -85,66 +98,83 @@ class Camera:
         cam_y = pose.y_m + s * p.mount.x_m + c * p.mount.y_m
         yaw = pose.yaw_rad + p.mount.yaw_rad
         gx, gy, gyaw = scene.to_grid_frame(cam_x, cam_y, yaw)
-        h, w = p.height, p.width
-        cam_z = p.height_m
-
         img = self._background(scene, cam_x, cam_y, yaw)
-        zbuf = np.full((h, w), np.inf)
-        layers: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]] = []
+        rays = gyaw + self.col_angles
 
-        wall = scene.walls_caster.cast((gx, gy), gyaw + self.col_angles, p.max_range_m)
-        shade = np.where(wall.side == 1, 0.82, 1.0)
-        wall_color = np.asarray(scene.label_colors[1])[None, :] * shade[:, None]
-        layers.append((wall.distance_m, np.full(w, scene.world.wall_height_m), wall_color))
+        wall = scene.walls_caster.cast((gx, gy), rays, p.max_range_m)
+        d_wall = wall.distance_m * self.col_cos  # perpendicular depth: straight walls stay straight
+        shade = np.where(wall.side == 1, 0.82, 1.0)[:, None]
+        self._paint(img, d_wall, np.full(p.width, scene.world.wall_height_m), scene.label_colors[1][None, :] * shade)
 
+        d_furn = np.full(p.width, np.inf)
         if scene.furniture.any():
-            furn = scene.furniture_caster.cast((gx, gy), gyaw + self.col_angles, p.max_range_m)
-            hit = np.isfinite(furn.distance_m)
-            labels = np.where(hit, scene.labels[np.maximum(furn.row, 0), np.maximum(furn.col, 0)], 0)
-            fshade = np.where(furn.side == 1, 0.78, 1.0)
-            layers.append((furn.distance_m, scene.label_heights[labels], scene.label_colors[labels] * fshade[:, None]))
+            furn = scene.furniture_caster.cast((gx, gy), rays, p.max_range_m)
+            d_furn = np.where(furn.distance_m * self.col_cos < d_wall, furn.distance_m * self.col_cos, np.inf)
+            labels = np.where(np.isfinite(d_furn), scene.labels[np.maximum(furn.row, 0), np.maximum(furn.col, 0)], 0)
+            furn_top = scene.label_heights[labels]
+            furn_color = scene.label_colors[labels] * np.where(furn.side == 1, 0.78, 1.0)[:, None]
 
+        d_mover = np.full(p.width, np.inf)
         if movers is not None and len(movers.items):
-            centres, radii, heights, colors = movers.centres, movers.radii, movers.heights, movers.colors
-            d, which = cast_circles((cam_x, cam_y), yaw + self.col_angles, centres, radii, p.max_range_m)
+            centres, radii = movers.centres, movers.radii
+            world_rays = yaw + self.col_angles
+            d, which = cast_circles((cam_x, cam_y), world_rays, centres, radii, p.max_range_m)
             idx = np.maximum(which, 0)
             # Shade cylinders by how squarely the ray meets them: brighter in the middle.
-            hx = cam_x + d * np.cos(yaw + self.col_angles) - centres[idx, 0]
-            hy = cam_y + d * np.sin(yaw + self.col_angles) - centres[idx, 1]
-            facing = np.abs(hx * np.cos(yaw + self.col_angles) + hy * np.sin(yaw + self.col_angles))
+            hx = cam_x + d * np.cos(world_rays) - centres[idx, 0]
+            hy = cam_y + d * np.sin(world_rays) - centres[idx, 1]
+            facing = np.abs(hx * np.cos(world_rays) + hy * np.sin(world_rays))
             cyl = 0.6 + 0.4 * np.clip(facing / np.maximum(radii[idx], 1e-9), 0.0, 1.0)
-            cyl = np.where(np.isfinite(d), cyl, 1.0)
-            layers.append((d, heights[idx], colors[idx] * cyl[:, None]))
+            d_mover = np.where(d * self.col_cos < d_wall, d * self.col_cos, np.inf)
+            mover_top = movers.heights[idx]
+            mover_color = movers.colors[idx] * cyl[:, None]
 
-        for dist, top, color in layers:
-            depth = dist * self.col_cos  # perpendicular depth: straight walls stay straight
-            rel = self.row_slope * depth[None, :]
-            mask = (rel >= -cam_z) & (rel <= (top - cam_z)[None, :]) & (depth[None, :] < zbuf)
-            zbuf = np.where(mask, depth[None, :], zbuf)
-            fog = np.exp(-depth / p.fog_m)[:, None]
-            col = (color * fog + HAZE * (1.0 - fog)).astype(np.float32)
-            rows, cols = np.nonzero(mask)
-            img[rows, cols] = col[cols]
-        return img.astype(np.uint8)
+        # Painter's order per column: the wall, then furniture and people far to near.
+        if np.isfinite(d_furn).any():
+            self._paint(img, np.where(d_furn >= d_mover, d_furn, np.inf), furn_top, furn_color)
+        if np.isfinite(d_mover).any():
+            self._paint(img, d_mover, mover_top, mover_color)
+        if np.isfinite(d_furn).any() and np.isfinite(d_mover).any():
+            self._paint(img, np.where(d_furn < d_mover, d_furn, np.inf), furn_top, furn_color)
+        return img
 
-    def _background(self, scene: Scene, cam_x: float, cam_y: float, yaw: float) -> NDArray[np.float32]:
-        """Ceiling above the horizon, tiled floor (dark over drop zones) below, both dimmed with distance."""
+    def _paint(self, img: NDArray[np.uint8], depth: NDArray[np.float64], top_m: NDArray[np.float64],
+               color: NDArray[np.float64]) -> None:
+        """Draw, in each column, a vertical span from the floor to ``top_m`` at ``depth`` (inf: nothing)."""
         p = self.params
-        img = np.empty((p.height, p.width, 3), dtype=np.float32)
-        horizon_fade = np.clip(1.0 - 0.35 * np.abs(self.row_slope[:, 0]), 0.7, 1.0)
-        img[:] = (CEILING[None, :] * horizon_fade[:, None])[:, None, :]
-        depth = self._floor_depth  # (rows, 1)
-        dist = depth / self.col_cos[None, :]
-        ang = yaw + self.col_angles[None, :]
-        fx = cam_x + dist * np.cos(ang)
-        fy = cam_y + dist * np.sin(ang)
-        tile = ((np.floor(fx * 2.0) + np.floor(fy * 2.0)) % 2.0)[..., None]
-        floor = FLOOR_A * (1 - tile) + FLOOR_B * tile
-        row, col = scene.map.world_to_cell(fx, fy)
-        inside = scene.map.contains(row, col)
-        drop = np.zeros(fx.shape, dtype=bool)
-        drop[inside] = scene.drop_mask[row[inside], col[inside]]
-        floor = np.where(drop[..., None], DROP, floor)
-        fog = np.exp(-dist / p.fog_m)[..., None]
-        img[self._floor_rows] = floor * fog + HAZE * (1.0 - fog)
+        if not np.isfinite(depth).any():
+            return
+        f = p.focal_px
+        centre = p.height / 2 - 0.5
+        with np.errstate(divide="ignore", invalid="ignore"):
+            first = np.ceil(centre - f * (top_m - p.height_m) / depth)
+            last = np.floor(centre + f * p.height_m / depth)
+        visible = np.isfinite(depth)
+        first = np.where(visible, first, p.height).astype(np.int32)
+        last = np.where(visible, last, -1).astype(np.int32)
+        fog = np.exp(-np.where(visible, depth, 0.0) / p.fog_m)[:, None]
+        col = (color * fog + HAZE * (1.0 - fog)).astype(np.uint8)
+        mask = (self._rows >= first[None, :]) & (self._rows <= last[None, :])
+        np.copyto(img, col[None, :, :], where=mask[..., None])
+
+    def _background(self, scene: Scene, cam_x: float, cam_y: float, yaw: float) -> NDArray[np.uint8]:
+        """Ceiling above the horizon, tiled floor (dark over drop zones) below, both faded with distance."""
+        p = self.params
+        img = np.empty((p.height, p.width, 3), dtype=np.uint8)
+        img[:self._n_sky] = self._ceiling
+        # World position of the floor seen by each pixel below the horizon.
+        c, s = np.float32(math.cos(yaw)), np.float32(math.sin(yaw))
+        fx = np.float32(cam_x) + self._floor_depth * (c - self._col_tan * s)[None, :]
+        fy = np.float32(cam_y) + self._floor_depth * (s + self._col_tan * c)[None, :]
+        tile = (np.floor(fx * 2.0).astype(np.int32) + np.floor(fy * 2.0).astype(np.int32)) & 1
+        look_a, look_b, look_drop = self._floor_looks
+        floor = np.where(tile[..., None] == 1, look_b, look_a)
+        if scene.drop_mask.any():
+            row, col = scene.map.world_to_cell(fx, fy)
+            h, w = scene.drop_mask.shape
+            # Off-map points land in the padded border, which has no drop.
+            flat = (np.clip(row, -1, h) + 1) * (w + 2) + np.clip(col, -1, w) + 1
+            drop = scene.drop_mask_padded.ravel().take(flat)
+            floor = np.where(drop[..., None], look_drop, floor)
+        img[self._n_sky:] = floor
         return img

@@ -23,6 +23,8 @@ IntArray = NDArray[np.intp]
 
 #: Crossings processed per chunk (per axis), after each jump over empty space.
 CHUNK = 16
+#: Most distance-transform jumps before each walk.
+SKIPS = 4
 
 
 @dataclass(frozen=True)
@@ -140,13 +142,18 @@ class GridCaster:
             ar = np.arange(a.size)
             lim = t_lim[a]
             da = d[a]
-            # Jump over the empty space around the current point.
-            p = g0 + t_cur[a, None] * da
-            cell = np.floor(p).astype(np.intp) + 1
-            if not inside:
-                cell = np.clip(cell, 0, [width + 1, height + 1])
-            skip = np.maximum(self._edt.take(cell[:, 1] * stride + cell[:, 0], mode="clip") - 1.5, 0.0)
-            t0 = np.minimum(t_cur[a] + skip, lim)
+            # Jump over the empty space around the current point, again and again while the jumps are long
+            # (cheap: one value per ray), so the exact walk below starts close to what the ray will meet.
+            t0 = t_cur[a]
+            for _ in range(SKIPS):
+                p = g0 + t0[:, None] * da
+                cell = np.floor(p).astype(np.intp) + 1
+                if not inside:
+                    cell = np.clip(cell, 0, [width + 1, height + 1])
+                skip = np.maximum(self._edt.take(cell[:, 1] * stride + cell[:, 0], mode="clip") - 1.5, 0.0)
+                t0 = np.minimum(t0 + skip, lim)
+                if not (skip > 2.0).any():
+                    break
             p = g0 + t0[:, None] * da
             # The next CHUNK lines of each family from there on, where they are crossed and the cell entered.
             line = (np.floor(p) + pos[a])[:, :, None] + step[a] * k  # (a, 2, CHUNK)

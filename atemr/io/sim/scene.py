@@ -53,6 +53,7 @@ class Scene:
         #: How far the floor drops in each cell (0: normal floor); the deepest zone wins where zones overlap.
         self.drop_depth_m = depth
         self.drop_mask = depth > 0
+        self.drop_mask_padded = np.pad(self.drop_mask, 1)
         self._rebuild()
         self._footprints: dict[float, tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
 
