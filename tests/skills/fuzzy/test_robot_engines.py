@@ -196,3 +196,11 @@ def test_blend() -> None:
 def test_blend_refuses_tau_outside_unit_interval() -> None:
     with pytest.raises(ConfigError, match="tau"):
         blend(1.0, 0.0, 1.5)
+
+
+def test_invalid_or_empty_input_means_no_motion(idle: Engine, manual: Engine) -> None:
+    for engine in (idle, manual):
+        out = engine.process({s: np.nan for s in SECTORS})
+        assert all(float(v) == 0.0 for v in out.values())  # nothing fires: the outputs' default 0
+        empty = engine.process({s: np.zeros(0) for s in SECTORS})
+        assert all(v.shape == (0,) for v in empty.values())
