@@ -18,8 +18,10 @@ from typing import Literal, Protocol, runtime_checkable
 from atemr.io.can import HardwareBits, PowerState, PrimaryStatus
 from atemr.msgs import Pose2D, Twist
 
-#: The twist-mux inputs the agent may command (DESIGN.md §4); ``safety`` is never commanded by the agent.
-VelocitySource = Literal["joystick", "navigation", "agent"]
+#: The twist-mux inputs the agent may command (DESIGN.md §4, `atemr.skills.twist_mux`): the operator's
+#: joystick (MANUAL) and navigation (AUTO: goals, missions, Rotate). The safety stop and the reactive engine
+#: are never commanded by the agent.
+VelocitySource = Literal["joystick", "navigation"]
 Mode = Literal["MANUAL", "AUTO"]
 
 #: Components whose health fills a 0x153 hardware bit: ``HardwareBits`` member names in lower case
@@ -44,7 +46,7 @@ class RobotPort(Protocol):
         ...
 
     def stop_motors(self) -> None:
-        """Command zero on every agent-owned input at once (bypasses the ramp where the robot can)."""
+        """Command zero on the joystick and navigation inputs at once."""
         ...
 
     def set_mode(self, mode: Mode) -> None:

@@ -44,7 +44,7 @@ SAMPLES: dict[str, dict[str, Any]] = {
     "WatchHealth": {"components": ["left_motor"]},
 }
 #: Leaves that command a velocity, and on which mux input.
-DRIVING = {"DriveJoystick": "joystick", "Rotate": "agent"}
+DRIVING = {"DriveJoystick": "joystick", "Rotate": "navigation"}
 
 
 class Bench:
