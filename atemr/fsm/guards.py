@@ -120,18 +120,30 @@ def map_name_valid(g: GuardInput) -> str | None:
 def begin_mapping(g: GuardInput) -> None:
     """Start SLAM (raises if mapping is not available: the transition is then refused)."""
     g.context.port.begin_mapping()
+    g.context.mapping_active = True
 
 
 @callbacks.register("save_map")
 def save_map(g: GuardInput) -> None:
     """Stop SLAM and save the map under the event's ``name``."""
     g.context.port.end_mapping(str(g.kwargs["name"]))
+    g.context.mapping_active = False
 
 
 @callbacks.register("discard_map")
 def discard_map(g: GuardInput) -> None:
     """Stop SLAM and drop the map."""
     g.context.port.end_mapping(None)
+    g.context.mapping_active = False
+
+
+@callbacks.register("abandon_mapping")
+def abandon_mapping(g: GuardInput) -> None:
+    """Leaving Mapping any other way (fault, shutdown, power-off) drops the unsaved map: SLAM never keeps
+    running behind a state that does not know about it."""
+    if g.context.mapping_active:
+        g.context.mapping_active = False
+        g.context.port.end_mapping(None)
 
 
 @callbacks.register("stop_motors")

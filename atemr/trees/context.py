@@ -49,6 +49,7 @@ class AgentContext:
     mode: str = "MANUAL"
     error: AtemrError | None = None
     task: Any = None
+    mapping_active: bool = False
     halted: bool = False
     outbox: list[Event] = field(default_factory=list)
 

@@ -257,6 +257,10 @@ def test_mapping_begin_save_discard(rig: Rig) -> None:
     rig.command("begin_mapping")
     rig.command("discard_map")
     assert rig.port.maps == ["kitchen", None] and rig.agent.state == "IDLE.MANUAL"
+    rig.command("begin_mapping")
+    rig.port.components["left_motor"] = ComponentHealth(False, "silent")
+    rig.run(0.3)
+    assert rig.port.maps == ["kitchen", None, None] and not rig.port.mapping, "a fault drops the unsaved map"
 
 
 def test_restart_runs_start_up_again(rig: Rig) -> None:

@@ -89,7 +89,10 @@ def test_transition(agent_spec: AgentSpec, source: str, trigger: str, dest: str,
     frame = PrimaryStatus(state=state_code(machine.state)).encode()
     assert frame.arbitration_id == 0x153 and frame.data[2] == int(code)
     spec = next(t for t in agent_spec.transitions if t.trigger == trigger and source in t.sources and t.dest == dest)
-    assert called == [*spec.before, *spec.after]
+    left, entered = agent_spec.ancestors(record.source), agent_spec.ancestors(expected)
+    exits = [c for s in left if s not in entered for c in agent_spec.states[s].on_exit]
+    enters = [c for s in reversed(entered) if s not in left for c in agent_spec.states[s].on_enter]
+    assert called == [*spec.before, *exits, *enters, *spec.after]
 
 
 GUARDED = [r for r in ROWS if any(r[3].values())]

@@ -70,7 +70,7 @@ def test_state_selection_errors(agent_spec: AgentSpec) -> None:
     with pytest.raises(ExportError, match="no state 'IDEL'"):
         drawing_of(agent_spec, "IDEL")
     assert drawing_of(agent_spec, "monitor").trees[0][0] == "monitor"
-    assert drawing_of(agent_spec, "IDLE.AUTO").trees[0][1].name == "auto, waiting for a goal"
+    assert drawing_of(agent_spec, "IDLE.AUTO").trees[0][1].name == "auto"
 
 
 def test_cli_tree_validate_and_export(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
