@@ -99,6 +99,9 @@ class ReactiveEngine:
             near = next((t for t in var.terms if t.name == "NEAR"), None)
             if near is not None:
                 self._near[var.name] = near
+        # the shipped engines give every sector the same NEAR term: then one vectorised call does all six
+        terms = list(self._near.values())
+        self._shared_near: Term | None = terms[0] if terms and all(t == terms[0] for t in terms) else None
         self._idle_cache: tuple[HexSectors, Twist] | None = None
         self._manual_cache: tuple[HexSectors, float, float, float] | None = None
 
@@ -124,6 +127,9 @@ class ReactiveEngine:
         if not self._near:
             return 1.0
         values = sectors.as_dict()
+        if self._shared_near is not None:
+            mu = self._shared_near.membership(np.array([values[name] for name in self._near]))
+            return float(np.clip(mu, 0.0, 1.0).max())
         return max(float(np.clip(term.membership(values[name]), 0.0, 1.0)) for name, term in self._near.items())
 
     def manual_assist(self, sectors: HexSectors, operator: Twist) -> ManualAssist:

@@ -105,3 +105,22 @@ def test_wrong_layout_and_wrong_engines(reactive, engines):
         ReactiveParams(tau_max=1.5)
     with pytest.raises(ConfigError, match="max_linear_mps"):
         ReactiveParams(max_linear_mps=math.nan)
+
+
+def test_nearness_with_a_different_near_term_per_sector(engines):
+    import dataclasses
+
+    from atemr.skills.fuzzy.terms import Term
+
+    manual = engines[1]
+    near = manual.inputs[0].term("NEAR")
+    wider = dataclasses.replace(near, params=(1.2, 0.6))
+    assert isinstance(wider, Term) and near.params == (1.0, 0.4)
+    inputs = tuple(
+        dataclasses.replace(v, terms=tuple(wider if t.name == "NEAR" else t for t in v.terms)) if v.name == "LC" else v
+        for v in manual.inputs
+    )
+    r = ReactiveEngine(engines[0], dataclasses.replace(manual, inputs=inputs))
+    # LC at 0.9 m: NEAR by the wider ramp (1.2 → 0.6) is 0.5; by the shared one (1.0 → 0.4) it would be 1/6
+    assert r.nearness(sectors(LC=0.9)) == pytest.approx(0.5)
+    assert ReactiveEngine(*engines).nearness(sectors(LC=0.9)) == pytest.approx(1 / 6)
