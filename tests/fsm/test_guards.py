@@ -1,0 +1,137 @@
+"""The guards' answers and reasons, every registered guard and callback covered, and random trigger
+sequences that never break the machine."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from atemr.fsm.guards import GuardInput, callbacks, guards
+from atemr.fsm.machine import Lifecycle
+from atemr.fsm.spec import AgentSpec
+from atemr.msgs import Pose2D
+from atemr.trees.behaviours import Leaf, behaviours
+from atemr.trees.context import AgentContext
+from atemr.trees.fakes import RecordingLink, RecordingPort
+from atemr.trees.missions import parse_mission
+from atemr.trees.ports import ComponentHealth
+from atemr.yamlsafe import load_yaml
+
+TESTED_GUARDS = {"goal_valid", "mission_runnable", "level1_ok", "map_name_valid"}
+TESTED_CALLBACKS = {"begin_mapping", "save_map", "discard_map", "abandon_mapping", "stop_motors", "set_goal_task",
+                    "set_mission_task", "clear_task", "record_error", "clear_error"}
+
+
+def test_every_registered_guard_and_callback_is_tested_here() -> None:
+    assert set(guards) == TESTED_GUARDS
+    assert set(callbacks) == TESTED_CALLBACKS
+
+
+def check(guard: str, port: RecordingPort | None = None, link: RecordingLink | None = None, /, **kwargs: object
+          ) -> str | None:
+    context = AgentContext(port=port or RecordingPort(), link=link or RecordingLink())
+    return guards.get(guard)(GuardInput(context, kwargs))
+
+
+class FakeGoToPose(Leaf):
+    """Stands in for navigation's leaf so the later goal checks can be reached."""
+
+
+@pytest.fixture
+def navigation(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(behaviours._items, "GoToPose", FakeGoToPose)
+
+
+def test_goal_valid_without_navigation_says_so() -> None:
+    answer = check("goal_valid", goal=Pose2D(1, 1, 0))
+    assert answer == "navigation is not available in this build (no 'GoToPose' behaviour)"
+
+
+@pytest.mark.parametrize(("goal", "port", "reason"), [
+    ({"x": 1}, RecordingPort(), "a goal must be a Pose2D, got dict"),
+    (Pose2D(math.nan, 0, 0), RecordingPort(), "goal has a non-finite coordinate"),
+    (Pose2D(1, 1, math.inf), RecordingPort(), "goal has a non-finite coordinate"),
+    (Pose2D(1, 1, 0), RecordingPort(is_localized=None), "cannot check the goal: localization is not available"),
+    (Pose2D(1, 1, 0), RecordingPort(is_localized=False), "the robot is not localized"),
+    (Pose2D(1, 1, 0), RecordingPort(is_localized=True), "cannot check the goal: no map is loaded"),
+    (Pose2D(1, 1, 0), RecordingPort(is_localized=True, in_map=False), "goal (1.00, 1.00) is outside the map"),
+    (Pose2D(1, 1, 0), RecordingPort(is_localized=True, in_map=True), "the map cannot tell free space"),
+    (Pose2D(1, 1, 0), RecordingPort(is_localized=True, in_map=True, free=False), "is not in free space"),
+])
+def test_goal_valid_reasons(navigation: None, goal: object, port: RecordingPort, reason: str) -> None:
+    answer = check("goal_valid", port, goal=goal)
+    assert answer is not None and reason in answer
+
+
+def test_goal_valid_passes_when_every_check_does(navigation: None) -> None:
+    port = RecordingPort(is_localized=True, in_map=True, free=True)
+    assert check("goal_valid", port, goal=Pose2D(1, 1, 0)) is None
+
+
+def test_level1_and_map_name_and_mission() -> None:
+    assert check("level1_ok") is None
+    port = RecordingPort()
+    port.components["imu"] = ComponentHealth(False, "silent")
+    assert check("level1_ok", port, RecordingLink(heartbeat=False)) == \
+        "level-1 status not OK (heartbeat lost; unhealthy: imu)"
+    assert check("map_name_valid", name="kitchen-2") is None
+    for bad in ("", ".hidden", "a/b", "x" * 65, 7):
+        assert check("map_name_valid", name=bad) is not None
+    wait = parse_mission(load_yaml("w", text="mission:\n  name: w\n  steps: [{wait: {duration_s: 1}}]\n"), "w")
+    assert check("mission_runnable", mission=wait) is None
+    assert "needs a validated Mission" in str(check("mission_runnable", mission="trees/missions/x.yaml"))
+
+
+def test_callbacks_act_through_the_port() -> None:
+    port = RecordingPort(mapping_available=True)
+    context = AgentContext(port=port)
+
+    def run(callback: str, /, **kw: object) -> None:
+        callbacks.get(callback)(GuardInput(context, kw, ["why"]))
+
+    run("begin_mapping")
+    assert port.mapping and context.mapping_active
+    run("save_map", name="flat")
+    run("abandon_mapping")
+    assert port.maps == ["flat"], "nothing to abandon after a save"
+    run("begin_mapping")
+    run("abandon_mapping")
+    run("discard_map")
+    assert port.maps == ["flat", None, None]
+    run("stop_motors")
+    assert port.stops == 1
+    run("set_goal_task", goal=Pose2D(1, 2, 0))
+    assert context.task.name == "goal" and context.task.missing_behaviours() == ["GoToPose"]
+    run("clear_task")
+    assert context.task is None
+    run("record_error", goal=Pose2D(1, 2, 0))
+    assert type(context.error).__name__ == "NavigationError" and str(context.error) == "why"
+    run("clear_error")
+    assert context.error is None
+    wait = parse_mission(load_yaml("w", text="mission:\n  name: w\n  steps: [{wait: {duration_s: 1}}]\n"), "w")
+    run("set_mission_task", mission=wait)
+    assert context.task is wait
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(
+    ["startup_ok", "critical_failure", "set_auto", "set_manual", "goal", "start_mission", "begin_mapping",
+     "reached", "failed", "cancel", "save_map", "discard_map", "fault", "recover", "escalate", "shutdown",
+     "restart", "restarted", "power_off", "bogus"]), st.booleans()), max_size=30))
+def test_random_triggers_never_break_the_machine(agent_spec: AgentSpec, steps: list[tuple[str, bool]]) -> None:
+    port = RecordingPort(mapping_available=True, is_localized=True, in_map=True, free=True)
+    machine = Lifecycle(agent_spec, AgentContext(port=port, link=RecordingLink()))
+    wait = parse_mission(load_yaml("w", text="mission:\n  name: w\n  steps: [{wait: {duration_s: 1}}]\n"), "w")
+    for trigger, good in steps:
+        before = machine.state
+        kwargs = {"goal": Pose2D(1, 1, 0) if good else Pose2D(math.nan, 0, 0), "mission": wait,
+                  "name": "flat" if good else "../x"}
+        record = machine.fire(trigger, **kwargs)
+        assert machine.state in agent_spec.leaves()
+        if not record.accepted:
+            assert machine.state == before and record.reason
+        else:
+            assert record.dest == machine.state
