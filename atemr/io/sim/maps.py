@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 from PIL import Image, UnidentifiedImageError
 
@@ -138,6 +139,14 @@ class OccupancyMap:
 
 
 # -- loading ---------------------------------------------------------------------------------
+def read_yaml(path: Path) -> Any:
+    """`load_yaml`, plus the reader errors it lets through (control characters raise before parsing)."""
+    try:
+        return load_yaml(path)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"invalid YAML: {exc}", file=str(path)) from None
+
+
 def _number(doc: Any, key: str, file: str) -> float:
     value = doc[key]
     line, col = mark_of(doc, key)
@@ -159,7 +168,7 @@ def load_map(path: str | Path) -> OccupancyMap:
     """
     path = Path(path)
     file = str(path)
-    doc = load_yaml(path)
+    doc = read_yaml(path)
     if not isinstance(doc, dict):
         raise ConfigError(f"expected a map_server mapping ({', '.join(_REQUIRED)}), got {type(doc).__name__}",
                           file=file)

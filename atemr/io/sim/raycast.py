@@ -66,6 +66,8 @@ class GridCaster:
         edt = np.zeros((height + 2, width + 2))
         edt[1:-1, 1:-1] = ndimage.distance_transform_edt(~blocked) if blocked.any() else np.inf
         self._edt = edt.ravel()
+        #: Distance from each cell's centre to the nearest blocked cell's centre, in cells (inf: none).
+        self.clearance_cells = edt[1:-1, 1:-1]
 
     def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray, max_range_m: float) -> GridHits:
         """One ray per angle from ``origin_xy`` (grid frame, metres from the lower-left corner), up to

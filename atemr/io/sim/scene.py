@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from atemr.errors import ConfigError
 from atemr.io.sim.raycast import GridCaster
@@ -102,12 +101,12 @@ class Scene:
         self.furniture = labels >= FIRST_OBJECT
         #: Ray casters for the lidar (everything), and the camera (walls and furniture drawn separately).
         self.blocked_caster = GridCaster(self.blocked, self.resolution_m)
-        self.walls_caster = GridCaster(self.walls, self.resolution_m)
+        no_objects = not self.furniture.any()
+        self.walls_caster = self.blocked_caster if no_objects else GridCaster(self.walls, self.resolution_m)
         self.furniture_caster = GridCaster(self.furniture, self.resolution_m)
         # Distance from each cell centre to the nearest blocked cell centre: lets `clearance` answer at once
         # when nothing is near, which is almost always.
-        self._edt_m = ndimage.distance_transform_edt(~self.blocked) * self.resolution_m if self.blocked.any() \
-            else np.full(labels.shape, np.inf)
+        self._edt_m = self.blocked_caster.clearance_cells * self.resolution_m
         n = self._next_label
         colors = np.zeros((n, 3), dtype=np.float64)
         heights = np.zeros(n, dtype=np.float64)

@@ -36,9 +36,9 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import OccupancyMap, is_map_document, load_map
+from atemr.io.sim.maps import OccupancyMap, is_map_document, load_map, read_yaml
 from atemr.msgs import Pose2D
-from atemr.yamlsafe import key_mark_of, load_yaml, mark_of
+from atemr.yamlsafe import key_mark_of, mark_of
 
 Color = tuple[int, int, int]
 FloatArray = NDArray[np.float64]
@@ -225,7 +225,7 @@ def load_world(name_or_path: str | Path, *, robot_radius_m: float = 0.25) -> Wor
             raise ConfigError(f"unknown world '{text}'{hint}; shipped worlds: {', '.join(known) or 'none'}; "
                               "or give a path to a world or map YAML", path="sim.world")
         path = shipped
-    doc = load_yaml(path)
+    doc = read_yaml(path)
     if is_map_document(doc):
         occupancy = load_map(path)
         return World(occupancy.name, occupancy, default_start(occupancy, robot_radius_m), source=path)
@@ -338,7 +338,9 @@ def _parse_world(doc: Any, path: Path) -> World:
 
 def default_start(occupancy: OccupancyMap, robot_radius_m: float) -> Pose2D:
     """The free cell nearest the map frame's (0, 0) with room for the robot (or the most open cell)."""
-    clearance = ndimage.distance_transform_edt(~occupancy.occupied & ~occupancy.unknown) * occupancy.resolution_m
+    # Beyond the map's edge counts as blocked too (padding), so the robot does not start half off the map.
+    open_cells = np.pad(~occupancy.occupied & ~occupancy.unknown, 1)
+    clearance = ndimage.distance_transform_edt(open_cells)[1:-1, 1:-1] * occupancy.resolution_m
     roomy = (clearance > robot_radius_m + occupancy.resolution_m) & occupancy.free
     if not roomy.any():
         row, col = np.unravel_index(int(np.argmax(clearance)), clearance.shape)

@@ -150,3 +150,28 @@ def test_a_non_image_file_is_refused(tmp_path):
 def test_a_missing_yaml_is_a_config_error(tmp_path):
     with pytest.raises(ConfigError, match="file not found"):
         load_map(tmp_path / "absent.yaml")
+
+
+@settings(max_examples=60, deadline=None)
+@given(blob=st.binary(max_size=300))
+def test_random_image_bytes_only_ever_raise_config_error(tmp_path_factory, blob):
+    d = tmp_path_factory.mktemp("fuzz")
+    (d / "m.pgm").write_bytes(b"P5\n4 4\n255\n" + blob if blob[:1] == b"\x00" else blob)
+    path = d / "m.yaml"
+    path.write_text(GOOD)
+    try:
+        m = load_map(path)
+    except ConfigError as err:
+        assert err.file == str(path)
+    else:
+        assert m.data.ndim == 2
+
+
+@settings(max_examples=60, deadline=None)
+@given(text=st.text(max_size=200))
+def test_random_yaml_only_ever_raises_config_error(tmp_path_factory, text):
+    d = tmp_path_factory.mktemp("fuzzy")
+    path = d / "m.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError):
+        load_map(path)

@@ -106,3 +106,21 @@ def test_world_with_a_missing_map(tmp_path):
     with pytest.raises(ConfigError, match="map file not found") as err:
         load_world(path)
     assert err.value.line == 2
+
+
+@pytest.mark.parametrize("name", ["nav2_depot", "nav2_tb3_sandbox", "nav2_warehouse", "turtlebot3_world"])
+def test_external_maps_are_simulated_worlds(shared_dir, name):
+    from atemr.io.sim.simulation import build_simulation
+
+    path = shared_dir / "worlds" / "external" / f"{name}.yaml"
+    if not path.is_file():
+        pytest.skip(f"{path} is not there")
+    sim = build_simulation(path, 0)
+    m = sim.world.map
+    # the start has room for the robot, on the map, away from its edge
+    assert sim._clearance(sim.pose.x_m, sim.pose.y_m).clearance_m > 0
+    row, col = m.world_to_cell(sim.pose.x_m, sim.pose.y_m)
+    assert 5 <= row < m.height - 5 and 5 <= col < m.width - 5
+    scan = sim.read_lidar(0.0)
+    assert np.isfinite(scan.ranges_m).mean() > 0.1  # it sees walls
+    assert sim.render_camera(0.0).shape == (480, 640, 3)
