@@ -156,7 +156,7 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
                      "unit": "ticks/s"})
     for case, label in (("plain", "hex+mux+ramp+cliff+drive"), ("manual", "same + MANUAL engine")):
         a, res_a = _rate(ours, case, pool, ticks, repeats)
-        b, res_b = _rate(loop, case, pool, ticks, 1)
+        b, res_b = _rate(loop, case, pool, ticks, 2)
         for x, y in zip(res_a, res_b, strict=True):  # the baseline computes the same thing
             assert x.source == y.source and abs(x.wheels.left_radps - y.wheels.left_radps) < 1e-6
         rows.append({"what": f"{label}, new scan every tick, vs per-beam Python loop hex", "ours": a,
