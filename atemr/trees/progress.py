@@ -1,10 +1,10 @@
 """What Exec reports while a task runs and when it ends: each mission step's status, times and errors.
 
 `TaskProgress` watches the built task tree (one child per mission step, in order) after every agent tick:
-a step is ``pending`` until it first runs, ``running``, then ``reached`` or ``failed``; steps after a
-failure stay ``not run``. When a step ends, the robot's pose is recorded and, for steps that drive to a
-pose, the distance and heading error to that pose. `TaskProgress.report` is the JSON the dashboard shows
-and that a mission run prints.
+a step is ``pending`` until it first runs, ``running`` (with the distance left to its target pose, if it
+drives to one), then ``reached`` or ``failed``; steps after a failure stay ``not run``. When a step ends,
+the robot's pose is recorded and, for steps that drive to a pose, the distance and heading error to that
+pose. `TaskProgress.report` is the JSON the dashboard shows and that a mission run prints.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ class StepRecord:
     final_pose: Pose2D | None = None
     position_error_m: float | None = None
     heading_error_rad: float | None = None
+    distance_left_m: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -65,6 +66,8 @@ class TaskProgress:
         for record, node in zip(self.steps, self._nodes, strict=False):
             if node.status == Status.RUNNING and record.started_s is None:
                 record.started_s, record.status = now, "running"
+            if node.status == Status.RUNNING and pose is not None and record.target is not None:
+                record.distance_left_m = pose.distance_to(record.target)  # feedback while driving
             elif node.status in (Status.SUCCESS, Status.FAILURE) and record.finished_s is None:
                 if record.started_s is None:
                     record.started_s = now
@@ -75,7 +78,7 @@ class TaskProgress:
     def _measure(self, record: StepRecord, pose: Pose2D | None) -> None:
         record.final_pose = pose
         if pose is not None and record.target is not None:
-            record.position_error_m = pose.distance_to(record.target)
+            record.position_error_m = record.distance_left_m = pose.distance_to(record.target)
             record.heading_error_rad = abs(wrap_angle(pose.yaw_rad - record.target.yaw_rad))
 
     def finish(self, outcome: str, now: float, pose: Pose2D | None) -> None:

@@ -119,3 +119,27 @@ def test_missing_behaviours_are_reported_not_hidden() -> None:
     mission = parse("mission:\n  name: x\n  steps:\n    - go_to: {x_m: 1, y_m: 1}\n    - wait: {duration_s: 1}\n")
     assert mission.missing_behaviours() == ["GoToPose"]
     assert np.array_equal([s["runnable"] for s in mission.report()["steps"]], [False, True])
+
+
+def test_progress_reports_distance_left_and_errors() -> None:
+    import py_trees
+
+    from atemr.msgs import Pose2D
+    from atemr.trees.progress import TaskProgress
+
+    mission = parse("mission:\n  name: p\n  steps:\n    - go_to: {x_m: 3, y_m: 4, yaw_rad: 1.0}\n"
+                    "    - wait: {duration_s: 1}\n")
+    first, second = py_trees.behaviours.Running("go"), py_trees.behaviours.Success("wait")
+    root = py_trees.composites.Sequence("p", True, [first, second])
+    progress = TaskProgress(mission, root, 0.0)
+    root.tick_once()
+    progress.update(0.1, Pose2D(0, 0, 0))
+    step = progress.steps[0]
+    assert (step.status, step.started_s, step.distance_left_m) == ("running", 0.1, 5.0)
+    progress.finish("cancelled", 0.5, Pose2D(3, 3.9, 1.2))
+    report = progress.report()
+    assert report["outcome"] == "cancelled" and report["duration_s"] == 0.5
+    assert report["steps"][0]["status"] == "interrupted"
+    assert report["steps"][0]["position_error_m"] == pytest.approx(0.1)
+    assert report["steps"][0]["heading_error_rad"] == pytest.approx(0.2)
+    assert report["steps"][1]["status"] == "not run"
