@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -35,6 +35,33 @@ class WheelMotor(Protocol):
     def speed_radps(self) -> float: ...
 
     def step(self, dt_s: float) -> None: ...
+
+
+class MountedWheel:
+    """A motor model seen as a wheel: ``direction`` (+1/-1) is the shaft sign that drives that side forward.
+
+    On the ATEMR base the right motor is mirrored (``motors.right_direction = -1``): its shaft turns
+    backwards when the robot drives forward. The CAN driver applies the same sign, so wrapping the motor
+    emulator's model here keeps both sides consistent. ``set_speed`` takes a forward wheel speed.
+    """
+
+    def __init__(self, model: Any, direction: int = 1) -> None:
+        if direction not in (1, -1):
+            raise ConfigError(f"direction must be +1 or -1, got {direction!r}", path="wheel direction")
+        self.model = model
+        self.direction = direction
+
+    @property
+    def speed_radps(self) -> float:
+        """Forward wheel speed: the shaft speed times the mounting sign."""
+        return self.direction * float(self.model.speed_radps)
+
+    def step(self, dt_s: float) -> None:
+        self.model.step(dt_s)
+
+    def set_speed(self, forward_radps: float) -> None:
+        """Command a forward wheel speed (the motor gets it with the mounting sign)."""
+        self.model.set_speed(self.direction * forward_radps)
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from atemr.config import SimConfig
 from atemr.errors import ConfigError
-from atemr.io.sim.base import BaseParams, Collision, DiffDriveBase, WheelMotor
+from atemr.io.sim.base import BaseParams, Collision, DiffDriveBase, MountedWheel, WheelMotor
 from atemr.io.sim.camera import Camera, CameraParams
 from atemr.io.sim.cliff import CliffParams, CliffSensors
 from atemr.io.sim.imu import Imu, ImuParams
@@ -302,11 +302,12 @@ def params_from_config(cfg: SimConfig) -> SimParams:
     )
 
 
-def default_wheels() -> tuple[WheelMotor, WheelMotor]:
-    """Two RMD-L-7015 motor models (first-order speed dynamics), the robot's real wheels."""
+def default_wheels(directions: tuple[int, int] = (1, -1)) -> tuple[WheelMotor, WheelMotor]:
+    """Two RMD-L-7015 motor models (first-order speed dynamics) mounted as on the robot: the right one
+    mirrored (``directions`` as ``motors.left_direction``/``motors.right_direction``)."""
     from atemr.io.motors.model import RmdMotorModel
 
-    return RmdMotorModel(), RmdMotorModel()
+    return MountedWheel(RmdMotorModel(), directions[0]), MountedWheel(RmdMotorModel(), directions[1])
 
 
 def build_simulation(
@@ -318,8 +319,10 @@ def build_simulation(
 ) -> Simulation:
     """A simulation of ``world`` (a shipped name, a world/map YAML path or a loaded `World`) seeded with ``seed``.
 
-    ``wheels`` default to two `RmdMotorModel`s; pass the motor emulator's models so CAN commands drive
-    the simulated base.
+    ``wheels`` default to two `RmdMotorModel`s mounted as on the robot (`default_wheels`). On the full
+    robot pass the motor emulators' models, ``(MountedWheel(left_emulator.model, left_direction),
+    MountedWheel(right_emulator.model, right_direction))``, and build the emulators with
+    ``steps_model=False``: the simulation steps the models, the emulators only answer over CAN.
     """
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ConfigError(f"seed must be an integer >= 0, got {seed!r}", path="sim.seed")

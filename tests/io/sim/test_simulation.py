@@ -59,13 +59,46 @@ def test_components_and_rates():
 
 def test_default_wheels_are_rmd_motor_models_with_first_order_dynamics():
     sim = build_simulation("studio", 0)
-    assert isinstance(sim.left, RmdMotorModel) and isinstance(sim.right, RmdMotorModel)
+    assert isinstance(sim.left.model, RmdMotorModel) and isinstance(sim.right.model, RmdMotorModel)
     sched = Scheduler(SimClock())
     sim.attach(sched)
     sim.command_wheels(10.0, 10.0)
-    tau = sim.left.params.time_constant_s
+    tau = sim.left.model.params.time_constant_s
     sched.run(duration=tau)
     assert sim.left.speed_radps == pytest.approx(10.0 * (1 - np.exp(-1)), rel=1e-6)
+    # the right motor is mirrored: its shaft turns backwards while the robot drives forward
+    assert sim.right.model.speed_radps == pytest.approx(-sim.left.speed_radps)
+    assert sim.pose.x_m > sim.world.start.x_m
+
+
+def test_motor_emulator_models_drive_the_base_over_can():
+    import can
+
+    from atemr.io.motors.emulator import RmdMotorEmulator
+    from atemr.io.motors.rmd_codec import RmdCommand, RmdRequest, motor_can_id
+    from atemr.io.sim.base import MountedWheel
+
+    channel = "test_sim_emulator_models"
+    emulators = [RmdMotorEmulator(can.Bus(interface="virtual", channel=channel), i, steps_model=False)
+                 for i in (1, 2)]
+    wheels = (MountedWheel(emulators[0].model, 1), MountedWheel(emulators[1].model, -1))
+    sim = build_simulation("studio", 0, wheels=wheels)
+    sched = Scheduler(SimClock())
+    sim.attach(sched)
+    for emulator in emulators:
+        sched.add(emulator, 100.0)
+    with can.Bus(interface="virtual", channel=channel) as driver:
+        for motor_id, shaft in ((1, 5.0), (2, -5.0)):  # both wheels forward at 5 rad/s
+            driver.send(RmdRequest(motor_id, RmdCommand.SPEED_CONTROL, speed_radps=shaft).encode())
+        sched.run(duration=1.0)
+        replies = [driver.recv(timeout=0) for _ in range(2)]
+    sched.shutdown()
+    for e in emulators:
+        e.shutdown()
+    assert {r.arbitration_id for r in replies} == {motor_can_id(1), motor_can_id(2)}
+    # ~0.9 s at 5 rad/s x 0.085 m after the 80 ms rise, with slip
+    assert 0.3 < sim.pose.x_m - sim.world.start.x_m < 0.43
+    assert sim.pose.y_m == pytest.approx(sim.world.start.y_m, abs=0.03)
 
 
 def test_a_failing_subscriber_does_not_stop_the_others(caplog):
