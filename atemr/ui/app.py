@@ -113,7 +113,7 @@ def create_app(
         cors_allowed_origins=None,  # None = same origin only; never "*"
         manage_session=True,
         message_queue=config.ui.message_queue,
-        max_http_buffer_size=app.config["MAX_CONTENT_LENGTH"],
+        max_http_buffer_size=1_000_000,  # events are small; uploads go over HTTP with their own limit
         logger=False,
         engineio_logger=False,
     )

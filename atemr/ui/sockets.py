@@ -135,12 +135,16 @@ def _subscription(event: str, room: str, members: Callable[[Sessions], set[str]]
         sid = cast(str, request.sid)  # type: ignore[attr-defined]
         on = isinstance(data, dict) and data.get("on") is True
         sessions = sessions_of(current_app)
-        if on:
-            join_room(room)
-            members(sessions).add(sid)
-        else:
-            leave_room(room)
+        try:
+            if on:
+                join_room(room)
+                members(sessions).add(sid)
+            else:
+                leave_room(room)
+                members(sessions).discard(sid)
+        except ValueError:  # the client left (page closed) while its event was still queued
             members(sessions).discard(sid)
+            return CommandResult.refused("disconnected").to_json()
         return {"ok": True, "reason": "", "on": on}
 
     return handler

@@ -54,6 +54,7 @@ class KinematicGateway:
         self.pose = Pose2D(1.0, 1.0, 0.0)
         self.twist = Twist()
         self.twist_t = -1.0
+        self.applied = Twist()
         self.mode = "MANUAL"
         self.agent = "IDLE"
         self.goal: Pose2D | None = None
@@ -77,6 +78,7 @@ class KinematicGateway:
         dt = 1.0 / PUSH_RATE_HZ
         with self.lock:
             twist = self.twist if now - self.twist_t <= 0.5 else Twist()  # the robot's 0.5 s joystick timeout
+            self.applied = twist
             if self.mode == "AUTO" and self.goal is not None:
                 dx, dy = self.goal.x_m - self.pose.x_m, self.goal.y_m - self.pose.y_m
                 dist = math.hypot(dx, dy)
@@ -105,7 +107,8 @@ class KinematicGateway:
                 "map_version": self.map.version, "pose": {"x_m": p.x_m, "y_m": p.y_m, "yaw_rad": p.yaw_rad},
                 "scan": scan, "global_path": [[p.x_m, p.y_m], [goal.x_m, goal.y_m]] if goal else [],
                 "local_path": [], "goal": goal and {"x_m": goal.x_m, "y_m": goal.y_m, "yaw_rad": goal.yaw_rad},
-                "wheel_speeds": {"left_radps": self.twist.linear_mps / 0.1, "right_radps": self.twist.linear_mps / 0.1},
+                "wheel_speeds": {"left_radps": self.applied.linear_mps / 0.1,
+                                 "right_radps": self.applied.linear_mps / 0.1},
                 "emergency": False,
                 "level1": {"heartbeat": True, "hardware": True, "auto": self.mode == "AUTO", "connectivity": True,
                            "localization": True},

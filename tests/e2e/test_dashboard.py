@@ -71,6 +71,26 @@ def test_control_page_shows_live_state_and_the_keyboard_joystick_drives(ready_si
     wait_for(page, "document.querySelectorAll('#sysgraph').length === 1 && ATEMR.state.system.cpu_percent === 20")
     page.screenshot(path=str(shots / "control.png"), full_page=True)
 
+    # the same with the mouse (pointer events also carry touch): drag the knob forward and hold
+    before = ready_site.robot.count("joystick")
+    pad = page.locator("#joystick").bounding_box()
+    cx, cy = pad["x"] + pad["width"] / 2, pad["y"] + pad["height"] / 2
+    page.mouse.move(cx, cy)
+    page.mouse.down()
+    page.mouse.move(cx, cy - pad["height"] / 2, steps=3)
+    wait_for(page, "ATEMR.state.wheel_speeds.left_radps > 0")
+    page.wait_for_timeout(700)  # held longer than the robot's 0.5 s timeout: the page keeps resending
+    x1 = ready_site.robot.pose.x_m
+    page.wait_for_timeout(300)
+    assert ready_site.robot.pose.x_m > x1 + 0.05
+    page.mouse.up()
+    wait_for(page, "ATEMR.state.wheel_speeds.left_radps === 0")
+    assert ready_site.robot.count("joystick") - before >= 6
+
+    page.click("#cam-toggle")
+    wait_for(page, "document.getElementById('cam-toggle').textContent === 'CAM-OFF'")
+    assert page.locator("#camera").is_hidden()
+
 
 def test_auto_mode_and_a_goal_by_click_and_drag(ready_site, page, shots, helpers):
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
