@@ -53,6 +53,7 @@ class World:
     pose: Pose2D = field(default_factory=Pose2D)
     discs: list[Disc] = field(default_factory=list)
     walls_x: list[float] = field(default_factory=list)  # infinite walls x = c (in front of the start)
+    lines: list[tuple[float, float, float]] = field(default_factory=list)  # infinite walls a·x + b·y = c, a²+b²=1
     drops: list[tuple[float, float, float, float]] = field(default_factory=list)  # xmin, xmax, ymin, ymax
     t: float = 0.0
     drive: DiffDrive = field(default_factory=DiffDrive)
@@ -77,6 +78,10 @@ class World:
             with np.errstate(divide="ignore", invalid="ignore"):
                 hit = (wx - ox) / dx
             best = np.where(hit > 0, np.minimum(best, hit), best)
+        for a_, b_, c_ in self.lines:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                hit = (c_ - a_ * ox - b_ * oy) / (a_ * dx + b_ * dy)
+            best = np.where(hit > 0, np.minimum(best, hit), best)
         ranges = np.where(best > 8.0, np.inf, best)
         return LaserScan(self.t, ranges, -math.pi, INC, 0.15, 8.0, LIDAR)
 
@@ -95,6 +100,7 @@ class World:
         """Gap between the footprint and the nearest obstacle (negative: overlapping)."""
         gaps = [math.hypot(self.pose.x_m - d.x, self.pose.y_m - d.y) - d.r - FOOTPRINT_M for d in self.discs]
         gaps += [abs(wx - self.pose.x_m) - FOOTPRINT_M for wx in self.walls_x]
+        gaps += [abs(a * self.pose.x_m + b * self.pose.y_m - c) - FOOTPRINT_M for a, b, c in self.lines]
         return min(gaps, default=math.inf)
 
     def step(self, result: ControlResult) -> None:
@@ -270,6 +276,28 @@ def test_awareness_steers_a_manually_driven_base_round_an_obstacle(offset_m):
     loop2 = Loop(world2, awareness=False, scan_every=5)
     loop2.run(12.0, joy=Twist(0.26, 0.0))
     assert world2.pose.x_m < 2.5 and loop2.log[-1][2].emergency and not world2.collided
+
+
+@pytest.mark.parametrize("side", [1, -1])
+def test_awareness_steers_a_base_driven_at_a_slanted_wall_clear_of_it(side):
+    # a wall crossing the path 3 m ahead at 40°, the operator only pushes forward
+    angle = math.radians(40.0) * side
+    a, b = math.sin(angle), -math.cos(angle)  # the wall's unit normal; it runs along (cos, sin) through (3, 0)
+    wall = (a, b, a * 3.0)
+    world = World(lines=[wall])
+    loop = Loop(world, awareness=True, scan_every=5)
+    loop.run(25.0, joy=Twist(0.26, 0.0))
+    assert not world.collided and not any(r.emergency for _, _, r in loop.log)
+    # it turned at least parallel to the wall (away from it, never into it), kept clear and kept going
+    assert side * world.pose.yaw_rad > abs(angle) - math.radians(10.0), world.pose
+    assert side * world.pose.yaw_rad < math.pi / 2, world.pose
+    assert abs(a * world.pose.x_m + b * world.pose.y_m - wall[2]) > 0.5
+    assert math.hypot(world.pose.x_m, world.pose.y_m) > 4.0
+    # without awareness it drives into the stop zone and stays there
+    world2 = World(lines=[wall])
+    loop2 = Loop(world2, awareness=False, scan_every=5)
+    loop2.run(16.0, joy=Twist(0.26, 0.0))
+    assert loop2.log[-1][2].emergency and not world2.collided
 
 
 # ---- the pipeline's own rules ----------------------------------------------------------------------
