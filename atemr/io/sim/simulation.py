@@ -74,8 +74,9 @@ class Fall:
     zone: str
 
 
-class SensorComponent(Generic[T]):
-    """A scheduler component that produces one reading per tick, keeps the latest and tells subscribers.
+class PeriodicSource(Generic[T]):
+    """A scheduler component that produces one reading per tick (a scan, an IMU sample, the true pose...),
+    keeps the latest and tells subscribers.
 
     A subscriber that raises is logged and does not stop the others (as a python-can listener must not
     stop a Notifier).
@@ -145,17 +146,17 @@ class Simulation:
         self.falls: list[Fall] = []
         self._last_t: float | None = None
         self.t = 0.0
-        self.physics = SensorComponent[TruePose]("sim.physics", self.step_to)
-        self.lidar_source = SensorComponent[LaserScan]("sim.lidar", self.read_lidar)
-        self.imu_source = SensorComponent[ImuSample]("sim.imu", self.read_imu)
-        self.cliff_source = SensorComponent[CliffReadings]("sim.cliff", self.read_cliff)
-        self.camera_source = SensorComponent[NDArray[np.uint8]]("sim.camera", self.render_camera)
+        self.physics = PeriodicSource[TruePose]("sim.physics", self.step_to)
+        self.lidar_source = PeriodicSource[LaserScan]("sim.lidar", self.read_lidar)
+        self.imu_source = PeriodicSource[ImuSample]("sim.imu", self.read_imu)
+        self.cliff_source = PeriodicSource[CliffReadings]("sim.cliff", self.read_cliff)
+        self.camera_source = PeriodicSource[NDArray[np.uint8]]("sim.camera", self.render_camera)
 
     # -- wiring --------------------------------------------------------------------------------
-    def components(self) -> list[tuple[SensorComponent[Any], float]]:
+    def components(self) -> list[tuple[PeriodicSource[Any], float]]:
         """(component, rate) pairs to schedule; the camera only when ``camera_hz > 0``."""
         p = self.params
-        out: list[tuple[SensorComponent[Any], float]] = [
+        out: list[tuple[PeriodicSource[Any], float]] = [
             (self.physics, p.physics_hz), (self.lidar_source, p.lidar_hz), (self.imu_source, p.imu_hz),
             (self.cliff_source, p.cliff_hz),
         ]
