@@ -235,23 +235,31 @@ def test_a_drop_zone_stops_motion_towards_it_at_once_and_backing_off_works():
     assert world.pose.x_m < before - 0.05 and not loop.log[-1][2].cliff_stop
 
 
-def test_awareness_idle_base_moves_away_from_an_approaching_obstacle():
+@pytest.mark.parametrize(
+    ("start", "velocity", "away"),
+    [
+        ((1.8, 0.0), (-0.12, 0.0), (-1.0, 0.0)),  # walks up from the front: back off
+        ((-1.8, 0.05), (0.12, 0.0), (1.0, 0.0)),  # from behind: drive off forward
+        ((0.0, 1.8), (0.0, -0.12), (0.0, -1.0)),  # from the left: move off to the right
+    ],
+)
+def test_awareness_idle_base_moves_away_from_an_approaching_obstacle(start, velocity, away):
     world = World()
     loop = Loop(world, awareness=True, scan_every=5)
     loop.run(9.0)  # no operator: idle after 8 s, nothing near → the IDLE engine holds still
     assert loop.log[-1][2].idle and world.pose == Pose2D()
-    person = Disc(1.8, 0.0, 0.2, vx=-0.12)  # walks up to the robot from the front
+    person = Disc(*start, 0.2, *velocity)
     world.discs.append(person)
     loop.run(14.0)
-    assert world.pose.x_m < -0.4, "did not back away"
+    moved = world.pose.x_m * away[0] + world.pose.y_m * away[1]
+    assert moved > 0.4, f"did not move away: {world.pose}"
     assert not world.collided
-    sources = {r.source for _, _, r in loop.log[-500:]}
-    assert "reactive" in sources
-    # without awareness the same approach would leave the base where it is
-    world2 = World(discs=[Disc(2.5, 0.0, 0.2, vx=-0.12)])
+    assert {r.source for _, _, r in loop.log[-500:]} == {"reactive"}
+    # without awareness the person walks into the base, which does not move
+    world2 = World(discs=[Disc(*start, 0.2, *velocity)])
     loop2 = Loop(world2, awareness=False, scan_every=5)
-    loop2.run(9.0)
-    assert world2.pose.x_m == 0.0
+    loop2.run(23.0)
+    assert world2.pose == Pose2D() and world2.collided
 
 
 @pytest.mark.parametrize("offset_m", [-0.12, 0.2])
