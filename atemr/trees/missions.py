@@ -120,11 +120,25 @@ def _go_to(pose: PoseParams, name: str, path: str) -> NodeSpec:
 
 def goal_task(goal: Pose2D) -> Mission:
     """A single goal from the dashboard as a one-step mission (so Exec reports it the same way)."""
-    pose = PoseParams(goal.x_m, goal.y_m, goal.yaw_rad)
-    spec = _go_to(pose, f"go to ({goal.x_m:.2f}, {goal.y_m:.2f})", "goal")
-    step = Step(0, "go_to", spec.name, (GO_TO_POSE,), spec)
-    root = NodeSpec("Sequence", "goal", "composite", SequenceOptions(True), (spec,), path="goal")
-    return Mission("goal", (step,), root)
+    return mission_from_goals([goal], name="goal")
+
+
+def mission_from_goals(goals: list[Pose2D], *, timeout_s: float | None = None, name: str = "goals") -> Mission:
+    """Visit ``goals`` in order, one go_to step each (``atemr mission run --goal X,Y,YAW`` repeated)."""
+    if not goals:
+        raise ConfigError("give at least one goal", path="--goal")
+    steps = []
+    for i, goal in enumerate(goals):
+        if not all(math.isfinite(v) for v in (goal.x_m, goal.y_m, goal.yaw_rad)):
+            raise ConfigError(f"goal {i} has a non-finite coordinate: {goal}", path="--goal")
+        label = f"goal {i}: ({goal.x_m:.2f}, {goal.y_m:.2f}, {goal.yaw_rad:.2f})"
+        spec = _go_to(PoseParams(goal.x_m, goal.y_m, goal.yaw_rad), label, f"goals[{i}]")
+        if timeout_s is not None:
+            spec = NodeSpec("Timeout", f"{label} (timeout {timeout_s:g} s)", "decorator", TimeoutOptions(timeout_s),
+                            (spec,), path=f"goals[{i}]")
+        steps.append(Step(i, "go_to", label, (GO_TO_POSE,), spec))
+    root = NodeSpec("Sequence", name, "composite", SequenceOptions(True), tuple(s.spec for s in steps), path="goals")
+    return Mission(name, tuple(steps), root)
 
 
 # -- parsing ---------------------------------------------------------------------------------------
