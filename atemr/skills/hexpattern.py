@@ -15,7 +15,7 @@ is built"), which the text copy lacks; so the angles below are this project's re
   one sector is centred on each side (Left-*Center*, Right-*Center*), two rear sectors meet on the -x
   axis: boundaries at 0°, ±60°, ±120°, 180°.
 * HEX (``hex``) is HEX-90 turned back by 90° (HEX-90 = HEX rotated +90°, as the thesis says), each name
-  kept on its hexagon face. Its boundaries fall at ±30°, ±90°, 150°: one face straight ahead, one
+  kept on its hexagon face. Its boundaries fall at ±30°, ±90°, ±150°: one face straight ahead, one
   straight behind, two on each side. In HEX the names label faces, not directions: the face straight
   ahead is called LC. It is kept for consumers that want a sector centred on the heading.
 

@@ -14,12 +14,12 @@ Per tick, in this order:
    walking up behind a base that drives away does not brake it, and so that the base may pass beside
    an obstacle it is steering round.
 2. Ramp. Linear and angular velocity each move towards the (limited) target by at most their
-   acceleration limit times the elapsed time: linear in time, as the thesis' figure 3.23 shows.
+   acceleration limit times the elapsed time: linear in time (thesis 3.4.1; figure 3.23 is missing).
 3. Idle. No state-changing command (a non-zero command, or one that differs from the previous one)
    for ``idle_after_s`` (8 s) → the base is idle; the reactive engine and the hardware read the flag.
 
 Limits are one frozen `MotionLimits`, changed at run time only through `SpeedRamp.set_limits`, which
-validates the whole new set (bounds, stop < slow) and applies it atomically: a rejected value raises
+validates the whole new set (bounds, stop <= slow) and applies it atomically: a rejected value raises
 `ConfigError` naming the key and keeps the old limits in force.
 """
 
