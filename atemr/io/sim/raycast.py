@@ -134,6 +134,7 @@ class GridCaster:
         hi_line = np.array([width + 1, height + 1])[None, :, None]
         hi_other = np.array([height + 1, width + 1])[None, :, None]
         k = np.arange(CHUNK, dtype=np.float64)[None, None, :]
+        per_ray = np.concatenate([pos[:, :, None], step, inv, off.astype(np.float64), d_other, nudge], axis=2)
 
         cand_t = np.full(n, np.inf)
         cand_flat = np.zeros(n, dtype=np.intp)
@@ -158,10 +159,11 @@ class GridCaster:
                     break
             p = g0 + t0[:, None] * da
             # The next CHUNK lines of each family from there on, where they are crossed and the cell entered.
-            line = (np.floor(p) + pos[a])[:, :, None] + step[a] * k  # (a, 2, CHUNK)
-            t = np.abs(line - g0[None, :, None]) * inv[a]
-            cell_line = line.astype(np.intp) + off[a]
-            cell_other = np.floor(g_other + t * d_other[a] + nudge[a]).astype(np.intp) + 1
+            ray = per_ray if a.size == n else per_ray[a]  # (a, 2, 6): one gather for all per-ray constants
+            line = (np.floor(p) + ray[:, :, 0])[:, :, None] + ray[:, :, 1:2] * k  # (a, 2, CHUNK)
+            t = np.abs(line - g0[None, :, None]) * ray[:, :, 2:3]
+            cell_line = (line + ray[:, :, 3:4]).astype(np.intp)
+            cell_other = np.floor(g_other + t * ray[:, :, 4:5] + ray[:, :, 5:6]).astype(np.intp) + 1
             if not inside:
                 cell_line = np.clip(cell_line, 0, hi_line)
                 cell_other = np.clip(cell_other, 0, hi_other)
