@@ -31,7 +31,7 @@
       const span = document.createElement("span");
       span.className = `led ${ok ? "ok" : "bad"}`;
       span.textContent = name.replace(/_/g, " ").toUpperCase();
-      if (name === "auto") { span.className = "led mode"; span.textContent = `M/A ${ok ? "AUTO" : "MANUAL"}`; }
+      if (name.toLowerCase() === "auto") { span.className = "led mode"; span.textContent = `M/A ${ok ? "AUTO" : "MANUAL"}`; }
       span.dataset.name = name;
       el.appendChild(span);
     }
