@@ -62,7 +62,7 @@ def points_json(xy: NDArray[np.float64] | list[Any] | None, max_points: int = MA
     arr = arr[np.isfinite(arr).all(axis=1)]
     if len(arr) > max_points:
         arr = arr[np.linspace(0, len(arr) - 1, max_points).round().astype(np.intp)]
-    return np.round(arr, 3).tolist()  # type: ignore[no-any-return]
+    return np.round(arr, 3).tolist()
 
 
 def scan_points(scan: LaserScan, pose: Pose2D) -> NDArray[np.float64]:
