@@ -258,7 +258,7 @@ class Agent:
             if trigger == RELOAD:
                 self.results.append(self._reload_command(command_id, str(kwargs.get("path")), origin))
                 continue
-            record = self._fire(Event(trigger, kwargs, f"{origin} command" if origin else "", origin))
+            record = self._fire(Event(trigger, kwargs, "", origin))
             self.results.append(CommandResult(command_id, record.t, trigger, record.accepted, record.source,
                                               record.dest, record.reason, origin))
 

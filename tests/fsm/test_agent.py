@@ -390,3 +390,18 @@ def test_from_config_uses_the_shipped_document(port: RecordingPort, link: Record
     assert agent.spec.file is not None and agent.spec.file.endswith("trees/agent.yaml")
     agent.tick(0.0)
     assert agent.state == "IDLE.MANUAL"
+
+
+def test_a_fault_during_exec_ends_the_task(rig: Rig) -> None:
+    idle(rig)
+    rig.command("set_auto")
+    text = "mission:\n  name: w\n  steps:\n    - wait: {duration_s: 5}\n"
+    rig.command("start_mission", mission=parse_mission(load_yaml("w.yaml", text=text), "w.yaml"))
+    rig.run(0.5)
+    rig.port.components["left_motor"] = ComponentHealth(False, "over-temperature")
+    rig.run(0.3)
+    assert rig.agent.context.task is None and rig.agent.state == "IDLE.MANUAL"
+    report = rig.agent.task_reports[-1]
+    assert report["outcome"] == "fault" and report["steps"][0]["status"] == "interrupted"
+    fault = next(r for r in rig.agent.trace if r.trigger == "fault")
+    assert fault.source == "EXEC" and "left_motor: over-temperature" in fault.reason
