@@ -186,7 +186,8 @@ class DiffDriveBase:
             # Blocked when the step ends overlapping and goes deeper than where it started (so a base that
             # touches a wall can always back away from it).
             if after.clearance_m < 0 and after.clearance_m < self.clearance(self.pose.x_m, self.pose.y_m).clearance_m:
-                moved_fraction = self._touching_fraction(v, w, dt_s)
+                # First contact: move up to the obstacle. Still pressing against it: stay (no sliding).
+                moved_fraction = 0.0 if self.in_contact else self._touching_fraction(v, w, dt_s)
                 stopped = integrate_arc(self.pose, v, w, dt_s * moved_fraction)
                 target = Pose2D(stopped.x_m, stopped.y_m, target.yaw_rad)  # a round body still turns freely
                 if not self.in_contact:
