@@ -117,6 +117,7 @@ def to_ascii(d: Drawing) -> str:
             for key in ("on_success", "on_failure"):
                 if getattr(s, key):
                     extra.append(f"{key} -> {getattr(s, key)}")
+            extra.extend(f"{key} {', '.join(getattr(s, key))}" for key in ("on_enter", "on_exit") if getattr(s, key))
             lines.append(f"{'  ' * (depth + 1)}{name.rsplit('.', 1)[-1]}  ({'; '.join(extra)})")
         lines.append("transitions")
         for t in agent.transitions:
