@@ -1,1 +1,9 @@
-"""The agent lifecycle machine (transitions), built from trees/agent.yaml."""
+"""The agent: its lifecycle machine (transitions' HierarchicalMachine) built from ``trees/agent.yaml``.
+
+- `atemr.fsm.spec`: the agent document → validated `AgentSpec` (states, transitions, trees, Monitor);
+- `atemr.fsm.guards`: the guard and callback registries the document names;
+- `atemr.fsm.machine`: `Lifecycle` (fire a trigger, never raise; the trace) and `replay`;
+- `atemr.fsm.agent`: `Agent`, the scheduler component (machine + state tree + Monitor, commands, snapshot);
+- `atemr.fsm.mission_run`: run one mission on an agent to its end with a JSON result;
+- `atemr.fsm.codes`: state names → CAN 0x153 state codes.
+"""

@@ -1,1 +1,9 @@
-"""YAML → py_trees builder, behaviour registry, the Monitor and tree export."""
+"""Behaviour trees of the agent: YAML → py_trees builder, leaves, the Monitor, missions and export.
+
+- `atemr.trees.ports`: the `RobotPort` and `LinkPort` protocols, the agent's only doors to the robot;
+- `atemr.trees.behaviours`: the behaviour registry and the `Leaf` base; `atemr.trees.leaves`: the leaves;
+- `atemr.trees.nodes`/`atemr.trees.builder`: composites and decorators by name, validation and building;
+- `atemr.trees.missions`: mission files → trees; `atemr.trees.progress`: what Exec reports;
+- `atemr.trees.export`: ASCII, Mermaid, JSON, DOT, SVG, PNG drawings;
+- `atemr.trees.secondary`: `LinkPort` over the real `SecondaryLink`; `atemr.trees.fakes`: recording ports.
+"""
