@@ -17,7 +17,7 @@ from typing import Any, Literal
 
 from atemr.errors import ConfigError
 from atemr.skills.ramp import MotionLimits
-from atemr.typed import Source, coerce, field_paths, merge_into, nest
+from atemr.typed import Source, field_paths, merge_into, nest
 from atemr.yamlsafe import load_yaml
 
 ENV_PREFIX = "ATEMR_"
@@ -206,5 +206,3 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
             out[path] = v
     return out
 
-
-__all__ = ["CanConfig", "Config", "SimConfig", "UiConfig", "coerce", "default_data_dir", "env_layer", "load_config", "to_dict"]
