@@ -161,3 +161,13 @@ def test_max_speed_is_enforced(ideal_wheels):
     for k in range(100):
         base.step(k * 0.01, 0.01)
     assert base.pose.x_m == pytest.approx(1.6, abs=1e-9)
+
+
+def test_a_slow_physics_rate_does_not_tunnel_through_walls(make_world, ideal_wheels):
+    # physics at 2 Hz (0.5 s between ticks) at full speed: 0.8 m per tick, the wall is 10 cm thick
+    params = SimParams(base=BaseParams(slip_std=0.0, odom_noise_std=0.0), physics_hz=2.0)
+    sim = build_simulation(make_world("start: [4.0, 2.0, 0.0]\n"), 0, params=params, wheels=ideal_wheels)
+    sim.command_twist(1.6, 0.0)
+    run(sim, 3.0)
+    assert [c.what for c in sim.collisions] == ["wall"]
+    assert 5.9 - 0.25 - 0.02 <= sim.pose.x_m <= 5.9 - 0.25
