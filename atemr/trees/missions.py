@@ -149,12 +149,12 @@ _STEP_COMMON = ("name", "timeout_s", "retries")
 def _waypoints(raw: Any, source: Source, path: str, container: Any, key: Any) -> list[PoseParams]:
     if not isinstance(raw, list) or not raw:
         raise source.error("'waypoints' must be a non-empty list of poses {x_m, y_m, yaw_rad}", path, container, key)
-    return [parse_params(PoseParams, w, source, f"{path}[{i}]", container=raw, key=i) if isinstance(w, Mapping)
-            else _bad_pose(w, source, f"{path}[{i}]", raw, i) for i, w in enumerate(raw)]
-
-
-def _bad_pose(value: Any, source: Source, path: str, container: Any, key: Any) -> PoseParams:
-    raise source.error(f"a pose is a mapping {{x_m, y_m, yaw_rad}}, got {value!r}", path, container, key)
+    poses = []
+    for i, item in enumerate(raw):
+        if not isinstance(item, Mapping):
+            raise source.error(f"a pose is a mapping {{x_m, y_m, yaw_rad}}, got {item!r}", f"{path}[{i}]", raw, i)
+        poses.append(parse_params(PoseParams, item, source, f"{path}[{i}]", container=raw, key=i))
+    return poses
 
 
 def _check_keys(node: Mapping[str, Any], allowed: tuple[str, ...], source: Source, path: str, what: str) -> None:
