@@ -35,6 +35,7 @@ from atemr.io.sim.movers import Movers
 from atemr.io.sim.scene import Contact, Scene
 from atemr.io.sim.world import Furniture, World, load_world
 from atemr.msgs import CliffReadings, ImuSample, LaserScan, Pose2D
+from atemr.scheduler import Scheduler
 
 log = logging.getLogger(__name__)
 
@@ -137,8 +138,8 @@ class Simulation:
         self.movers = Movers(world.movers, self.scene, movers_rng)
         p = self.params
         self.base = DiffDriveBase(left, right, params=p.base, pose=world.start, rng=base_rng,
-                                  clearance=self._clearance)
-        start = self._clearance(world.start.x_m, world.start.y_m)
+                                  clearance=self.clearance_at)
+        start = self.clearance_at(world.start.x_m, world.start.y_m)
         if start.clearance_m < 0:
             raise ConfigError(f"start pose ({world.start.x_m}, {world.start.y_m}) overlaps {start.what}",
                               file=world.source, path="start")
@@ -167,13 +168,14 @@ class Simulation:
             out.append((self.camera_source, p.camera_hz))
         return out
 
-    def attach(self, scheduler: Any) -> None:
+    def attach(self, scheduler: Scheduler) -> None:
         """Add every component to ``scheduler`` (physics first, so sensors read the state of the same tick)."""
         for component, rate in self.components():
             scheduler.add(component, rate)
 
     # -- physics -------------------------------------------------------------------------------
-    def _clearance(self, x: float, y: float) -> Contact:
+    def clearance_at(self, x: float, y: float) -> Contact:
+        """Signed clearance of the robot's footprint at (x, y) to walls, objects and moving obstacles."""
         r = self.params.base.footprint_radius_m
         contact = self.scene.clearance(x, y, r)
         for m in self.movers.items:
@@ -259,7 +261,7 @@ class Simulation:
         row, col = self.world.map.world_to_cell(pose.x_m, pose.y_m)
         if not self.world.map.contains(row, col):
             raise ConfigError(f"({pose.x_m:.2f}, {pose.y_m:.2f}) is outside the map", path="kidnap")
-        contact = self._clearance(pose.x_m, pose.y_m)
+        contact = self.clearance_at(pose.x_m, pose.y_m)
         if contact.clearance_m < 0:
             raise ConfigError(f"({pose.x_m:.2f}, {pose.y_m:.2f}) overlaps {contact.what}", path="kidnap")
         self.base.teleport(pose)

@@ -118,7 +118,7 @@ def test_external_maps_are_simulated_worlds(shared_dir, name):
     sim = build_simulation(path, 0)
     m = sim.world.map
     # the start has room for the robot, on the map, away from its edge
-    assert sim._clearance(sim.pose.x_m, sim.pose.y_m).clearance_m > 0
+    assert sim.clearance_at(sim.pose.x_m, sim.pose.y_m).clearance_m > 0
     row, col = m.world_to_cell(sim.pose.x_m, sim.pose.y_m)
     assert 5 <= row < m.height - 5 and 5 <= col < m.width - 5
     scan = sim.read_lidar(0.0)
