@@ -165,6 +165,18 @@ class Agent:
         self._inbox.put((command_id, trigger, kwargs, origin))
         return command_id
 
+    def precheck(self, trigger: str) -> str | None:
+        """Why ``trigger`` would be refused in the current state (None: it may be accepted).
+
+        Thread-safe and immediate, for a dashboard that must answer at once; the guards still decide at
+        the next tick, so None is "queued", not "accepted".
+        """
+        with self._lock:
+            valid = self.lifecycle.valid_triggers()
+            if trigger in valid:
+                return None
+            return f"'{trigger}' is not valid in state {self.state} (valid here: {', '.join(valid) or 'none'})"
+
     def submit_reload(self, path: str | Path, *, origin: str = "dashboard") -> int:
         """Queue a reload of the agent document; applied only in IDLE and only if it validates."""
         return self.submit(RELOAD, origin=origin, path=str(path))

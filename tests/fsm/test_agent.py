@@ -90,6 +90,8 @@ def test_a_critical_component_missing_at_start_up_powers_off(rig: Rig) -> None:
 
 def test_a_trigger_invalid_in_the_state_is_refused_with_a_reason(rig: Rig) -> None:
     idle(rig)
+    assert rig.agent.precheck("set_auto") is None
+    assert "'goal' is not valid in state IDLE.MANUAL" in str(rig.agent.precheck("goal"))
     result = rig.command("goal", goal=Pose2D(1.0, 1.0, 0.0))
     assert not result.accepted and result.dest is None  # type: ignore[attr-defined]
     assert "'goal' is not valid in state IDLE.MANUAL" in result.reason  # type: ignore[attr-defined]
