@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import logging
 import math
+from collections import deque
 from collections.abc import Callable
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Generic, TypeVar
@@ -40,6 +42,7 @@ from atemr.scheduler import Scheduler
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
+R = TypeVar("R")
 
 #: Longest physics step: at the base's 1.6 m/s top speed, 1.6 cm between collision checks.
 MAX_STEP_S = 0.01
@@ -148,6 +151,7 @@ class Simulation:
         self.cliff = CliffSensors(p.cliff, self.scene, cliff_rng)
         self.camera = Camera(p.camera)
         self.falls: list[Fall] = []
+        self._submitted: deque[tuple[Callable[[], Any], Future[Any]]] = deque()  # deque: thread-safe appends
         self._last_t: float | None = None
         self.t = 0.0
         self.physics = PeriodicSource[TruePose]("sim.physics", self.step_to)
@@ -191,6 +195,7 @@ class Simulation:
         most ``MAX_STEP_S``, so the base never moves more than a few centimetres between collision checks
         and cannot pass through a wall.
         """
+        self._run_submitted()
         dt = 0.0 if self._last_t is None else now - self._last_t
         start = now - dt
         self._last_t = now
@@ -254,6 +259,27 @@ class Simulation:
         return self.base.collisions
 
     # -- run-time interventions (the dashboard's simulation panel) ------------------------------
+    def submit(self, action: Callable[[], R]) -> Future[R]:
+        """Run ``action`` (e.g. ``lambda: sim.kidnap(pose)``) at the start of the next physics tick.
+
+        For other threads (the web server's): the scene must not change while a sensor is casting rays,
+        so interventions wait for the scheduler's thread. The returned future holds the result or the
+        exception (a `ConfigError` for a bad pose), for the caller to report.
+        """
+        future: Future[R] = Future()
+        self._submitted.append((action, future))
+        return future
+
+    def _run_submitted(self) -> None:
+        while self._submitted:
+            action, future = self._submitted.popleft()
+            if not future.set_running_or_notify_cancel():
+                continue
+            try:
+                future.set_result(action())
+            except Exception as exc:
+                future.set_exception(exc)
+
     def kidnap(self, pose: Pose2D) -> None:
         """Teleport the robot to ``pose`` (tests relocalisation); refused inside an obstacle or off the map."""
         if not all(math.isfinite(v) for v in (pose.x_m, pose.y_m, pose.yaw_rad)):

@@ -137,3 +137,30 @@ def test_bad_seed_and_rates():
         build_simulation("studio", -1)
     with pytest.raises(ConfigError, match=r"sim\.lidar_hz"):
         SimParams(lidar_hz=0.0)
+
+
+def test_interventions_from_another_thread_run_on_the_next_physics_tick():
+    import threading
+
+    from atemr.msgs import Pose2D
+
+    sim = build_simulation("studio", 0)
+    sched = Scheduler(SimClock())
+    sim.attach(sched)
+    futures = {}
+
+    def dashboard():  # what the web server's thread does
+        futures["kidnap"] = sim.submit(lambda: sim.kidnap(Pose2D(1.5, 4.0, 0.0)))
+        futures["bad"] = sim.submit(lambda: sim.kidnap(Pose2D(-0.07, 2.0, 0.0)))
+        futures["drop"] = sim.submit(lambda: sim.drop_obstacle(3.0, 1.0))
+
+    worker = threading.Thread(target=dashboard)
+    worker.start()
+    worker.join()
+    assert not futures["kidnap"].done()  # nothing changes between ticks
+    sched.step()  # the first tick is the physics tick
+    assert futures["kidnap"].result(timeout=0) is None
+    assert sim.pose == Pose2D(1.5, 4.0, 0.0)
+    with pytest.raises(ConfigError, match="overlaps wall"):
+        futures["bad"].result(timeout=0)
+    assert futures["drop"].result(timeout=0) in sim.scene.objects
