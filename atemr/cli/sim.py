@@ -9,22 +9,60 @@ and how many scans, IMU samples, cliff readings and camera frames were produced.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import logging
+import os
 import signal
-from dataclasses import replace
 from pathlib import Path
 from types import FrameType
 from typing import Any
 
+import can
+
 from atemr.cli.command import commands
 from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
-from atemr.config import load_config
+from atemr.config import Config, load_config
 from atemr.errors import ConfigError
+from atemr.io.motors.driver import RmdDriver
+from atemr.io.motors.emulator import RmdMotorEmulator
+from atemr.io.motors.model import RmdMotorModel
+from atemr.io.sim.base import MountedWheel
 from atemr.io.sim.simulation import Simulation, build_simulation, params_from_config
-from atemr.scheduler import Scheduler
+from atemr.msgs import WheelSpeeds
+from atemr.scheduler import Component, Scheduler
 
 log = logging.getLogger(__name__)
+#: Numbers the virtual CAN channels of runs in one process (python-can's virtual channels are global).
+_RUNS = itertools.count()
+
+
+class TwistCommander:
+    """Keeps a constant twist commanded through the motor driver (whose watchdog wants fresh commands)."""
+
+    def __init__(self, driver: RmdDriver, left_radps: float, right_radps: float) -> None:
+        self.name = "sim.twist"
+        self.driver = driver
+        self.speeds = WheelSpeeds(left_radps, right_radps)
+
+    def tick(self, now: float) -> None:
+        self.driver.set_speeds(self.speeds, now)
+
+
+def can_motors(config: Config, channel: str, models: tuple[RmdMotorModel, RmdMotorModel]
+               ) -> tuple[list[tuple[Component, float]], RmdDriver]:
+    """The RMD driver and two motor emulators (answering for ``models``) on a virtual CAN bus.
+
+    The simulation steps the models (``steps_model=False``); the emulators only answer the driver.
+    """
+    m = config.motors
+    emulators = [
+        RmdMotorEmulator(can.Bus(interface="virtual", channel=channel), motor_id, model, steps_model=False,
+                         name=f"sim.motor_{side}")
+        for side, motor_id, model in (("left", m.left_id, models[0]), ("right", m.right_id, models[1]))
+    ]
+    driver = RmdDriver.from_config(can.Bus(interface="virtual", channel=channel), m)
+    return [(driver, m.rate_hz), *((e, 100.0) for e in emulators)], driver
 
 
 def summary(sim: Simulation, sim_seconds: float, wall_seconds: float, seed: int) -> dict[str, Any]:
@@ -66,6 +104,9 @@ class SimCommand:
         parser.add_argument("--camera-hz", type=float, help="camera frames per second (0: camera off)")
         parser.add_argument("--twist", type=float, nargs=2, metavar=("V_MPS", "W_RADPS"), default=(0.0, 0.0),
                             help="drive the base with this constant command (default: stand still)")
+        parser.add_argument("--motors", choices=("direct", "can"), default="direct",
+                            help="direct: command the wheel models; can: through the RMD driver and two motor "
+                                 "emulators on a virtual CAN bus (slower, the whole chain)")
         parser.add_argument("--json", action="store_true", help="print the summary as JSON")
 
     def run(self, args: argparse.Namespace) -> int:
@@ -77,12 +118,24 @@ class SimCommand:
         if duration is not None and not duration >= 0:
             raise ConfigError(f"must be >= 0 seconds, got {duration}", path="argument --duration")
         params = params_from_config(config.sim)
-        sim = build_simulation(config.sim.world, config.sim.seed, params=replace(params))
+        v, w = args.twist
+        parts: list[tuple[Component, float]] = []
+        if args.motors == "can":
+            m = config.motors
+            models = (RmdMotorModel(), RmdMotorModel())
+            wheels = (MountedWheel(models[0], m.left_direction), MountedWheel(models[1], m.right_direction))
+            sim = build_simulation(config.sim.world, config.sim.seed, params=params, wheels=wheels)
+            parts, driver = can_motors(config, f"atemr-sim-{os.getpid()}-{next(_RUNS)}", models)
+            parts.insert(0, (TwistCommander(driver, *sim.wheel_speeds_for(v, w)), m.rate_hz))
+        else:
+            sim = build_simulation(config.sim.world, config.sim.seed, params=params)
+            sim.command_twist(v, w)
+        # The clock starts after the (slow) building, so a real-time run is paced from its first tick.
         clock: Clock = SimClock() if args.headless else RealTimeSimClock(speed=config.sim.speed)
         scheduler = Scheduler(clock)
         sim.attach(scheduler)
-        v, w = args.twist
-        sim.command_twist(v, w)
+        for part, rate in parts:
+            scheduler.add(part, rate)
 
         def on_signal(signum: int, frame: FrameType | None) -> None:
             log.info("%s received: stopping", signal.Signals(signum).name)
@@ -107,7 +160,7 @@ class SimCommand:
             sched_log.setLevel(previous_level)
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
-        result = summary(sim, clock.now() - t0_sim, wall.now() - t0_wall, config.sim.seed)
+        result = {**summary(sim, clock.now() - t0_sim, wall.now() - t0_wall, config.sim.seed), "motors": args.motors}
         if args.json:
             print(json.dumps(result, indent=2))
         else:

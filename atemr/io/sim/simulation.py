@@ -326,12 +326,16 @@ class Simulation:
                 raise ConfigError(f"wheel {wheel!r} takes no speed commands (no set_speed)", path="command_wheels")
             setter(value)
 
-    def command_twist(self, linear_mps: float, angular_radps: float) -> None:
-        """Command a body twist through the wheels (inverse differential-drive kinematics)."""
+    def wheel_speeds_for(self, linear_mps: float, angular_radps: float) -> tuple[float, float]:
+        """Forward wheel speeds (left, right) in rad/s for a body twist (inverse differential drive)."""
         b = self.params.base
         half = b.track_m / 2
-        self.command_wheels((linear_mps - angular_radps * half) / b.wheel_radius_m,
-                            (linear_mps + angular_radps * half) / b.wheel_radius_m)
+        r = b.wheel_radius_m
+        return (linear_mps - angular_radps * half) / r, (linear_mps + angular_radps * half) / r
+
+    def command_twist(self, linear_mps: float, angular_radps: float) -> None:
+        """Command a body twist through the wheels (inverse differential-drive kinematics)."""
+        self.command_wheels(*self.wheel_speeds_for(linear_mps, angular_radps))
 
 
 def params_from_config(cfg: SimConfig) -> SimParams:

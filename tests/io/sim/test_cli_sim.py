@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from atemr.cli.main import main
 
 
@@ -48,3 +50,13 @@ def test_real_time_run_is_paced(capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["wall_seconds"] >= 0.045
     assert out["real_time_factor"] <= 4.5
+
+
+def test_motors_over_a_virtual_can_bus(capsys):
+    direct = run_json(capsys, "--duration", "2", "--seed", "1", "--camera-hz", "0", "--twist", "0.5", "0.0")
+    over_can = run_json(capsys, "--duration", "2", "--seed", "1", "--camera-hz", "0", "--twist", "0.5", "0.0",
+                        "--motors", "can")
+    assert over_can["motors"] == "can"
+    # the driver's first command goes out on its first tick: the same drive, a tick or two later
+    assert over_can["distance_m"] == pytest.approx(direct["distance_m"], abs=0.05)
+    assert over_can["distance_m"] > 0.8
