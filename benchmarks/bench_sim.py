@@ -5,6 +5,8 @@ Rows (``python benchmarks/bench_sim.py`` or ``./benchmarks/run sim``):
 * real-time factor of the studio world driving a curve, lidar 10 Hz, IMU 50 Hz, cliff 20 Hz, physics
   100 Hz with the RMD motor models, camera off: simulated seconds per wall second (baseline: real
   time, 1x; goal >= 50x on one core);
+* the same with the motors behind the RMD driver and two emulators on a virtual CAN bus (no goal: the
+  price of the whole chain);
 * the same with the camera at 10 fps (goal >= 1x: the stream keeps up with real time);
 * one 360-beam lidar scan: our vectorised exact traversal against the same traversal written per beam
   in plain Python (Amanatides & Woo), on the same poses and with the same answers, in the studio (short
@@ -22,23 +24,45 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
+from atemr.cli.sim import TwistCommander, can_motors
 from atemr.clock import SimClock
+from atemr.config import Config
+from atemr.io.motors.model import RmdMotorModel
+from atemr.io.sim.base import MountedWheel
 from atemr.io.sim.raycast import GridCaster
 from atemr.io.sim.simulation import SimParams, Simulation, build_simulation
 from atemr.msgs import Pose2D
 from atemr.scheduler import Scheduler
 
 
-def real_time_factor(camera_hz: float, sim_seconds: float) -> tuple[float, Simulation]:
-    """Simulated seconds per wall second for a driving robot in the studio."""
-    sim = build_simulation("studio", 1, params=SimParams(camera_hz=camera_hz))
+def real_time_factor(camera_hz: float, sim_seconds: float, *, over_can: bool = False) -> tuple[float, Simulation]:
+    """Simulated seconds per wall second for a driving robot in the studio (optionally with the RMD driver
+    and motor emulators on a virtual CAN bus, as ``atemr sim --motors can``)."""
+    params = SimParams(camera_hz=camera_hz)
     sched = Scheduler(SimClock())
-    sim.attach(sched)
-    sim.command_twist(0.3, 0.2)
-    sched.run(duration=0.5)  # warm-up: first allocations, caches
-    t0 = time.perf_counter()
-    sched.run(duration=sim_seconds)
-    return sim_seconds / (time.perf_counter() - t0), sim
+    if over_can:
+        config = Config()
+        models = (RmdMotorModel(), RmdMotorModel())
+        wheels = (MountedWheel(models[0], config.motors.left_direction),
+                  MountedWheel(models[1], config.motors.right_direction))
+        sim = build_simulation("studio", 1, params=params, wheels=wheels)
+        parts, driver = can_motors(config, "bench_sim_rtf", models)
+        parts.insert(0, (TwistCommander(driver, *sim.wheel_speeds_for(0.3, 0.2)), config.motors.rate_hz))
+        sim.attach(sched)
+        for part, rate in parts:
+            sched.add(part, rate)
+        sched.start()
+    else:
+        sim = build_simulation("studio", 1, params=params)
+        sim.attach(sched)
+        sim.command_twist(0.3, 0.2)
+    try:
+        sched.run(duration=0.5)  # warm-up: first allocations, caches
+        t0 = time.perf_counter()
+        sched.run(duration=sim_seconds)
+        return sim_seconds / (time.perf_counter() - t0), sim
+    finally:
+        sched.shutdown()
 
 
 def python_dda(grid: list[list[bool]], res: float, origin: tuple[float, float], angles: np.ndarray,
@@ -125,6 +149,10 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
     rtf, sim = real_time_factor(0.0, 10.0 if quick else 60.0)
     rows.append({"what": "real-time factor, studio, lidar 10 Hz, camera off", "ours": round(rtf, 1),
                  "baseline": 1.0, "ratio": round(rtf, 1), "goal": 50.0, "unit": "x real time"})
+    rtf_can, _ = real_time_factor(0.0, 5.0 if quick else 20.0, over_can=True)
+    rows.append({"what": "real-time factor, same, motors over virtual CAN (driver + 2 emulators)",
+                 "ours": round(rtf_can, 1), "baseline": 1.0, "ratio": round(rtf_can, 1), "goal": None,
+                 "unit": "x real time"})
     rtf_cam, _ = real_time_factor(10.0, 3.0 if quick else 10.0)
     rows.append({"what": "real-time factor, studio, lidar 10 Hz, camera 10 fps", "ours": round(rtf_cam, 2),
                  "baseline": 1.0, "ratio": round(rtf_cam, 2), "goal": 1.0, "unit": "x real time"})
@@ -136,5 +164,5 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
 if __name__ == "__main__":
     for row in run(quick="--quick" in sys.argv):
         goal = f"goal >= {row['goal']}" if row["goal"] is not None else ""
-        print(f"{row['what']:<66} ours {row['ours']:>9} {row['unit']:<12} baseline {row['baseline']:>8} "
+        print(f"{row['what']:<72} ours {row['ours']:>9} {row['unit']:<12} baseline {row['baseline']:>8} "
               f"ratio {row['ratio']:>7} {goal}")
