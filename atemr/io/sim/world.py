@@ -266,6 +266,8 @@ def _parse_world(doc: Any, path: Path) -> World:
             params = d.numbers(item, "circle", f"{p}.circle", 3)
             if params[2] <= 0:
                 raise d.error(f"radius must be > 0, got {params[2]}", item, "circle", f"{p}.circle")
+        if not _overlaps_map(occupancy, shapes[0], params):
+            raise d.error(f"'{item.get('name', i)}' lies outside the map", item, shapes[0], f"{p}.{shapes[0]}")
         mapped = item.get("mapped", False)
         if not isinstance(mapped, bool):
             raise d.error(f"expected true or false, got {mapped!r}", item, "mapped", f"{p}.mapped")
@@ -334,6 +336,18 @@ def _parse_world(doc: Any, path: Path) -> World:
     else:
         start = default_start(occupancy, 0.25)
     return World(name, occupancy, start, tuple(furniture), tuple(zones), tuple(movers), path, wall_height)
+
+
+def _overlaps_map(occupancy: OccupancyMap, shape: str, params: tuple[float, ...]) -> bool:
+    """Whether a box ``[x0, y0, x1, y1]`` or circle ``[x, y, r]`` touches the map's area (its bounding box)."""
+    x0, y0, x1, y1 = params if shape == "box" else (params[0] - params[2], params[1] - params[2],
+                                                     params[0] + params[2], params[1] + params[2])
+    corners_x, corners_y = occupancy.cell_to_world(
+        np.array([0, 0, occupancy.height - 1, occupancy.height - 1]), np.array([0, occupancy.width - 1] * 2)
+    )
+    half = occupancy.resolution_m  # cell centres → cell edges, generously (covers a rotated origin too)
+    return bool(x1 >= corners_x.min() - half and x0 <= corners_x.max() + half
+                and y1 >= corners_y.min() - half and y0 <= corners_y.max() + half)
 
 
 def default_start(occupancy: OccupancyMap, robot_radius_m: float) -> Pose2D:

@@ -82,6 +82,7 @@ def test_world_file_with_everything(make_world):
     ("drop_zones:\n  - {name: d, polygon: [[0, 0], [1, 1]]}\n", "drop_zones[0].polygon", "at least 3"),
     ("start: [1, 2]\n", "start", "3 numbers"),
     ("start: [100, 2, 0]\n", "start", "outside the map"),
+    ("furniture:\n  - {name: far, circle: [50, 50, 1]}\n", "furniture[0].circle", "'far' lies outside the map"),
     ("furnitur: []\n", "furnitur", "did you mean 'furniture'"),
     ("furniture:\n  - {name: x, circle: [1, 1, 0.2], color: [0, 0, 300]}\n", "furniture[0].color", "0..255"),
 ])
