@@ -1,0 +1,183 @@
+"""Point-to-line ICP (Censi 2008, PL-ICP in its linearised form) for 2-D scans.
+
+Given source points ``P`` (the new scan) and target points ``Q`` (a reference scan or the map's
+surfaces) it finds the rigid transform ``T = (x, y, θ)`` with ``T ⊕ P ≈ Q``. Point-to-line converges in
+a handful of iterations where point-to-point needs dozens, because a point sliding along a wall costs
+nothing: only the distance *across* the wall is penalised.
+
+Each iteration:
+
+1. correspondences: nearest target point of each transformed source point (`scipy.spatial.cKDTree`,
+   built once per target); the target's local line normal comes from the principal axes of its
+   ``k`` nearest neighbours (precomputed, closed form for 2×2 covariances);
+2. outlier rejection: pairs farther than ``max_correspondence_m`` are dropped, then pairs whose
+   point-to-line residual exceeds ``reject_sigmas`` robust standard deviations (1.4826·MAD), and targets
+   that are not on a line (isotropic neighbourhoods: corners, clutter) carry no normal and are dropped;
+3. one Gauss-Newton step on ``Σ (nᵢ·(R pᵢ + t − qᵢ))²``, linearised in (δx, δy, δθ), composed onto T.
+
+Quality: ``rmse_m`` of the inlier residuals, ``inlier_fraction`` of the source points, ``converged``
+(the step fell below the tolerances), and ``covariance`` = σ²(JᵀJ)⁻¹ (Censi's Hessian estimate), which
+is large along a corridor where the scan cannot fix the motion: the EKF then trusts it less there.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from atemr.errors import ConfigError
+from atemr.msgs import Pose2D
+from atemr.skills.localization.geometry import FloatArray, as_array, as_pose, compose, transform_points
+
+
+@dataclass(frozen=True)
+class IcpParams:
+    """Tuning of the matcher (defaults suit an RPLIDAR indoors, scans 0.1 s apart)."""
+
+    max_iterations: int = 30
+    #: Pairs farther apart than this are not correspondences (the largest motion expected between scans).
+    max_correspondence_m: float = 0.5
+    #: Robust outlier gate on the point-to-line residual, in robust standard deviations.
+    reject_sigmas: float = 3.0
+    #: The gate never goes below this (a near-perfect match must not reject its own noise).
+    min_reject_m: float = 0.03
+    #: Neighbours used to fit each target point's line.
+    normal_neighbours: int = 10
+    #: A target neighbourhood is a line when its smaller spread is below this fraction of the larger.
+    max_planarity: float = 0.5
+    translation_tol_m: float = 5e-4
+    rotation_tol_rad: float = 5e-4
+    #: Fewer inliers than this and the result is not trusted.
+    min_inliers: int = 10
+
+    def __post_init__(self) -> None:
+        if self.max_iterations < 1 or self.normal_neighbours < 2 or self.min_inliers < 3:
+            raise ConfigError("icp: need max_iterations >= 1, normal_neighbours >= 2, min_inliers >= 3",
+                              path="localization.icp")
+        for name in ("max_correspondence_m", "reject_sigmas", "min_reject_m", "max_planarity"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"must be a finite number > 0, got {value!r}", path=f"localization.icp.{name}")
+
+
+@dataclass(frozen=True)
+class IcpResult:
+    """The transform found and how much to believe it."""
+
+    pose: Pose2D
+    rmse_m: float
+    inlier_fraction: float
+    iterations: int
+    converged: bool
+    covariance: FloatArray = field(repr=False)
+
+    @property
+    def ok(self) -> bool:
+        """Converged with a finite covariance: the caller may use ``pose``."""
+        return self.converged and bool(np.all(np.isfinite(self.covariance)))
+
+
+def _clean(points: FloatArray, what: str) -> FloatArray:
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ConfigError(f"icp: {what} points must have shape (M, 2), got {pts.shape}")
+    return pts[np.isfinite(pts).all(axis=1)]
+
+
+class IcpTarget:
+    """A reference point set prepared once: its k-d tree and per-point line normals.
+
+    Matching many scans against one reference (the map's surfaces, a SLAM keyframe) pays for the tree
+    and the normals once.
+    """
+
+    def __init__(self, points: FloatArray, params: IcpParams | None = None) -> None:
+        self.params = p = params or IcpParams()
+        self.points = _clean(points, "target")
+        n = self.points.shape[0]
+        self.tree = cKDTree(self.points) if n else None
+        self.normals = np.full((n, 2), np.nan)
+        if n >= p.normal_neighbours:
+            _, nbr = self.tree.query(self.points, k=p.normal_neighbours)  # type: ignore[union-attr]
+            nb = self.points[nbr]  # (n, k, 2)
+            d = nb - nb.mean(axis=1, keepdims=True)
+            cxx = (d[..., 0] ** 2).mean(axis=1)
+            cyy = (d[..., 1] ** 2).mean(axis=1)
+            cxy = (d[..., 0] * d[..., 1]).mean(axis=1)
+            # eigenvalues of [[cxx, cxy], [cxy, cyy]]; the line's direction is the major axis
+            half_tr, det_term = (cxx + cyy) / 2, np.sqrt(((cxx - cyy) / 2) ** 2 + cxy**2)
+            major, minor = half_tr + det_term, half_tr - det_term
+            ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
+            normals = np.column_stack([-np.sin(ang), np.cos(ang)])
+            linear = minor <= (p.max_planarity**2) * np.maximum(major, 1e-18)
+            self.normals[linear] = normals[linear]
+
+    def __len__(self) -> int:
+        return int(self.points.shape[0])
+
+
+def icp(
+    source: FloatArray,
+    target: FloatArray | IcpTarget,
+    initial: Pose2D | None = None,
+    params: IcpParams | None = None,
+) -> IcpResult:
+    """Align ``source`` onto ``target`` starting from ``initial``; see the module docstring.
+
+    Never raises on poor data: too few points or inliers give ``converged=False`` and an infinite
+    covariance, which every caller treats as "no measurement".
+    """
+    tgt = target if isinstance(target, IcpTarget) else IcpTarget(target, params)
+    p = params or tgt.params
+    src = _clean(source, "source")
+    xf = as_array(initial or Pose2D())
+    inf_cov = np.full((3, 3), np.inf)
+    if len(tgt) < p.normal_neighbours or src.shape[0] < p.min_inliers or tgt.tree is None:
+        return IcpResult(as_pose(xf), math.inf, 0.0, 0, False, inf_cov)
+    converged = False
+    rmse, inlier_fraction, cov = math.inf, 0.0, inf_cov
+    it = 0
+    for it in range(1, p.max_iterations + 1):
+        moved = transform_points(xf, src)
+        dist, idx = tgt.tree.query(moved, distance_upper_bound=p.max_correspondence_m)
+        ok = np.isfinite(dist)
+        idx_ok = np.where(ok, idx, 0)
+        normals = tgt.normals[idx_ok]
+        ok &= np.isfinite(normals[:, 0])
+        if ok.sum() < p.min_inliers:
+            return IcpResult(as_pose(xf), math.inf, float(ok.mean()), it, False, inf_cov)
+        m, q, n = moved[ok], tgt.points[idx_ok[ok]], normals[ok]
+        r = np.einsum("ij,ij->i", n, m - q)
+        mad = float(np.median(np.abs(r - np.median(r))))
+        gate = max(p.reject_sigmas * 1.4826 * mad, p.min_reject_m)
+        keep = np.abs(r) <= gate
+        if keep.sum() < p.min_inliers:
+            return IcpResult(as_pose(xf), math.inf, float(keep.sum() / src.shape[0]), it, False, inf_cov)
+        m, n, r = m[keep], n[keep], r[keep]
+        # Rotation about the origin of the current frame: d(R p)/dθ = [-p_y, p_x].
+        jac = np.column_stack([n[:, 0], n[:, 1], n[:, 1] * m[:, 0] - n[:, 0] * m[:, 1]])
+        hess = jac.T @ jac
+        try:
+            delta = np.linalg.solve(hess, -jac.T @ r)
+        except np.linalg.LinAlgError:
+            return IcpResult(as_pose(xf), math.inf, float(keep.sum() / src.shape[0]), it, False, inf_cov)
+        xf = compose(delta, xf)  # δ acts in the target frame, after xf
+        inlier_fraction = float(keep.sum() / src.shape[0])
+        dof = max(1, r.size - 3)
+        rmse = float(np.sqrt(np.mean(r**2)))
+        sigma2 = float(r @ r) / dof
+        cov = sigma2 * np.linalg.pinv(hess)
+        if math.hypot(delta[0], delta[1]) < p.translation_tol_m and abs(delta[2]) < p.rotation_tol_rad:
+            converged = True
+            break
+    if converged and not np.all(np.isfinite(cov)):
+        converged = False
+    # The covariance is of the correction applied in the target frame at the converged pose; for the
+    # small corrections at convergence that is the uncertainty of xf itself.
+    return IcpResult(as_pose(xf), rmse, inlier_fraction, it, converged, cov)
+
+
+__all__ = ["IcpParams", "IcpResult", "IcpTarget", "icp"]

@@ -1,0 +1,47 @@
+"""From a `LaserScan` to the points every matcher uses: valid returns only, in the base frame.
+
+DESIGN §10: NaN, 0, ±inf and ranges outside [range_min, range_max] are dropped, never used as
+distances (-inf is an obstacle for the safety stop, but it has no position to match). Beams are
+optionally thinned evenly, which is what AMCL's ``max_beams`` does: neighbouring beams carry nearly the
+same information, and the filter's cost grows with their number.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from atemr.msgs import LaserScan
+from atemr.skills.localization.geometry import FloatArray
+
+
+def valid_mask(scan: LaserScan) -> np.ndarray:
+    """Which beams hold a usable range."""
+    r = np.asarray(scan.ranges_m, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(r) & (r > 0.0) & (r >= scan.range_min_m) & (r <= scan.range_max_m)
+
+
+def scan_points(scan: LaserScan, *, max_beams: int | None = None) -> FloatArray:
+    """Valid returns as ``(M, 2)`` points in the base frame (x forward, y left).
+
+    ``max_beams`` keeps at most that many valid beams, evenly spread over the valid ones. An empty
+    result (no valid return at all) is a normal outcome the callers check for: an empty room or a
+    covered sensor is not an error, but nothing can be matched against it.
+    """
+    r = np.asarray(scan.ranges_m, dtype=np.float64)
+    ok = valid_mask(scan)
+    idx = np.flatnonzero(ok)
+    if max_beams is not None and 0 < max_beams < idx.size:
+        idx = idx[np.linspace(0, idx.size - 1, max_beams).round().astype(np.intp)]
+    angles = scan.angle_min_rad + scan.angle_increment_rad * idx + scan.sensor_pose.yaw_rad
+    rr = r[idx]
+    m = scan.sensor_pose
+    return np.column_stack([m.x_m + rr * np.cos(angles), m.y_m + rr * np.sin(angles)])
+
+
+def sensor_origin(scan: LaserScan) -> tuple[float, float]:
+    """The sensor's position in the base frame (where every beam starts)."""
+    return scan.sensor_pose.x_m, scan.sensor_pose.y_m
+
+
+__all__ = ["scan_points", "sensor_origin", "valid_mask"]

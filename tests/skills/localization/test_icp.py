@@ -1,0 +1,108 @@
+"""Point-to-line ICP: known transforms recovered on hand-made shapes and on simulator scans."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from atemr.errors import ConfigError
+from atemr.msgs import Pose2D
+from atemr.skills.localization.geometry import as_array, as_pose, compose, inverse, relative, transform_points
+from atemr.skills.localization.icp import IcpParams, IcpTarget, icp
+from atemr.skills.localization.scan import scan_points
+
+
+def segment(a: tuple[float, float], b: tuple[float, float], spacing_m: float = 0.04) -> np.ndarray:
+    n = max(2, round(math.dist(a, b) / spacing_m))
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    return np.asarray(a) + t * (np.asarray(b) - np.asarray(a))
+
+
+def room() -> np.ndarray:
+    """Outline of a 4 m × 3 m room with a box in it: lines in both directions, so the motion is observable."""
+    corners = [(0, 0), (4, 0), (4, 3), (0, 3), (0, 0)]
+    walls = [segment(a, b) for a, b in itertools.pairwise(corners)]
+    return np.concatenate([*walls, segment((1, 1), (1.6, 1)), segment((1.6, 1), (1.6, 1.4))])
+
+
+@pytest.mark.parametrize("true", [(0.0, 0.0, 0.0), (0.2, -0.1, 0.15), (-0.3, 0.25, -0.2), (0.05, 0.2, 0.12)])
+def test_recovers_known_transform(true: tuple[float, float, float]) -> None:
+    rng = np.random.default_rng(7)
+    src = room()
+    tgt = transform_points(true, src) + rng.normal(0.0, 0.005, src.shape)
+    r = icp(src, tgt)
+    assert r.converged and r.ok
+    assert np.allclose(as_array(r.pose), true, atol=0.01)
+    assert r.rmse_m < 0.01
+    assert r.inlier_fraction > 0.8
+    assert r.iterations < 20
+
+
+def test_outliers_are_rejected() -> None:
+    rng = np.random.default_rng(1)
+    src = room()
+    true = (0.1, 0.05, 0.1)
+    tgt = transform_points(true, src)
+    clutter = rng.uniform(-0.5, 4.5, (60, 2))  # things in the new scan that are not in the reference
+    r = icp(np.vstack([src, clutter]), tgt)
+    assert r.converged
+    assert np.allclose(as_array(r.pose), true, atol=0.01)
+    assert r.inlier_fraction < 0.95  # the clutter was left out
+
+
+def test_corridor_is_uncertain_along_its_axis() -> None:
+    """Two parallel walls fix y and yaw but not x: the covariance must say so."""
+    t = np.linspace(0.0, 6.0, 120)
+    src = np.concatenate([np.c_[t, 0 * t - 1.0], np.c_[t, 0 * t + 1.0]])
+    tgt = transform_points((0.0, 0.05, 0.02), src) + np.random.default_rng(2).normal(0, 0.005, src.shape)
+    r = icp(src, tgt)
+    assert abs(r.pose.y_m - 0.05) < 0.01 and abs(r.pose.yaw_rad - 0.02) < 0.01
+    if r.ok:
+        assert r.covariance[0, 0] > 100 * r.covariance[1, 1]
+    else:
+        assert not r.converged
+
+
+def test_too_few_points_is_not_converged_and_nan_points_are_dropped() -> None:
+    r = icp(np.zeros((3, 2)), room())
+    assert not r.converged and not r.ok and math.isinf(r.rmse_m)
+    src = room()
+    src_nan = np.vstack([src, [[np.nan, 1.0], [np.inf, 0.0]]])
+    r2 = icp(src_nan, transform_points((0.1, 0.0, 0.05), src))
+    assert r2.converged and abs(r2.pose.x_m - 0.1) < 0.01
+    with pytest.raises(ConfigError, match="shape"):
+        icp(np.zeros((5, 3)), room())
+    with pytest.raises(ConfigError):
+        IcpParams(max_correspondence_m=float("nan"))
+
+
+def test_target_reuse_gives_same_answer() -> None:
+    src = room()
+    tgt = transform_points((0.1, -0.05, 0.05), src)
+    prepared = IcpTarget(tgt)
+    assert as_array(icp(src, prepared).pose) == pytest.approx(as_array(icp(src, tgt).pose))
+
+
+def test_consecutive_simulator_scans(living_room_drive) -> None:  # type: ignore[no-untyped-def]
+    """The motion between scans 0.5 s apart is recovered from the scans, starting from wheel odometry."""
+    rec = living_room_drive
+    errors = []
+    for i in range(10, len(rec.scans) - 5, 25):
+        a, b = rec.scans[i], rec.scans[i + 5]
+        true = relative(as_array(rec.truth[i]), as_array(rec.truth[i + 5]))
+        guess = relative(as_array(rec.odom[i]), as_array(rec.odom[i + 5]))
+        r = icp(scan_points(b), scan_points(a), as_pose(guess))  # T maps b's base frame into a's
+        assert r.converged
+        errors.append((math.hypot(*(as_array(r.pose)[:2] - true[:2])), abs(r.pose.yaw_rad - true[2])))
+    err = np.array(errors)
+    assert err[:, 0].max() < 0.03 and err[:, 1].max() < 0.01
+
+
+def test_pose_algebra() -> None:
+    a, b = np.array([1.0, 2.0, 0.5]), np.array([-0.3, 0.4, 2.9])
+    assert np.allclose(compose(a, inverse(a)), 0.0, atol=1e-12)
+    assert np.allclose(compose(a, relative(a, b)), b)
+    assert as_array(Pose2D(1, 2, 3)) == pytest.approx([1, 2, 3])

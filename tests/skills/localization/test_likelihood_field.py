@@ -1,0 +1,85 @@
+"""Likelihood field and scan-to-map matching on hand-made grids and the studio map."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from atemr.errors import ConfigError
+from atemr.io.sim.maps import OccupancyMap
+from atemr.msgs import LaserScan, Pose2D
+from atemr.skills.localization.geometry import as_array
+from atemr.skills.localization.likelihood_field import FieldParams, LikelihoodField
+from atemr.skills.localization.scan import scan_points
+from atemr.skills.localization.scan_to_map import ScanToMapMatcher
+
+
+def single_cell_map() -> OccupancyMap:
+    data = np.zeros((20, 30), dtype=np.int8)
+    data[10, 15] = 100  # cell centre at (15.5, 10.5) * 0.1 + origin
+    return OccupancyMap(data, 0.1, Pose2D(-1.0, -1.0, 0.0))
+
+
+def test_distance_table_is_euclidean() -> None:
+    f = LikelihoodField(single_cell_map(), FieldParams(max_dist_m=1.0))
+    cx, cy = -1.0 + 1.55, -1.0 + 1.05
+    d = f.distance(np.array([cx, cx + 0.3, cx + 0.3, cx + 5.0, 100.0]), np.array([cy, cy, cy + 0.4, cy, 0.0]))
+    assert d == pytest.approx([0.0, 0.3, 0.5, 1.0, 1.0])  # clipped at max_dist, off-map = max_dist
+
+
+def test_log_likelihood_prefers_true_pose_and_counts_agreement() -> None:
+    f = LikelihoodField(single_cell_map())
+    point = np.array([[1.0, 0.0]])  # one metre ahead of the robot
+    poses = np.array([[-0.45, 0.05, 0.0], [-0.45, 0.35, 0.0], [0.55, 1.05, -math.pi / 2]])
+    ll = f.log_likelihood(poses, point)
+    assert ll[0] > ll[1] and ll[2] == pytest.approx(ll[0])
+    assert f.agreement(poses, point) == pytest.approx([1.0, 0.0, 1.0])
+    assert f.log_likelihood(poses, np.zeros((0, 2))) == pytest.approx([0, 0, 0])
+
+
+def test_rotated_origin_is_honoured() -> None:
+    data = np.zeros((20, 30), dtype=np.int8)
+    data[10, 15] = 100
+    m = OccupancyMap(data, 0.1, Pose2D(0.0, 0.0, math.pi / 2))
+    x, y = m.cell_to_world(10, 15)
+    f = LikelihoodField(m)
+    assert f.agreement(np.array([[float(x) - 1.0, float(y), 0.0]]), np.array([[1.0, 0.0]]))[0] == 1.0
+
+
+def test_map_without_obstacles_is_refused() -> None:
+    with pytest.raises(ConfigError, match="no occupied cell"):
+        LikelihoodField(OccupancyMap(np.zeros((5, 5), dtype=np.int8), 0.1))
+    with pytest.raises(ConfigError):
+        FieldParams(sigma_hit_m=0.0)
+
+
+def test_scan_points_drop_invalid_returns() -> None:
+    ranges = np.array([1.0, np.nan, 0.0, np.inf, -np.inf, 0.1, 9.0, 2.0])
+    scan = LaserScan(0.0, ranges, 0.0, math.pi / 4, 0.15, 8.0, Pose2D(0.1, 0.0, 0.0))
+    pts = scan_points(scan)
+    assert pts == pytest.approx(np.array([[1.1, 0.0], [0.1 + 2.0 * math.cos(7 * math.pi / 4),
+                                                       2.0 * math.sin(7 * math.pi / 4)]]))
+    assert scan_points(scan, max_beams=1).shape == (1, 2)
+
+
+@pytest.mark.parametrize("offset", [(0.3, -0.2, 0.25), (-0.35, 0.3, -0.4), (0.0, 0.0, 0.0)])
+def test_scan_to_map_recovers_pose(studio_map, living_room_drive, offset) -> None:  # type: ignore[no-untyped-def]
+    matcher = ScanToMapMatcher(LikelihoodField(studio_map))
+    rec = living_room_drive
+    for i in (5, 120, 200):
+        truth = as_array(rec.truth[i])
+        guess = truth + np.array(offset)
+        m = matcher.match(scan_points(rec.scans[i]), Pose2D(*guess), window_xy_m=0.5, window_yaw_rad=0.5)
+        assert math.hypot(m.pose.x_m - truth[0], m.pose.y_m - truth[1]) < 0.05
+        assert abs(m.pose.yaw_rad - truth[2]) < 0.03
+        assert m.agreement > 0.8
+
+
+def test_scan_to_map_bad_input(studio_map) -> None:  # type: ignore[no-untyped-def]
+    matcher = ScanToMapMatcher(LikelihoodField(studio_map))
+    with pytest.raises(ConfigError, match="finite"):
+        matcher.match(np.zeros((5, 2)), Pose2D(float("nan"), 0.0, 0.0))
+    empty = matcher.match(np.zeros((0, 2)), Pose2D(2.0, 2.0, 0.0))
+    assert empty.agreement == 0.0 and empty.pose == Pose2D(2.0, 2.0, 0.0)
