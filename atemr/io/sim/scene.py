@@ -62,8 +62,8 @@ class Scene:
         if label > np.iinfo(np.int16).max:
             raise ConfigError("too many objects in the scene")
         if check_inside and not item.contains(self._cell_x, self._cell_y).any():
-            where = f"world {self.world.source}" if self.world.source else f"world '{self.world.name}'"
-            raise ConfigError(f"furniture '{item.name}' covers no cell of the map", path=where)
+            raise ConfigError(f"furniture '{item.name}' covers no cell of the map", file=self.world.source,
+                              path="furniture")
         self._objects[label] = item
         self._next_label += 1
         return label
