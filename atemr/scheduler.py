@@ -94,6 +94,9 @@ class Scheduler:
     on_error: ErrorHandler | None = None
     on_overrun: Callable[[Overrun], None] | None = None
     trace: bool = False
+    #: False when the clock is simulated and not paced: an overrun then only means "this would not keep
+    #: up in real time", so it is counted and logged at DEBUG instead of warned about.
+    realtime: bool = True
     traced: list[tuple[float, str]] = field(default_factory=list)
     overruns: list[Overrun] = field(default_factory=list)
     max_overruns_kept: int = 1000
@@ -214,7 +217,8 @@ class Scheduler:
         self._overrun_counts[overrun.component] = self._overrun_counts.get(overrun.component, 0) + 1
         if len(self.overruns) < self.max_overruns_kept:
             self.overruns.append(overrun)
-        log.warning(
+        log.log(
+            logging.WARNING if self.realtime else logging.DEBUG,
             "overrun: %s took %.1f ms of a %.1f ms period, started %.1f ms late, skipped %d tick(s)",
             overrun.component, overrun.cost_s * 1e3, overrun.period_s * 1e3, overrun.late_s * 1e3,
             overrun.skipped,

@@ -143,9 +143,10 @@ def load_yaml(source: str | Path, *, text: str | None = None, max_bytes: int = M
     encoded_len = len(text.encode("utf-8"))
     if encoded_len > max_bytes:
         raise ConfigError(f"document is {encoded_len} bytes, more than the limit of {max_bytes}", file=name)
-    loader = _Loader(text)
-    loader.source = name
+    loader: _Loader | None = None
     try:
+        loader = _Loader(text)  # the reader checks characters here: a control character raises already
+        loader.source = name
         return loader.get_single_data()
     except ConfigError:
         raise
@@ -165,7 +166,8 @@ def load_yaml(source: str | Path, *, text: str | None = None, max_bytes: int = M
     except RecursionError:
         raise ConfigError("document is nested too deeply", file=name) from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 def mark_of(container: Any, key: Any = None) -> tuple[int | None, int | None]:

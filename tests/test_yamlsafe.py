@@ -64,3 +64,8 @@ def test_missing_file_and_non_utf8(tmp_path):
 def test_merge_keys_still_work():
     doc = load("base: &b {x: 1}\nchild:\n  <<: *b\n  y: 2\n")
     assert doc["child"] == {"x": 1, "y": 2}
+
+
+def test_control_characters_are_a_config_error():
+    with pytest.raises(ConfigError, match="special characters"):
+        load("a: b\x07c\n")
