@@ -1,0 +1,278 @@
+"""EKF odometry fusion (`odom` frame) and the map-frame EKF that fuses AMCL (filterpy).
+
+**OdometryEkf** — state ``[x, y, θ, v, ω]`` in the odometry frame (starts at the origin, drifts slowly,
+never jumps: what the motion controller and the local planner want). The prediction moves the pose on
+the exact arc of the current twist (`atemr.skills.diff_drive.arc_step`, the same kinematics as wheel
+odometry) and lets the twist wander as a random walk (``accel_std``, ``angular_accel_std``), plus a
+little pose noise for slip. Three sensors correct the twist, each with its own noise:
+
+* wheel odometry: ``[v, ω]`` from the wheels' speeds (`DiffDrive.measured`);
+* IMU: ``ω`` from the gyro (not fooled by a slipping wheel);
+* scan matcher: the ICP increment between consecutive scans, as ``[v, ω] = Δ/Δt`` with the ICP
+  covariance (Censi's estimate) scaled to a rate; a failed match is simply not used.
+
+Measurements of the twist, rather than of the pose, are what the ``differential`` mode of ROS
+robot_localization does with relative sensors: a sensor that restarts or a scan matcher that fails
+once cannot pull the pose, only stop contributing.
+
+**MapEkf** — state ``[x, y, θ]`` in the map frame. It predicts with the odometry increment since the last
+call (noise growing with distance and rotation, alpha model) and corrects with AMCL's pose and
+covariance, gating outliers by their Mahalanobis distance. Its output is the robot's map pose and the
+``map → odom`` correction (``map_pose ⊕ odom_pose⁻¹``) the rest of the robot composes with odometry.
+
+Bad input (NaN, a measurement older than the filter, a non-positive-definite covariance) is dropped
+and counted in ``rejected``: a glitching sensor must never turn the estimate into NaN.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import ExtendedKalmanFilter
+
+from atemr.errors import ConfigError, NavigationError
+from atemr.msgs import ImuSample, Pose2D, Twist
+from atemr.skills.diff_drive import arc_step, wrap_angle
+from atemr.skills.localization.amcl import PoseEstimate
+from atemr.skills.localization.geometry import FloatArray, as_array, as_pose, compose, inverse, is_finite_pose, relative
+
+
+def _check_positive(obj: object, names: tuple[str, ...], section: str) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not (math.isfinite(value) and value > 0):
+            raise ConfigError(f"must be a finite number > 0, got {value!r}", path=f"{section}.{name}")
+
+
+@dataclass(frozen=True)
+class OdometryEkfParams:
+    """Noise model of the odometry EKF (standard deviations; ``*_per_rtS`` are per √s)."""
+
+    accel_std_per_rts: float = 0.5
+    angular_accel_std_per_rts: float = 1.0
+    pose_std_per_rts: float = 0.005
+    yaw_std_per_rts: float = 0.002
+    wheel_v_std_mps: float = 0.02
+    wheel_w_std_radps: float = 0.05
+    gyro_std_radps: float = 0.01
+    #: Floor under the scan matcher's (optimistic) covariance, as a rate.
+    icp_v_std_min_mps: float = 0.02
+    icp_w_std_min_radps: float = 0.01
+
+    def __post_init__(self) -> None:
+        _check_positive(self, tuple(self.__dataclass_fields__), "localization.odometry")
+
+
+class OdometryEkf:
+    """Wheel odometry + IMU yaw rate + scan-matcher increments → pose and twist in ``odom``."""
+
+    def __init__(self, params: OdometryEkfParams | None = None, *, now: float = 0.0) -> None:
+        self.params = params or OdometryEkfParams()
+        self.kf = ExtendedKalmanFilter(dim_x=5, dim_z=2)
+        self.kf.x = np.zeros(5)
+        self.kf.P = np.diag([1e-9, 1e-9, 1e-9, 0.01, 0.01])
+        self.t = now
+        self.rejected = 0
+
+    # -- prediction ------------------------------------------------------------------------------
+    def predict_to(self, now: float) -> bool:
+        """Advance the state to ``now``; False (and nothing changes) if ``now`` is NaN or in the past."""
+        if not math.isfinite(now) or now < self.t:
+            self.rejected += 1
+            return False
+        dt = now - self.t
+        if dt == 0.0:
+            return True
+        x = self.kf.x
+        th, v, w = x[2], x[3], x[4]
+        mid = th + w * dt / 2.0
+        c, s = math.cos(mid), math.sin(mid)
+        f = np.eye(5)  # Jacobian of the midpoint form of the arc (exact to second order)
+        f[0, 2], f[0, 3], f[0, 4] = -v * dt * s, dt * c, -v * dt * dt / 2.0 * s
+        f[1, 2], f[1, 3], f[1, 4] = v * dt * c, dt * s, v * dt * dt / 2.0 * c
+        f[2, 4] = dt
+        p = self.params
+        self.kf.F = f
+        self.kf.Q = np.diag([p.pose_std_per_rts**2 * dt, p.pose_std_per_rts**2 * dt, p.yaw_std_per_rts**2 * dt,
+                             p.accel_std_per_rts**2 * dt, p.angular_accel_std_per_rts**2 * dt])
+        nx, ny, nth = arc_step(x[0], x[1], th, v, w, dt_s=dt)
+        self.kf.P = f @ self.kf.P @ f.T + self.kf.Q
+        self.kf.x = np.array([float(nx), float(ny), float(wrap_angle(float(nth))), v, w])
+        self.t = now
+        return True
+
+    # -- corrections -----------------------------------------------------------------------------
+    def _update(self, now: float, z: FloatArray, h: FloatArray, r: FloatArray) -> bool:
+        if not (np.all(np.isfinite(z)) and np.all(np.isfinite(r))):
+            self.rejected += 1
+            return False
+        if not self.predict_to(now):  # counts its own rejection
+            return False
+        self.kf.update(z, lambda _x: h, lambda x: h @ x, R=r)
+        return True
+
+    def update_wheels(self, now: float, twist: Twist) -> bool:
+        """Wheel odometry's twist (from `DiffDrive.measured`) measured at ``now``."""
+        p = self.params
+        h = np.zeros((2, 5))
+        h[0, 3] = h[1, 4] = 1.0
+        return self._update(now, np.array([twist.linear_mps, twist.angular_radps]), h,
+                            np.diag([p.wheel_v_std_mps**2, p.wheel_w_std_radps**2]))
+
+    def update_imu(self, sample: ImuSample) -> bool:
+        """The gyro's yaw rate."""
+        h = np.zeros((1, 5))
+        h[0, 4] = 1.0
+        return self._update(sample.t, np.array([sample.yaw_rate_radps]), h,
+                            np.array([[self.params.gyro_std_radps**2]]))
+
+    def update_scan_match(self, now: float, delta: Pose2D, dt_s: float, covariance: FloatArray | None = None) -> bool:
+        """A scan-matcher increment ``delta`` (later scan in the earlier scan's frame) over ``dt_s`` seconds."""
+        if not (is_finite_pose(delta) and math.isfinite(dt_s) and dt_s > 0):
+            self.rejected += 1
+            return False
+        p = self.params
+        var_v, var_w = p.icp_v_std_min_mps**2, p.icp_w_std_min_radps**2
+        if covariance is not None:
+            cov = np.asarray(covariance, dtype=np.float64)
+            if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+                self.rejected += 1
+                return False
+            var_v = max(var_v, float(cov[0, 0]) / dt_s**2)
+            var_w = max(var_w, float(cov[2, 2]) / dt_s**2)
+        h = np.zeros((2, 5))
+        h[0, 3] = h[1, 4] = 1.0
+        chord = math.hypot(delta.x_m, delta.y_m) * (1.0 if delta.x_m >= 0 else -1.0)
+        return self._update(now, np.array([chord / dt_s, delta.yaw_rad / dt_s]), h, np.diag([var_v, var_w]))
+
+    # -- output ----------------------------------------------------------------------------------
+    @property
+    def estimate(self) -> PoseEstimate:
+        """Pose in ``odom`` and its covariance at the filter's time."""
+        return PoseEstimate(self.t, as_pose(self.kf.x[:3]), np.array(self.kf.P[:3, :3]))
+
+    @property
+    def state(self) -> FloatArray:
+        """``[x, y, θ, v, ω]`` (a copy)."""
+        return np.array(self.kf.x)
+
+    @property
+    def covariance(self) -> FloatArray:
+        """The full 5×5 covariance (a copy)."""
+        return np.array(self.kf.P)
+
+    @property
+    def twist(self) -> Twist:
+        return Twist(float(self.kf.x[3]), float(self.kf.x[4]))
+
+
+@dataclass(frozen=True)
+class MapEkfParams:
+    """Odometry increment noise (alpha model) and the AMCL gate."""
+
+    trans_from_trans: float = 0.05
+    rot_from_rot: float = 0.05
+    rot_from_trans: float = 0.05
+    #: Floor under AMCL's covariance (a converged cloud is often narrower than the truth).
+    amcl_std_min_m: float = 0.03
+    amcl_yaw_std_min_rad: float = 0.02
+    #: Mahalanobis gate (χ², 3 dof; 16.27 is the 99.9 % quantile).
+    gate_chi2: float = 16.27
+
+    def __post_init__(self) -> None:
+        _check_positive(self, tuple(self.__dataclass_fields__), "localization.map_ekf")
+
+
+def _pose_residual(a: FloatArray, b: FloatArray) -> FloatArray:
+    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    d[2] = wrap_angle(d[2])
+    return d
+
+
+class MapEkf:
+    """The robot's pose in ``map``: odometry increments predict it, AMCL corrects it."""
+
+    def __init__(self, params: MapEkfParams | None = None) -> None:
+        self.params = params or MapEkfParams()
+        self.kf = ExtendedKalmanFilter(dim_x=3, dim_z=3)
+        self.kf.x = np.zeros(3)
+        self.kf.P = np.eye(3) * 1e6
+        self.t = 0.0
+        self.initialized = False
+        self.rejected = 0
+        self.gated = 0
+        self._odom: FloatArray | None = None
+
+    def reset(self, estimate: PoseEstimate, odom: Pose2D) -> None:
+        """Start (or restart, after relocalization) at ``estimate`` while odometry reads ``odom``."""
+        if not (is_finite_pose(estimate.pose) and is_finite_pose(odom)):
+            raise NavigationError(f"map EKF: reset needs finite poses, got {estimate.pose} and {odom}")
+        self.kf.x = as_array(estimate.pose)
+        self.kf.P = self._floored(estimate.covariance)
+        self._odom = as_array(odom)
+        self.t = estimate.t
+        self.initialized = True
+
+    def predict(self, now: float, odom: Pose2D) -> bool:
+        """Move by the odometry increment since the last call (odometry in ``odom`` at ``now``)."""
+        if not (self.initialized and math.isfinite(now) and is_finite_pose(odom)) or self._odom is None:
+            self.rejected += 1
+            return False
+        o = as_array(odom)
+        delta = relative(self._odom, o)
+        self._odom = o
+        self.t = max(self.t, now)
+        trans, rot = math.hypot(delta[0], delta[1]), abs(float(delta[2]))
+        p = self.params
+        sd_t = p.trans_from_trans * trans
+        sd_r = p.rot_from_rot * rot + p.rot_from_trans * trans
+        th = float(self.kf.x[2])
+        c, s = math.cos(th), math.sin(th)
+        f = np.array([[1.0, 0.0, -s * delta[0] - c * delta[1]], [0.0, 1.0, c * delta[0] - s * delta[1]], [0, 0, 1]])
+        g = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # increment (robot frame) → map
+        q = g @ np.diag([sd_t**2, sd_t**2 * 0.25, sd_r**2]) @ g.T
+        self.kf.P = f @ self.kf.P @ f.T + q
+        self.kf.x = compose(self.kf.x, delta)
+        return True
+
+    def _floored(self, cov: FloatArray) -> FloatArray:
+        p = self.params
+        c = 0.5 * (np.asarray(cov, dtype=np.float64) + np.asarray(cov, dtype=np.float64).T)
+        return c + np.diag([p.amcl_std_min_m**2, p.amcl_std_min_m**2, p.amcl_yaw_std_min_rad**2])
+
+    def update(self, estimate: PoseEstimate) -> bool:
+        """Correct with an AMCL estimate taken at the odometry of the last `predict`.
+
+        Returns False if it was rejected: not finite, or outside the Mahalanobis gate (counted in
+        ``gated``: many in a row mean AMCL and odometry disagree, which the covariance monitor reports).
+        """
+        z = as_array(estimate.pose)
+        cov = np.asarray(estimate.covariance, dtype=np.float64)
+        if not (self.initialized and np.all(np.isfinite(z)) and cov.shape == (3, 3) and np.all(np.isfinite(cov))):
+            self.rejected += 1
+            return False
+        r = self._floored(cov)
+        y = _pose_residual(z, self.kf.x)
+        s = self.kf.P + r
+        if float(y @ np.linalg.solve(s, y)) > self.params.gate_chi2:
+            self.gated += 1
+            return False
+        self.kf.update(z, lambda _x: np.eye(3), lambda x: np.asarray(x, dtype=np.float64), R=r,
+                       residual=_pose_residual)
+        self.kf.x[2] = wrap_angle(float(self.kf.x[2]))
+        return True
+
+    @property
+    def estimate(self) -> PoseEstimate:
+        return PoseEstimate(self.t, as_pose(self.kf.x), np.array(self.kf.P))
+
+    def map_to_odom(self) -> Pose2D:
+        """The correction ``map ⊕ odom⁻¹``: compose it with an odometry pose to get the map pose."""
+        if self._odom is None:
+            return Pose2D()
+        return as_pose(compose(self.kf.x, inverse(self._odom)))
+
+
+__all__ = ["MapEkf", "MapEkfParams", "OdometryEkf", "OdometryEkfParams"]
