@@ -1,0 +1,232 @@
+"""The navigation costmap: static layer + live obstacle layer + inflation (costmap_2d's layers, in numpy).
+
+Cell costs use ROS costmap_2d's scale so maps and intuition carry over:
+
+* ``LETHAL`` (254): an obstacle is in the cell;
+* ``INSCRIBED`` (253): the robot's centre here puts its footprint (radius + padding) on an obstacle;
+* 1..252: the inflation layer's cost, decaying exponentially with the distance beyond the inscribed radius,
+  ``252 · exp(-cost_scaling · (d − inscribed))`` up to ``inflation_radius_m`` — the planners pay it, so
+  paths keep away from walls where there is room, and still pass doorways where there is not;
+* ``NO_INFORMATION`` (255): unknown space, when ``unknown`` is ``"unknown"`` (the planners may refuse it).
+
+Layers. The static layer is the `OccupancyMap` (occupied cells lethal; unknown cells lethal, free or
+unknown as configured). The obstacle layer holds what the lidar sees that the map does not: each scan
+first *clears* the cells its beams pass through (ray tracing, all beams and samples at once) and then
+*marks* the cells its returns end in, so a person who walked away disappears and a new box appears.
+Inflation is a Euclidean distance transform (scipy.ndimage) to the nearest lethal cell of either layer;
+the static layer's transform is computed once, the obstacle layer's only over the bounding box of its
+marks, so a 10 Hz update stays cheap on big maps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from atemr.errors import NavigationError
+from atemr.io.sim.maps import OccupancyMap
+from atemr.msgs import LaserScan, Pose2D
+
+FREE_SPACE = 0
+MAX_NON_OBSTACLE = 252
+INSCRIBED = 253
+LETHAL = 254
+NO_INFORMATION = 255
+
+UnknownPolicy = Literal["lethal", "free", "unknown"]
+
+
+@dataclass(frozen=True)
+class CostmapParams:
+    """Geometry and layer settings (defaults: KAY's 0.25 m round footprint, the RPLIDAR's reach)."""
+
+    robot_radius_m: float = 0.25
+    #: Added to the radius for the inscribed zone: covers the grid's discretisation (up to a cell between a
+    #: cell-centre distance and the true distance to an obstacle's edge) and odometry noise.
+    footprint_padding_m: float = 0.05
+    inflation_radius_m: float = 0.8
+    cost_scaling: float = 6.0
+    unknown: UnknownPolicy = "lethal"
+    #: Returns farther than this do not mark (noise grows with range); beams clear up to their return.
+    obstacle_range_m: float = 4.0
+    raytrace_range_m: float = 6.0
+
+    def __post_init__(self) -> None:
+        for name in ("robot_radius_m", "inflation_radius_m", "cost_scaling", "obstacle_range_m", "raytrace_range_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise NavigationError(f"costmap: {name} must be a finite number > 0, got {value!r}")
+        if not (math.isfinite(self.footprint_padding_m) and self.footprint_padding_m >= 0):
+            raise NavigationError(f"costmap: footprint_padding_m must be >= 0, got {self.footprint_padding_m!r}")
+        if self.unknown not in ("lethal", "free", "unknown"):
+            raise NavigationError(f"costmap: unknown must be 'lethal', 'free' or 'unknown', got {self.unknown!r}")
+
+    @property
+    def inscribed_radius_m(self) -> float:
+        return self.robot_radius_m + self.footprint_padding_m
+
+
+def inflation_costs(distance_m: NDArray[np.floating], params: CostmapParams) -> NDArray[np.uint8]:
+    """Cost of each cell from its distance to the nearest lethal cell (costmap_2d's inflation rule)."""
+    d = np.asarray(distance_m, dtype=np.float64)
+    r_in = params.inscribed_radius_m + 1e-6  # distances come as float32 multiples of the resolution
+    with np.errstate(over="ignore"):
+        decay = MAX_NON_OBSTACLE * np.exp(-params.cost_scaling * (d - r_in))
+    cost = np.where(d <= params.inflation_radius_m, np.minimum(decay, MAX_NON_OBSTACLE), 0.0)
+    cost = np.where(d <= r_in, INSCRIBED, np.floor(cost))
+    cost = np.where(d <= 0.0, LETHAL, cost)
+    return cost.astype(np.uint8)
+
+
+class Costmap:
+    """The layered costmap over one `OccupancyMap` (same grid, frame and resolution).
+
+    ``cost`` (uint8, ROS scale) is what the planners read; ``distance_m`` (distance from each cell centre
+    to the nearest lethal cell centre) is what collision checks read. Both are recomputed lazily after
+    the obstacle layer changed.
+    """
+
+    def __init__(self, occupancy: OccupancyMap, params: CostmapParams | None = None) -> None:
+        self.map = occupancy
+        self.params = params or CostmapParams()
+        p = self.params
+        self.resolution_m = occupancy.resolution_m
+        self.shape = occupancy.data.shape
+        unknown = occupancy.unknown
+        lethal = occupancy.occupied.copy()
+        if p.unknown == "lethal":
+            lethal |= unknown
+        self.static_lethal: NDArray[np.bool_] = lethal
+        self.static_unknown: NDArray[np.bool_] = unknown & (p.unknown == "unknown")
+        self._static_distance = self._distance(lethal)
+        self.obstacles: NDArray[np.bool_] = np.zeros(self.shape, dtype=bool)
+        self.version = 0
+        self._cache_version = -1
+        self._cost: NDArray[np.uint8] = np.zeros(self.shape, dtype=np.uint8)
+        self._dist: NDArray[np.float32] = self._static_distance
+        self._inflate_cells = math.ceil(p.inflation_radius_m / self.resolution_m) + 1
+
+    # -- distances and costs -------------------------------------------------------------------------
+    def _distance(self, lethal: NDArray[np.bool_]) -> NDArray[np.float32]:
+        if not lethal.any():
+            return np.full(lethal.shape, np.inf, dtype=np.float32)
+        d = ndimage.distance_transform_edt(~lethal, sampling=self.resolution_m)
+        return np.asarray(d, dtype=np.float32)
+
+    def _refresh(self) -> None:
+        if self._cache_version == self.version:
+            return
+        dist = self._static_distance
+        if self.obstacles.any():
+            rows, cols = np.nonzero(self.obstacles)
+            m = self._inflate_cells
+            r0, r1 = max(int(rows.min()) - m, 0), min(int(rows.max()) + m + 1, self.shape[0])
+            c0, c1 = max(int(cols.min()) - m, 0), min(int(cols.max()) + m + 1, self.shape[1])
+            window = self._distance(self.obstacles[r0:r1, c0:c1])
+            dist = dist.copy()
+            np.minimum(dist[r0:r1, c0:c1], window, out=dist[r0:r1, c0:c1])
+        cost = inflation_costs(dist, self.params)
+        if self.static_unknown.any():
+            cost[self.static_unknown & (cost < INSCRIBED)] = NO_INFORMATION
+        self._dist = dist
+        self._cost = cost
+        self._cache_version = self.version
+
+    @property
+    def cost(self) -> NDArray[np.uint8]:
+        """Combined cost of every cell (static + obstacles, inflated)."""
+        self._refresh()
+        return self._cost
+
+    @property
+    def distance_m(self) -> NDArray[np.float32]:
+        """Distance from each cell centre to the nearest lethal cell centre, metres (inf: none)."""
+        self._refresh()
+        return self._dist
+
+    # -- lookups in world coordinates ------------------------------------------------------------------
+    def cells(self, x_m: NDArray[np.float64] | float, y_m: NDArray[np.float64] | float
+              ) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_]]:
+        """(row, col, inside) of world points; outside points get row/col clipped into the grid."""
+        row, col = self.map.world_to_cell(x_m, y_m)
+        inside = self.map.contains(row, col)
+        return np.clip(row, 0, self.shape[0] - 1), np.clip(col, 0, self.shape[1] - 1), inside
+
+    def cost_at(self, x_m: NDArray[np.float64] | float, y_m: NDArray[np.float64] | float) -> NDArray[np.uint8]:
+        """Cost at world points; ``LETHAL`` outside the grid (the robot must not leave the map)."""
+        row, col, inside = self.cells(x_m, y_m)
+        return np.where(inside, self.cost[row, col], LETHAL).astype(np.uint8)
+
+    def distance_at(self, x_m: NDArray[np.float64] | float, y_m: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        """Clearance (m) at world points; 0 outside the grid."""
+        row, col, inside = self.cells(x_m, y_m)
+        return np.where(inside, self.distance_m[row, col], 0.0).astype(np.float64)
+
+    # -- obstacle layer ------------------------------------------------------------------------------
+    def clear_obstacles(self) -> None:
+        """Forget everything the obstacle layer holds (the first recovery behaviour)."""
+        if self.obstacles.any():
+            self.obstacles[:] = False
+            self.version += 1
+
+    def update_from_scan(self, scan: LaserScan, pose: Pose2D) -> int:
+        """Clear along every valid beam, then mark each return's cell; returns how many cells are marked.
+
+        ``pose`` is the base's pose in the map frame when the scan was taken. Returns beyond the max
+        range (+inf, NaN, 0) neither mark nor clear: a dropped-out beam says nothing about what is there.
+        ``-inf`` (closer than the minimum range) marks at the minimum range.
+        """
+        if not all(math.isfinite(v) for v in (pose.x_m, pose.y_m, pose.yaw_rad)):
+            raise NavigationError(f"costmap: robot pose must be finite, got {pose}")
+        p = self.params
+        ranges = np.asarray(scan.ranges_m, dtype=np.float64)
+        too_close = np.isneginf(ranges)
+        r = np.where(too_close, scan.range_min_m, ranges)
+        valid = np.isfinite(r) & (r >= scan.range_min_m) & (r <= scan.range_max_m)
+        valid &= r > 0
+        if not valid.any():
+            return int(self.obstacles.sum())
+        r = r[valid]
+        mount = scan.sensor_pose
+        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+        sx = pose.x_m + c * mount.x_m - s * mount.y_m
+        sy = pose.y_m + s * mount.x_m + c * mount.y_m
+        ang = pose.yaw_rad + mount.yaw_rad + scan.angles_rad[valid]
+        ux, uy = np.cos(ang), np.sin(ang)
+        # Clearing: samples every half cell from the sensor to just before the return, all beams at once.
+        reach = np.minimum(r, p.raytrace_range_m) - self.resolution_m
+        step = self.resolution_m / 2
+        n = int(max(reach.max(), 0.0) / step) + 1
+        t = np.arange(n, dtype=np.float64) * step
+        along = t[None, :] <= reach[:, None]
+        cx = (sx + ux[:, None] * t[None, :])[along]
+        cy = (sy + uy[:, None] * t[None, :])[along]
+        row, col, inside = self.cells(cx, cy)
+        before = self.obstacles.copy() if self.obstacles.any() else None
+        self.obstacles[row[inside], col[inside]] = False
+        # Marking: the cells the returns end in, unless they are a mapped wall: a return within a cell and a
+        # half of a static obstacle is that obstacle seen with range noise, and marking it would narrow
+        # every doorway by a cell.
+        near = r <= p.obstacle_range_m
+        mx, my = sx + ux[near] * r[near], sy + uy[near] * r[near]
+        row, col, inside = self.cells(mx, my)
+        row, col = row[inside], col[inside]
+        new = self._static_distance[row, col] > 1.5 * self.resolution_m
+        self.obstacles[row[new], col[new]] = True
+        if before is None or not np.array_equal(before, self.obstacles):
+            self.version += 1
+        return int(self.obstacles.sum())
+
+    # -- views for the planners and the dashboard -------------------------------------------------------
+    def traversable(self, *, allow_unknown: bool = False) -> NDArray[np.bool_]:
+        """Cells the robot's centre may occupy: below ``INSCRIBED`` (and unknown ones if allowed)."""
+        cost = self.cost
+        ok = cost < INSCRIBED
+        if allow_unknown:
+            ok |= cost == NO_INFORMATION
+        return ok
