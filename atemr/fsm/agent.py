@@ -40,7 +40,7 @@ from atemr.trees.behaviours import Leaf
 from atemr.trees.builder import build, setup_tree
 from atemr.trees.context import AGENT_NS, AgentContext, Event
 from atemr.trees.missions import Mission
-from atemr.trees.ports import LinkPort, RobotPort
+from atemr.trees.ports import LinkPort, NavigationPort, RobotPort
 from atemr.trees.progress import TaskProgress
 
 log = logging.getLogger(__name__)
@@ -85,15 +85,18 @@ def jsonable(value: Any) -> Any:
 class Agent:
     """The agent as a scheduler component (``name``, ``start``, ``tick(now)``, ``shutdown``).
 
-    ``port`` and ``link`` are the robot and secondary-core ports (`atemr.trees.ports`); ``on_halt`` is
-    called once when the power-off sequence has finished (the robot then stops its scheduler).
+    ``port``, ``link`` and ``navigation`` are the robot, secondary-core and navigation ports
+    (`atemr.trees.ports`; without navigation, goals and missions that drive to a pose are refused with that
+    reason); ``on_halt`` is called once when the power-off sequence has finished (the robot then stops its
+    scheduler).
     """
 
     def __init__(self, spec: AgentSpec, port: RobotPort, link: LinkPort | None = None, *, name: str = "agent",
-                 history: int = 200, on_halt: Callable[[], None] | None = None) -> None:
+                 navigation: NavigationPort | None = None, history: int = 200,
+                 on_halt: Callable[[], None] | None = None) -> None:
         self.name = name
         self.spec = spec
-        self.context = AgentContext(port=port, link=link)
+        self.context = AgentContext(port=port, link=link, navigation=navigation)
         self.lifecycle = Lifecycle(spec, self.context)
         self.on_halt = on_halt
         self.results: deque[CommandResult] = deque(maxlen=history)

@@ -46,10 +46,10 @@ _MAP_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 # -- guards ----------------------------------------------------------------------------------------
 @guards.register("goal_valid")
 def goal_valid(g: GuardInput) -> str | None:
-    """The goal is a finite pose, navigation exists, the robot is localized, the goal is in free map space.
+    """The goal is a finite pose and navigation accepts it (localized, in the map, in free space).
 
-    Each check asks the port; a check the port cannot answer yet (None: no map, no localization in this
-    build) refuses the goal and says so, rather than guessing.
+    The checks that need the map are navigation's own (`NavigationPort.check_goal`), so the agent and the
+    navigator can never disagree; a robot without navigation refuses every goal and says so.
     """
     goal = g.kwargs.get("goal")
     if not isinstance(goal, Pose2D):
@@ -58,29 +58,16 @@ def goal_valid(g: GuardInput) -> str | None:
         return f"goal has a non-finite coordinate: x={goal.x_m}, y={goal.y_m}, yaw={goal.yaw_rad}"
     if GO_TO_POSE not in behaviours:
         return f"navigation is not available in this build (no '{GO_TO_POSE}' behaviour)"
-    port = g.context.port
-    localized = port.localized()
-    if localized is None:
-        return "cannot check the goal: localization is not available"
-    if not localized:
-        return "the robot is not localized: set the initial pose first"
-    where = f"({goal.x_m:.2f}, {goal.y_m:.2f})"
-    in_map = port.pose_in_map(goal)
-    if in_map is None:
-        return "cannot check the goal: no map is loaded"
-    if not in_map:
-        return f"goal {where} is outside the map"
-    free = port.pose_free(goal)
-    if free is None:
-        return "cannot check the goal: the map cannot tell free space"
-    if not free:
-        return f"goal {where} is not in free space"
-    return None
+    navigation = g.context.navigation
+    if navigation is None:
+        return "navigation is not available on this robot"
+    return navigation.check_goal(goal)
 
 
 @guards.register("mission_runnable")
 def mission_runnable(g: GuardInput) -> str | None:
-    """The event carries a validated mission whose every step has a registered behaviour."""
+    """The event carries a validated mission whose every step has a registered behaviour, and navigation
+    exists when a step drives to a pose."""
     from atemr.trees.missions import Mission
 
     mission = g.kwargs.get("mission")
@@ -89,6 +76,10 @@ def mission_runnable(g: GuardInput) -> str | None:
     missing = mission.missing_behaviours()
     if missing:
         return f"mission '{mission.name}' cannot run in this build: no behaviour {', '.join(missing)}"
+    drives = [s.index for s in mission.steps if GO_TO_POSE in s.behaviours]
+    if drives and g.context.navigation is None:
+        return (f"mission '{mission.name}' drives to poses (steps {', '.join(map(str, drives))}) and "
+                "navigation is not available on this robot")
     return None
 
 

@@ -14,7 +14,7 @@ from typing import Any
 import py_trees
 
 from atemr.errors import AtemrError, ConfigError
-from atemr.trees.ports import LinkPort, RobotPort
+from atemr.trees.ports import LinkPort, NavigationPort, RobotPort
 
 #: Blackboard namespaces. py_trees keeps storage at class level, so every key lives under one of these
 #: and `clear_blackboard` wipes them between agents and between tests.
@@ -44,6 +44,7 @@ class AgentContext:
 
     port: RobotPort
     link: LinkPort | None = None
+    navigation: NavigationPort | None = None
     now: float = 0.0
     state: str = ""
     mode: str = "MANUAL"

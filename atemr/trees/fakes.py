@@ -6,13 +6,14 @@ map would answer) and record every call the agent makes, so a test asserts on wh
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from atemr.errors import HardwareError, NavigationError
 from atemr.io.can import PowerState, PrimaryStatus
 from atemr.msgs import Pose2D, Twist
-from atemr.trees.ports import HARDWARE_COMPONENTS, ComponentHealth, Mode, VelocitySource
+from atemr.trees.ports import HARDWARE_COMPONENTS, ComponentHealth, Mode, NavProgress, NavState, VelocitySource
 
 
 def all_healthy() -> dict[str, ComponentHealth]:
@@ -32,8 +33,6 @@ class RecordingPort:
     current_pose: Pose2D | None = field(default_factory=Pose2D)
     joystick_command: tuple[Twist, float] | None = None
     is_localized: bool | None = None
-    in_map: bool | None = None
-    free: bool | None = None
     mapping_available: bool = False
     camera_ok: bool = True
     dt_s: float = 0.0
@@ -75,12 +74,6 @@ class RecordingPort:
     def localized(self) -> bool | None:
         return self.is_localized
 
-    def pose_in_map(self, pose: Pose2D) -> bool | None:
-        return self.in_map
-
-    def pose_free(self, pose: Pose2D) -> bool | None:
-        return self.free
-
     def begin_mapping(self) -> None:
         if not self.mapping_available:
             raise NavigationError("mapping is not available in this build")
@@ -117,3 +110,58 @@ class RecordingLink:
 
     def heartbeat_ok(self) -> bool:
         return self.heartbeat
+
+
+@dataclass
+class StraightLineNavigation:
+    """A `NavigationPort` that drives ``port``'s pose straight to the goal at ``speed_mps`` per second of
+    ``update`` time, then turns to the goal heading: no map, no obstacles, just the contract.
+
+    ``refuse`` makes `check_goal`/`start` refuse with that reason; ``fail_after_s`` makes a goal fail with
+    ``"stuck"`` after that long. Records every goal started and every cancel.
+    """
+
+    port: RecordingPort
+    speed_mps: float = 0.5
+    tolerance_m: float = 0.05
+    refuse: str | None = None
+    fail_after_s: float | None = None
+    goals: list[Pose2D] = field(default_factory=list)
+    cancels: list[float] = field(default_factory=list)
+    _goal: Pose2D | None = field(default=None, init=False)
+    _t: float = field(default=0.0, init=False)
+    _started: float = field(default=0.0, init=False)
+    _state: NavState = field(default="IDLE", init=False)
+
+    def check_goal(self, goal: Pose2D) -> str | None:
+        return self.refuse
+
+    def start(self, goal: Pose2D, now: float) -> None:
+        if self.refuse is not None:
+            raise NavigationError(self.refuse)
+        self.goals.append(goal)
+        self._goal, self._t, self._started, self._state = goal, now, now, "RUNNING"
+
+    def update(self, now: float) -> NavProgress:
+        if self._state != "RUNNING" or self._goal is None or self.port.current_pose is None:
+            return NavProgress(self._state)
+        if self.fail_after_s is not None and now - self._started >= self.fail_after_s:
+            self._state = "FAILED"
+            return NavProgress("FAILED", reason="stuck")
+        dt, self._t = now - self._t, now
+        p, g = self.port.current_pose, self._goal
+        dx, dy = g.x_m - p.x_m, g.y_m - p.y_m
+        left = math.hypot(dx, dy)
+        step = min(left, self.speed_mps * dt)
+        if left > self.tolerance_m:
+            x, y = p.x_m + dx / left * step, p.y_m + dy / left * step
+            self.port.current_pose = Pose2D(x, y, p.yaw_rad)
+            return NavProgress("RUNNING", Twist(self.speed_mps, 0.0), left - step, (left - step) / self.speed_mps)
+        self.port.current_pose = Pose2D(g.x_m, g.y_m, g.yaw_rad)
+        self._state = "SUCCEEDED"
+        return NavProgress("SUCCEEDED", distance_left_m=0.0)
+
+    def cancel(self, now: float) -> None:
+        self.cancels.append(now)
+        if self._state == "RUNNING":
+            self._state = "CANCELED"

@@ -45,20 +45,9 @@ from atemr.trees.leaves.media import CaptureImageParams
 from atemr.trees.leaves.motion import RotateParams
 from atemr.trees.leaves.timing import WaitParams
 from atemr.trees.nodes import RepeatOptions, RetryOptions, SequenceOptions, TimeoutOptions
+from atemr.trees.params import PoseParams
 from atemr.typed import Source
 from atemr.yamlsafe import load_yaml, mark_of
-
-
-@dataclass(frozen=True)
-class PoseParams:
-    """A goal pose in the map frame: the parameters of ``GoToPose`` (navigation) and of mission poses."""
-
-    x_m: float = field(default=0.0, metadata={"required": True, "min": -1e4, "max": 1e4})
-    y_m: float = field(default=0.0, metadata={"required": True, "min": -1e4, "max": 1e4})
-    yaw_rad: float = field(default=0.0, metadata={"min": -2 * math.pi, "max": 2 * math.pi})
-
-    def pose(self) -> Pose2D:
-        return Pose2D(self.x_m, self.y_m, self.yaw_rad)
 
 
 @dataclass(frozen=True)

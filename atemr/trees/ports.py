@@ -5,18 +5,20 @@ Leaves, guards and callbacks never import a driver, a skill or the CAN bus; they
 0x153 status out, 0x150 power byte, power-off requests and heartbeat health in). That keeps the agent
 testable with an in-test fake and lets the real parts land behind the ports without the agent changing.
 
-A method that cannot answer yet (no map, no localization in this build) returns ``None`` rather than
-guessing; the guard that asked turns that into a refusal with a reason the dashboard shows.
+A method that cannot answer yet (no localization in this build) returns ``None`` rather than guessing.
+Navigation is a third, optional port (`NavigationPort`): without it goals and missions that drive to a pose
+are refused with that reason; with it, its goal check is the one the agent uses.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
 from atemr.io.can import HardwareBits, PowerState, PrimaryStatus
-from atemr.msgs import Pose2D, Twist
+from atemr.msgs import ZERO_TWIST, Pose2D, Twist
 
 #: The twist-mux inputs the agent may command (DESIGN.md §4, `atemr.skills.twist_mux`): the operator's
 #: joystick (MANUAL) and navigation (AUTO: goals, missions, Rotate). The safety stop and the reactive engine
@@ -70,15 +72,8 @@ class RobotPort(Protocol):
         ...
 
     def localized(self) -> bool | None:
-        """True when localization is confident; None when this build cannot localize at all."""
-        ...
-
-    def pose_in_map(self, pose: Pose2D) -> bool | None:
-        """Whether ``pose`` lies inside the active map; None when no map is loaded."""
-        ...
-
-    def pose_free(self, pose: Pose2D) -> bool | None:
-        """Whether ``pose`` is in free space of the active map; None when no map is loaded."""
+        """True when localization is confident; None when this robot cannot localize at all (the 0x153
+        LOCALIZATION bit)."""
         ...
 
     def begin_mapping(self) -> None:
@@ -108,4 +103,44 @@ class LinkPort(Protocol):
 
     def heartbeat_ok(self) -> bool:
         """True while the 0x157 exchange is alive (a valid answer within the last 2 s)."""
+        ...
+
+
+NavState = Literal["IDLE", "RUNNING", "SUCCEEDED", "FAILED", "CANCELED"]
+
+
+@dataclass(frozen=True)
+class NavProgress:
+    """One navigation tick, as the `GoToPose` leaf needs it: the twist to command while RUNNING, feedback
+    for the operator, and why it failed."""
+
+    state: NavState
+    twist: Twist = ZERO_TWIST
+    distance_left_m: float = math.nan
+    eta_s: float = math.nan
+    reason: str = ""
+
+
+@runtime_checkable
+class NavigationPort(Protocol):
+    """Go-to-pose on the active map (over `atemr.skills.nav.navigator.Navigator` on the robot).
+
+    The port feeds the navigator the pose, scan and localization itself; the leaf commands the returned
+    twist on the mux's navigation input, so the agent's zero-in-terminate rule covers navigation too.
+    """
+
+    def check_goal(self, goal: Pose2D) -> str | None:
+        """None when ``goal`` would be accepted now (finite, localized, in the map, in free space), else why."""
+        ...
+
+    def start(self, goal: Pose2D, now: float) -> None:
+        """Begin driving to ``goal``; raises `NavigationError` with the reason when it is refused."""
+        ...
+
+    def update(self, now: float) -> NavProgress:
+        """One navigation tick at ``now``."""
+        ...
+
+    def cancel(self, now: float) -> None:
+        """Stop pursuing the goal (the next update is CANCELED)."""
         ...

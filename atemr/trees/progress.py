@@ -16,7 +16,8 @@ import py_trees
 
 from atemr.msgs import Pose2D
 from atemr.trees.leaves.motion import wrap_angle
-from atemr.trees.missions import Mission, PoseParams
+from atemr.trees.missions import Mission
+from atemr.trees.params import PoseParams
 
 Status = py_trees.common.Status
 

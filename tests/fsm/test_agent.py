@@ -18,7 +18,7 @@ from atemr.fsm.spec import AgentSpec
 from atemr.io.can import PowerState, StateCode
 from atemr.msgs import Pose2D, Twist
 from atemr.scheduler import Scheduler
-from atemr.trees.fakes import RecordingLink, RecordingPort
+from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
 from atemr.trees.missions import parse_mission
 from atemr.trees.ports import ComponentHealth
 from atemr.yamlsafe import load_yaml
@@ -29,10 +29,12 @@ AGENT_YAML = Path(__file__).resolve().parents[2] / "trees" / "agent.yaml"
 class Rig:
     """An agent on a scheduler at 10 Hz with a simulated clock."""
 
-    def __init__(self, spec: AgentSpec, port: RecordingPort, link: RecordingLink) -> None:
+    def __init__(self, spec: AgentSpec, port: RecordingPort, link: RecordingLink,
+                 navigation: StraightLineNavigation | None = None) -> None:
         self.clock = SimClock()
         self.halts = 0
-        self.agent = Agent(spec, port, link, on_halt=self._halted)
+        self.navigation = navigation
+        self.agent = Agent(spec, port, link, navigation=navigation, on_halt=self._halted)
         link.time_source = self.clock.now
         self.port, self.link = port, link
         self.scheduler = Scheduler(self.clock)
@@ -242,7 +244,8 @@ def test_a_mission_needing_navigation_is_refused_with_the_reason(rig: Rig) -> No
     rig.command("set_auto")
     text = "mission:\n  name: go\n  steps:\n    - go_to: {x_m: 1, y_m: 2}\n"
     result = rig.command("start_mission", mission=parse_mission(load_yaml("g.yaml", text=text), "g.yaml"))
-    assert not result.accepted and "no behaviour GoToPose" in result.reason  # type: ignore[attr-defined]
+    assert not result.accepted  # type: ignore[attr-defined]
+    assert "drives to poses (steps 0) and navigation is not available on this robot" in result.reason  # type: ignore
     assert rig.agent.state == "IDLE.AUTO"
 
 
@@ -407,3 +410,43 @@ def test_a_fault_during_exec_ends_the_task(rig: Rig) -> None:
     assert report["outcome"] == "fault" and report["steps"][0]["status"] == "interrupted"
     fault = next(r for r in rig.agent.trace if r.trigger == "fault")
     assert fault.source == "EXEC" and "left_motor: over-temperature" in fault.reason
+
+
+def test_a_goal_with_navigation_runs_in_exec(agent_spec: AgentSpec, link: RecordingLink) -> None:
+    port = RecordingPort(current_pose=Pose2D(2.6, 2.6, 0.0))
+    navigation = StraightLineNavigation(port, speed_mps=1.0)
+    rig = Rig(agent_spec, port, link, navigation)
+    idle(rig)
+    rig.command("set_auto")
+    navigation.refuse = "goal (9.00, 9.00, 0.00 rad) is outside the map"
+    refused = rig.command("goal", goal=Pose2D(9, 9, 0))
+    assert refused.dest == "ERROR" and "outside the map" in refused.reason  # type: ignore[attr-defined]
+    rig.run(0.3)
+    rig.command("set_auto")
+    navigation.refuse = None
+    assert rig.command("goal", goal=Pose2D(3.6, 2.6, 1.0)).dest == "EXEC"  # type: ignore[attr-defined]
+    rig.run(0.5)
+    feedback = rig.agent.snapshot()["task_progress"]["steps"][0]
+    assert feedback["status"] == "running" and 0.3 < feedback["distance_left_m"] < 0.8
+    rig.run(1.5)
+    assert rig.agent.state == "IDLE.AUTO" and port.current_pose == Pose2D(3.6, 2.6, 1.0)
+    report = rig.agent.task_reports[-1]
+    assert report["outcome"] == "reached" and report["steps"][0]["position_error_m"] == 0.0
+
+
+def test_kitchen_check_runs_with_navigation(agent_spec: AgentSpec, link: RecordingLink) -> None:
+    from atemr.trees.missions import load_mission
+
+    port = RecordingPort(current_pose=Pose2D(2.6, 2.6, 0.0), dt_s=0.1)
+    rig = Rig(agent_spec, port, link, StraightLineNavigation(port, speed_mps=1.0))
+    idle(rig)
+    rig.command("set_auto")
+    mission = load_mission(AGENT_YAML.parent / "missions" / "kitchen-check.yaml")
+    assert rig.command("start_mission", mission=mission).dest == "EXEC"  # type: ignore[attr-defined]
+    rig.run(30.0)
+    report = rig.agent.task_reports[-1]
+    assert report["outcome"] == "reached", report
+    assert [s["status"] for s in report["steps"]] == ["reached"] * 6
+    assert port.images == ["images/kitchen-0.jpg", "images/dining-1.jpg"]
+    home = report["steps"][-1]
+    assert home["kind"] == "return_home" and home["position_error_m"] == 0.0 and home["heading_error_rad"] == 0.0

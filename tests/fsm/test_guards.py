@@ -13,9 +13,9 @@ from atemr.fsm.guards import GuardInput, callbacks, guards
 from atemr.fsm.machine import Lifecycle
 from atemr.fsm.spec import AgentSpec
 from atemr.msgs import Pose2D
-from atemr.trees.behaviours import Leaf, behaviours
+from atemr.trees.behaviours import behaviours
 from atemr.trees.context import AgentContext
-from atemr.trees.fakes import RecordingLink, RecordingPort
+from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
 from atemr.trees.missions import parse_mission
 from atemr.trees.ports import ComponentHealth
 from atemr.yamlsafe import load_yaml
@@ -30,45 +30,39 @@ def test_every_registered_guard_and_callback_is_tested_here() -> None:
     assert set(callbacks) == TESTED_CALLBACKS
 
 
-def check(guard: str, port: RecordingPort | None = None, link: RecordingLink | None = None, /, **kwargs: object
-          ) -> str | None:
-    context = AgentContext(port=port or RecordingPort(), link=link or RecordingLink())
+def check(guard: str, port: RecordingPort | None = None, link: RecordingLink | None = None, /,
+          navigation: StraightLineNavigation | None = None, **kwargs: object) -> str | None:
+    context = AgentContext(port=port or RecordingPort(), link=link or RecordingLink(), navigation=navigation)
     return guards.get(guard)(GuardInput(context, kwargs))
 
 
-class FakeGoToPose(Leaf):
-    """Stands in for navigation's leaf so the later goal checks can be reached."""
-
-
-@pytest.fixture
-def navigation(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(behaviours._items, "GoToPose", FakeGoToPose)
-
-
 def test_goal_valid_without_navigation_says_so() -> None:
-    answer = check("goal_valid", goal=Pose2D(1, 1, 0))
+    assert check("goal_valid", goal=Pose2D(1, 1, 0)) == "navigation is not available on this robot"
+
+
+def test_goal_valid_without_the_go_to_pose_behaviour_says_so(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delitem(behaviours._items, "GoToPose")
+    port = RecordingPort()
+    answer = check("goal_valid", port, navigation=StraightLineNavigation(port), goal=Pose2D(1, 1, 0))
     assert answer == "navigation is not available in this build (no 'GoToPose' behaviour)"
 
 
-@pytest.mark.parametrize(("goal", "port", "reason"), [
-    ({"x": 1}, RecordingPort(), "a goal must be a Pose2D, got dict"),
-    (Pose2D(math.nan, 0, 0), RecordingPort(), "goal has a non-finite coordinate"),
-    (Pose2D(1, 1, math.inf), RecordingPort(), "goal has a non-finite coordinate"),
-    (Pose2D(1, 1, 0), RecordingPort(is_localized=None), "cannot check the goal: localization is not available"),
-    (Pose2D(1, 1, 0), RecordingPort(is_localized=False), "the robot is not localized"),
-    (Pose2D(1, 1, 0), RecordingPort(is_localized=True), "cannot check the goal: no map is loaded"),
-    (Pose2D(1, 1, 0), RecordingPort(is_localized=True, in_map=False), "goal (1.00, 1.00) is outside the map"),
-    (Pose2D(1, 1, 0), RecordingPort(is_localized=True, in_map=True), "the map cannot tell free space"),
-    (Pose2D(1, 1, 0), RecordingPort(is_localized=True, in_map=True, free=False), "is not in free space"),
+@pytest.mark.parametrize(("goal", "refuse", "reason"), [
+    ({"x": 1}, None, "a goal must be a Pose2D, got dict"),
+    (Pose2D(math.nan, 0, 0), None, "goal has a non-finite coordinate"),
+    (Pose2D(1, 1, math.inf), None, "goal has a non-finite coordinate"),
+    (Pose2D(1, 1, 0), "goal (1.00, 1.00, 0.00 rad) is outside the map", "is outside the map"),
+    (Pose2D(1, 1, 0), "the robot is not localized", "not localized"),
 ])
-def test_goal_valid_reasons(navigation: None, goal: object, port: RecordingPort, reason: str) -> None:
-    answer = check("goal_valid", port, goal=goal)
+def test_goal_valid_reasons(goal: object, refuse: str | None, reason: str) -> None:
+    port = RecordingPort()
+    answer = check("goal_valid", port, navigation=StraightLineNavigation(port, refuse=refuse), goal=goal)
     assert answer is not None and reason in answer
 
 
-def test_goal_valid_passes_when_every_check_does(navigation: None) -> None:
-    port = RecordingPort(is_localized=True, in_map=True, free=True)
-    assert check("goal_valid", port, goal=Pose2D(1, 1, 0)) is None
+def test_goal_valid_passes_when_navigation_accepts() -> None:
+    port = RecordingPort()
+    assert check("goal_valid", port, navigation=StraightLineNavigation(port), goal=Pose2D(1, 1, 0)) is None
 
 
 def test_level1_and_map_name_and_mission() -> None:
@@ -83,6 +77,12 @@ def test_level1_and_map_name_and_mission() -> None:
     wait = parse_mission(load_yaml("w", text="mission:\n  name: w\n  steps: [{wait: {duration_s: 1}}]\n"), "w")
     assert check("mission_runnable", mission=wait) is None
     assert "needs a validated Mission" in str(check("mission_runnable", mission="trees/missions/x.yaml"))
+    go = parse_mission(load_yaml("g", text="mission:\n  name: g\n  steps: [{wait: {duration_s: 1}}, "
+                                           "{go_to: {x_m: 1, y_m: 1}}]\n"), "g")
+    assert check("mission_runnable", mission=go) == \
+        "mission 'g' drives to poses (steps 1) and navigation is not available on this robot"
+    port = RecordingPort()
+    assert check("mission_runnable", port, navigation=StraightLineNavigation(port), mission=go) is None
 
 
 def test_callbacks_act_through_the_port() -> None:
@@ -104,7 +104,7 @@ def test_callbacks_act_through_the_port() -> None:
     run("stop_motors")
     assert port.stops == 1
     run("set_goal_task", goal=Pose2D(1, 2, 0))
-    assert context.task.name == "goal" and context.task.missing_behaviours() == ["GoToPose"]
+    assert context.task.name == "goal" and context.task.steps[0].behaviours == ("GoToPose",)
     run("clear_task")
     assert context.task is None
     run("record_error", goal=Pose2D(1, 2, 0))
@@ -122,8 +122,9 @@ def test_callbacks_act_through_the_port() -> None:
      "reached", "failed", "cancel", "save_map", "discard_map", "fault", "recover", "escalate", "shutdown",
      "restart", "restarted", "power_off", "bogus"]), st.booleans()), max_size=30))
 def test_random_triggers_never_break_the_machine(agent_spec: AgentSpec, steps: list[tuple[str, bool]]) -> None:
-    port = RecordingPort(mapping_available=True, is_localized=True, in_map=True, free=True)
-    machine = Lifecycle(agent_spec, AgentContext(port=port, link=RecordingLink()))
+    port = RecordingPort(mapping_available=True, is_localized=True)
+    machine = Lifecycle(agent_spec, AgentContext(port=port, link=RecordingLink(),
+                                                 navigation=StraightLineNavigation(port)))
     wait = parse_mission(load_yaml("w", text="mission:\n  name: w\n  steps: [{wait: {duration_s: 1}}]\n"), "w")
     for trigger, good in steps:
         before = machine.state

@@ -17,7 +17,7 @@ from atemr.io.can import PowerState, StateCode
 from atemr.msgs import Pose2D, Twist
 from atemr.trees.behaviours import Leaf, behaviours, parse_params
 from atemr.trees.context import AgentContext
-from atemr.trees.fakes import RecordingLink, RecordingPort
+from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
 from atemr.trees.leaves.checks import ClassifyError
 from atemr.trees.nodes import ClockTimeout
 from atemr.trees.ports import ComponentHealth
@@ -42,9 +42,10 @@ SAMPLES: dict[str, dict[str, Any]] = {
     "WatchPowerRequest": {},
     "WatchHeartbeat": {},
     "WatchHealth": {"components": ["left_motor"]},
+    "GoToPose": {"x_m": 1.0, "y_m": 0.5, "yaw_rad": 0.3},
 }
 #: Leaves that command a velocity, and on which mux input.
-DRIVING = {"DriveJoystick": "joystick", "Rotate": "navigation"}
+DRIVING = {"DriveJoystick": "joystick", "Rotate": "navigation", "GoToPose": "navigation"}
 
 
 class Bench:
@@ -54,7 +55,8 @@ class Bench:
                  state: str = "IDLE.MANUAL") -> None:
         self.port = port or RecordingPort(dt_s=0.1)
         self.link = link if link is not None else RecordingLink()
-        self.ctx = AgentContext(port=self.port, link=self.link, state=state)
+        self.navigation = StraightLineNavigation(self.port)
+        self.ctx = AgentContext(port=self.port, link=self.link, state=state, navigation=self.navigation)
         self.link.time_source = lambda: self.ctx.now
         self.leaf = leaf
         py_trees.trees.setup(leaf, context=self.ctx)
@@ -254,3 +256,36 @@ def test_clock_timeout_stops_its_child_on_the_agent_clock() -> None:
     assert bench.tick() == Status.FAILURE and child.status == Status.INVALID
     assert bench.port.commands[-1][1] == Twist()
     assert "timed out after 0.35 s" in timeout.feedback_message
+
+
+def test_go_to_pose_drives_through_navigation_to_the_goal() -> None:
+    bench = Bench(make("GoToPose", x_m=1.0, y_m=0.0, yaw_rad=0.5))
+    statuses = [bench.tick()]
+    while statuses[-1] == Status.RUNNING and len(statuses) < 50:
+        statuses.append(bench.tick())
+    assert statuses == [Status.RUNNING] * 21 + [Status.SUCCESS], "1 m at 0.5 m/s in 0.1 s ticks"
+    assert bench.navigation.goals == [Pose2D(1.0, 0.0, 0.5)] and bench.port.current_pose == Pose2D(1.0, 0.0, 0.5)
+    driving = [c for c in bench.port.commands if c[0] == "navigation"]
+    assert driving[0][1] == Twist(0.5, 0.0) and driving[-1][1] == Twist()
+    assert bench.navigation.cancels == [], "a finished goal is not cancelled"
+
+
+def test_go_to_pose_refused_failed_and_interrupted() -> None:
+    refused = Bench(make("GoToPose", x_m=9.0, y_m=9.0))
+    refused.navigation.refuse = "goal (9.00, 9.00, 0.00 rad) is outside the map"
+    assert refused.tick() == Status.FAILURE and refused.leaf.reason == \
+        "goal refused: goal (9.00, 9.00, 0.00 rad) is outside the map"
+    stuck = Bench(make("GoToPose", x_m=9.0, y_m=9.0))
+    stuck.navigation.fail_after_s = 0.3
+    assert [stuck.tick() for _ in range(4)][-1] == Status.FAILURE
+    assert stuck.leaf.reason == "navigation failed: stuck" and stuck.port.commands[-1][1] == Twist()
+    moving = Bench(make("GoToPose", x_m=9.0, y_m=9.0))
+    moving.tick(3)
+    moving.leaf.stop(Status.INVALID)
+    assert moving.navigation.cancels == [0.3] and moving.port.commands[-1][1] == Twist()
+    lonely = make("GoToPose", x_m=1.0, y_m=1.0)
+    ctx = AgentContext(port=RecordingPort())
+    py_trees.trees.setup(lonely, context=ctx)
+    for _ in lonely.tick():
+        pass
+    assert lonely.status == Status.FAILURE and lonely.reason == "navigation is not available on this robot"
