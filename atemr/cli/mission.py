@@ -1,8 +1,8 @@
 """``atemr mission validate FILE...``: check missions and say whether this build can run them.
 
 A mission is valid when its document is right (kinds, parameters, poses, timeouts). Whether it can run
-here is a separate answer: a step whose behaviour this build lacks (``go_to`` needs navigation's
-``GoToPose``) is reported with the behaviour it needs; ``--strict`` makes that an error (exit 1).
+here is a separate answer: a step whose behaviour this build lacks (a plugin kind, or ``GoToPose`` in a
+build without it) is reported with the behaviour it needs; ``--strict`` makes that an error (exit 1).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Drawing the agent: the lifecycle machine and each state's tree as ASCII, Mermaid, JSON, DOT, SVG or PNG.
 
 Everything is drawn from the validated specs (`AgentSpec`, `NodeSpec`), not from built py_trees objects,
-so a document naming behaviours this build lacks (a mission with ``GoToPose``) still draws. ASCII, Mermaid,
+so a document naming behaviours this build lacks (a plugin's leaf) still draws. ASCII, Mermaid,
 JSON and DOT are plain text and always work; SVG and PNG run Graphviz's ``dot`` program and fail with a
 clear message when it is not installed. One registry names the formats (``atemr.exporters`` entry points
 add more).

@@ -20,10 +20,11 @@ A mission file (``trees/missions/*.yaml``)::
         - return_home: {}
 
 Step kinds are a fixed grammar (a typo is an error with the closest kinds); each kind names the
-behaviour it compiles to. A kind whose behaviour is not registered in this build (``go_to``, ``visit``,
-``patrol`` and ``return_home`` need ``GoToPose``, which navigation provides) still validates, its
-parameters fully checked, and is reported as *not runnable here*: the file is right, the robot is not
-ready for it. The agent refuses to start such a mission with that reason.
+behaviour it compiles to (``go_to``, ``visit``, ``patrol`` and ``return_home`` → ``GoToPose``; ``wait`` →
+``Wait``; ``capture_image`` → ``CaptureImage``; ``rotate`` → ``Rotate``). A kind whose behaviour is not
+registered (a build without a leaf, a plugin removed) still validates, its parameters fully checked, and is
+reported as *not runnable here*: the file is right, the build is not ready for it. The agent refuses to
+start such a mission with that reason, and one that drives to poses on a robot without navigation.
 """
 
 from __future__ import annotations
