@@ -1,0 +1,210 @@
+"""Local planner: the dynamic window approach with trajectory rollout, all samples at once.
+
+Each tick: the velocities reachable within one control period from the current one (acceleration and
+speed limits) are sampled on a (v, ω) grid; every pair is rolled out as a constant-velocity arc over
+``sim_time_s`` at ``sim_step_s`` — one (pairs × steps) array, closed-form arcs, no loop — and each
+trajectory is checked against the costmap's clearance (any pose within the inscribed radius of an
+obstacle rules it out) and scored (lower is better):
+
+* ``path_weight`` × distance from its end to the global path (stay on the plan),
+* ``goal_weight`` × path length still to go from its end (progress),
+* ``obstacle_weight`` × the highest inflation cost it crosses / 252 (keep away from walls),
+* ``heading_weight`` × its final heading error to the carrot, a path point ``lookahead_m`` ahead / π.
+
+Speed also falls with the distance left (``v ≤ √(2·a·d)``), so the base can always stop at the goal.
+When the carrot is far to the side or behind, the base first turns on the spot (a round base may), as
+ROS's planners do, rather than sweeping a wide arc. The chosen twist goes to the motion pipeline's
+navigation input; the chosen trajectory goes to the dashboard.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from atemr.errors import NavigationError
+from atemr.msgs import Pose2D, Twist
+from atemr.skills.nav.costmap import MAX_NON_OBSTACLE, Costmap
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class LocalPlannerParams:
+    """Limits, sampling and weights. Limits sit below the speed ramp's (1.0 m/s², 3 rad/s²) so the ramp
+    does not distort what was planned; 0.5 m/s is a walking pace for a home."""
+
+    max_linear_mps: float = 0.5
+    max_angular_radps: float = 1.2
+    linear_accel_mps2: float = 0.8
+    angular_accel_radps2: float = 2.5
+    control_period_s: float = 0.1
+    sim_time_s: float = 1.6
+    sim_step_s: float = 0.1
+    linear_samples: int = 8
+    angular_samples: int = 21
+    path_weight: float = 1.2
+    goal_weight: float = 1.0
+    obstacle_weight: float = 0.4
+    heading_weight: float = 0.3
+    lookahead_m: float = 0.8
+    #: Turn on the spot first when the carrot is farther off the heading than this.
+    rotate_threshold_rad: float = 1.0
+    #: Reverse speed allowed only to back away from something inside the inscribed radius.
+    escape_reverse_mps: float = 0.15
+    #: Gain of the in-place rotation (rad/s per rad of error), before the rate and acceleration limits.
+    rotate_gain: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("max_linear_mps", "max_angular_radps", "linear_accel_mps2", "angular_accel_radps2",
+                     "control_period_s", "sim_time_s", "sim_step_s", "lookahead_m", "rotate_threshold_rad",
+                     "rotate_gain", "escape_reverse_mps"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise NavigationError(f"local planner: {name} must be a finite number > 0, got {value!r}")
+        if self.linear_samples < 2 or self.angular_samples < 3:
+            raise NavigationError("local planner: need at least 2 linear and 3 angular samples")
+
+
+@dataclass(frozen=True)
+class LocalPlan:
+    """The chosen command and its rolled-out trajectory ((K+1, 2) world points); ``ok`` False: every
+    trajectory was blocked and the command is a stop."""
+
+    twist: Twist
+    trajectory: FloatArray
+    ok: bool
+    candidates: int
+    valid: int
+
+
+def wrap(angle: FloatArray | float) -> FloatArray:
+    """Angles wrapped to (−π, π]."""
+    a = np.asarray(angle, dtype=np.float64)
+    return np.asarray(np.arctan2(np.sin(a), np.cos(a)), dtype=np.float64)
+
+
+def rollout(pose: Pose2D, v: FloatArray, w: FloatArray, times: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Poses (x, y, yaw), each (P, K), of constant-velocity arcs (v[p], w[p]) at ``times`` (exact arcs)."""
+    v = v[:, None]
+    w = w[:, None]
+    t = times[None, :]
+    th0 = pose.yaw_rad
+    th = th0 + w * t
+    straight = np.abs(w) < 1e-6
+    w_safe = np.where(straight, 1.0, w)
+    x_arc = pose.x_m + v / w_safe * (np.sin(th) - math.sin(th0))
+    y_arc = pose.y_m - v / w_safe * (np.cos(th) - math.cos(th0))
+    x_line = pose.x_m + v * t * math.cos(th0)
+    y_line = pose.y_m + v * t * math.sin(th0)
+    return np.where(straight, x_line, x_arc), np.where(straight, y_line, y_arc), th
+
+
+def path_progress(path: FloatArray, x: float, y: float) -> tuple[int, FloatArray]:
+    """Index of the path point nearest (x, y) and the cumulative arc length of the path."""
+    seg = np.hypot(*np.diff(path, axis=0).T) if len(path) > 1 else np.zeros(0)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    i = int(np.argmin(np.hypot(path[:, 0] - x, path[:, 1] - y)))
+    return i, s
+
+
+class LocalPlanner:
+    """Chooses the twist to command from the pose, the current velocity, the global path and the costmap."""
+
+    def __init__(self, costmap: Costmap, params: LocalPlannerParams | None = None) -> None:
+        self.costmap = costmap
+        self.params = params or LocalPlannerParams()
+        p = self.params
+        k = max(round(p.sim_time_s / p.sim_step_s), 1)
+        self.times = np.arange(1, k + 1, dtype=np.float64) * p.sim_step_s
+
+    def window(self, velocity: Twist, dt_s: float, v_cap: float, *, reverse: bool = False
+               ) -> tuple[FloatArray, FloatArray]:
+        """The sampled (v, ω) pairs (flattened grid) reachable within ``dt_s`` from ``velocity``; forward
+        only, unless ``reverse`` (something is inside the inscribed radius: backing away may be the way out)."""
+        p = self.params
+        v_min = -p.escape_reverse_mps if reverse else 0.0
+        v_hi = min(v_cap, velocity.linear_mps + p.linear_accel_mps2 * dt_s)
+        v_lo = max(v_min, velocity.linear_mps - p.linear_accel_mps2 * dt_s)
+        v_lo = min(v_lo, v_hi)
+        w_hi = min(p.max_angular_radps, velocity.angular_radps + p.angular_accel_radps2 * dt_s)
+        w_lo = max(-p.max_angular_radps, velocity.angular_radps - p.angular_accel_radps2 * dt_s)
+        vs = np.linspace(v_lo, v_hi, p.linear_samples)
+        ws = np.linspace(w_lo, w_hi, p.angular_samples)
+        if w_lo < 0.0 < w_hi:
+            ws = np.append(ws, 0.0)
+        vv, ww = np.meshgrid(vs, ws, indexing="ij")
+        return vv.reshape(-1), ww.reshape(-1)
+
+    def rotate(self, yaw_error_rad: float, velocity: Twist, dt_s: float) -> Twist:
+        """Turn on the spot towards a heading: proportional, within the rate and acceleration limits, slowing
+        so it can stop at the target (ω ≤ √(2·α·|error|)); the linear speed brakes to zero."""
+        p = self.params
+        target = p.rotate_gain * yaw_error_rad
+        cap = min(p.max_angular_radps, math.sqrt(2 * p.angular_accel_radps2 * abs(yaw_error_rad)))
+        target = max(-cap, min(cap, target))
+        dw = p.angular_accel_radps2 * dt_s
+        w = max(velocity.angular_radps - dw, min(velocity.angular_radps + dw, target))
+        dv = p.linear_accel_mps2 * dt_s
+        v = max(0.0, velocity.linear_mps - dv) if velocity.linear_mps > 0 else min(0.0, velocity.linear_mps + dv)
+        return Twist(v, w)
+
+    def compute(self, pose: Pose2D, velocity: Twist, path: FloatArray, goal_xy: tuple[float, float],
+                dt_s: float | None = None) -> LocalPlan:
+        """The twist that best follows ``path`` (world points, start to goal) from ``pose``."""
+        p = self.params
+        if len(path) == 0:
+            raise NavigationError("local planner: empty path")
+        dt = p.control_period_s if dt_s is None else min(max(dt_s, 1e-3), 1.0)
+        cm = self.costmap
+        r_in = cm.params.inscribed_radius_m
+        here = np.array([pose.x_m, pose.y_m])
+        i_near, s = path_progress(path, pose.x_m, pose.y_m)
+        total = float(s[-1])
+        d_goal = math.hypot(goal_xy[0] - pose.x_m, goal_xy[1] - pose.y_m)
+        # Carrot: lookahead along the path from the nearest point (the goal at the end).
+        i_carrot = int(np.searchsorted(s, s[i_near] + p.lookahead_m))
+        carrot = path[min(i_carrot, len(path) - 1)]
+        heading_err = float(wrap(math.atan2(carrot[1] - pose.y_m, carrot[0] - pose.x_m) - pose.yaw_rad))
+        clearance_here = float(cm.distance_at(pose.x_m, pose.y_m))
+        if abs(heading_err) > p.rotate_threshold_rad and np.hypot(*(carrot - here)) > 1e-3:
+            twist = self.rotate(heading_err, velocity, dt)
+            traj = np.repeat(here[None, :], 2, axis=0)
+            return LocalPlan(twist, traj, True, 1, 1)
+
+        # Slow down for the goal: able to stop there (√(2·a·d)), and creeping over the last decimetres.
+        v_cap = min(p.max_linear_mps, math.sqrt(2 * p.linear_accel_mps2 * d_goal), max(0.08, 1.2 * d_goal))
+        escaping = clearance_here < r_in
+        vs, ws = self.window(velocity, dt, v_cap, reverse=escaping)
+        xs, ys, th = rollout(pose, vs, ws, self.times)
+        clear = cm.distance_at(xs, ys)
+        # Valid: never inside the inscribed radius; from inside it (pushed against something, or something
+        # came close), never closer than now and ending farther away: the way out, never a creep inwards.
+        valid = clear.min(axis=1) >= min(r_in, clearance_here)
+        if clearance_here < r_in:
+            valid &= clear[:, -1] > clearance_here
+        obstacle = np.minimum(cm.cost_at(xs, ys).max(axis=1), MAX_NON_OBSTACLE) / MAX_NON_OBSTACLE
+        # Path terms against the part of the path ahead (a window of a few metres).
+        j1 = int(np.searchsorted(s, s[i_near] + p.lookahead_m + p.max_linear_mps * p.sim_time_s + 0.5))
+        local = path[i_near:min(j1, len(path) - 1) + 1]
+        s_local = s[i_near:i_near + len(local)]
+        ex, ey = xs[:, -1], ys[:, -1]
+        d = np.hypot(ex[:, None] - local[None, :, 0], ey[:, None] - local[None, :, 1])
+        j = np.argmin(d, axis=1)
+        path_dist = d[np.arange(len(j)), j]
+        to_go = (total - s_local[j]) + path_dist
+        heading = np.abs(wrap(np.arctan2(carrot[1] - ey, carrot[0] - ex) - th[:, -1])) / math.pi
+        near_end = np.hypot(carrot[0] - ex, carrot[1] - ey) < 0.05
+        heading = np.where(near_end, 0.0, heading)
+        score = (p.path_weight * path_dist + p.goal_weight * to_go + p.obstacle_weight * obstacle
+                 + p.heading_weight * heading)
+        score = np.where(valid, score, np.inf)
+        n_valid = int(valid.sum())
+        if n_valid == 0:
+            return LocalPlan(Twist(0.0, 0.0), np.repeat(here[None, :], 2, axis=0), False, len(vs), 0)
+        best = int(np.argmin(score))
+        traj = np.vstack([here, np.column_stack([xs[best], ys[best]])])
+        return LocalPlan(Twist(float(vs[best]), float(ws[best])), traj, True, len(vs), n_valid)

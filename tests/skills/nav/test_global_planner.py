@@ -1,0 +1,154 @@
+import heapq
+import math
+
+import numpy as np
+import pytest
+
+from atemr.errors import NavigationError
+from atemr.skills.nav.costmap import INSCRIBED, Costmap, CostmapParams
+from atemr.skills.nav.global_planner import GlobalPlanner, PlannerParams, resample
+
+RES = 0.05
+
+
+def reference_cost(cost, start, goal, factor, neutral=1.0):
+    """Plain heapq Dijkstra with the planner's edge rule (entering cell c costs len * (1 + f c/252), no
+    corner cutting): the known answer to compare with."""
+    rows, cols = cost.shape
+    ok = cost < INSCRIBED
+    dist = {start: 0.0}
+    heap = [(0.0, start)]
+    while heap:
+        d, (r, c) = heapq.heappop(heap)
+        if (r, c) == goal:
+            return d
+        if d > dist[(r, c)]:
+            continue
+        for dr in (-1, 0, 1):
+            for dc in (-1, 0, 1):
+                nr, nc = r + dr, c + dc
+                if (dr, dc) == (0, 0) or not (0 <= nr < rows and 0 <= nc < cols) or not ok[nr, nc]:
+                    continue
+                if dr and dc and not (ok[r + dr, c] and ok[r, c + dc]):
+                    continue
+                nd = d + math.hypot(dr, dc) * RES * (neutral + factor * min(int(cost[nr, nc]), 252) / 252)
+                if nd < dist.get((nr, nc), math.inf):
+                    dist[(nr, nc)] = nd
+                    heapq.heappush(heap, (nd, (nr, nc)))
+    return math.inf
+
+
+def centre(cm, row, col):
+    x, y = cm.map.cell_to_world(row, col)
+    return float(x), float(y)
+
+
+@pytest.mark.parametrize("algorithm", ["astar", "dijkstra"])
+def test_empty_grid_shortest_path_is_the_octile_distance(make_map, algorithm):
+    cm = Costmap(make_map(np.zeros((30, 40), dtype=np.int8), RES))
+    planner = GlobalPlanner(cm, PlannerParams(algorithm=algorithm, smooth=False))
+    path = planner.plan(centre(cm, 2, 3), centre(cm, 12, 28))
+    assert path is not None
+    # 10 diagonal steps + 15 straight ones.
+    assert path.cost == pytest.approx((10 * math.sqrt(2) + 15) * RES, rel=1e-9)
+    assert path.length_m == pytest.approx(path.cost, rel=1e-9)
+    assert len(path.cells) == 26
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_astar_and_dijkstra_agree_with_a_reference_search(make_map, seed):
+    rng = np.random.default_rng(seed)
+    data = np.zeros((50, 60), dtype=np.int8)
+    for _ in range(12):
+        r, c = rng.integers(0, 45), rng.integers(0, 55)
+        data[r:r + rng.integers(1, 6), c:c + rng.integers(1, 6)] = 100
+    cm = Costmap(make_map(data, RES), CostmapParams(robot_radius_m=0.05, footprint_padding_m=0.0,
+                                                     inflation_radius_m=0.3))
+    free = np.argwhere(cm.cost < INSCRIBED)
+    s, g = free[rng.integers(len(free))], free[rng.integers(len(free))]
+    want = reference_cost(cm.cost, tuple(s), tuple(g), factor=3.0)
+    for algorithm in ("astar", "dijkstra"):
+        path = GlobalPlanner(cm, PlannerParams(algorithm=algorithm, smooth=False)).plan(centre(cm, *s), centre(cm, *g))
+        if math.isinf(want):
+            assert path is None
+        else:
+            assert path is not None
+            assert path.cost == pytest.approx(want, rel=1e-9)
+
+
+def test_astar_expands_fewer_cells_than_dijkstra_in_the_open(make_map):
+    cm = Costmap(make_map(np.zeros((200, 200), dtype=np.int8), RES))
+    a = GlobalPlanner(cm, PlannerParams(algorithm="astar", smooth=False)).plan(centre(cm, 100, 10), centre(cm, 100, 60))
+    d = GlobalPlanner(cm, PlannerParams(algorithm="dijkstra", smooth=False)).plan(centre(cm, 100, 10),
+                                                                                   centre(cm, 100, 60))
+    assert a is not None and d is not None
+    assert a.cost == pytest.approx(d.cost)
+    assert a.expanded < d.expanded / 3
+
+
+def corridor(make_map, blocked):
+    """Two rooms joined by a 0.9 m corridor; ``blocked`` closes it with a wall."""
+    data = np.full((60, 120), 100, dtype=np.int8)
+    data[1:-1, 1:45] = 0
+    data[1:-1, 75:-1] = 0
+    data[21:39, 45:75] = 0  # corridor 18 cells = 0.9 m
+    if blocked:
+        data[21:39, 60] = 100
+    return Costmap(make_map(data, RES))
+
+
+def test_path_goes_through_the_corridor(make_map):
+    cm = corridor(make_map, blocked=False)
+    path = GlobalPlanner(cm).plan((0.5, 1.5), (5.5, 1.5))
+    assert path is not None
+    on_corridor = (path.points[:, 0] > 2.3) & (path.points[:, 0] < 3.7)
+    assert on_corridor.any()
+    assert (np.abs(path.points[on_corridor, 1] - 1.5) < 0.1).all()  # the corridor's middle (cheapest)
+
+
+def test_blocked_corridor_has_no_path(make_map):
+    cm = corridor(make_map, blocked=True)
+    for algorithm in ("astar", "dijkstra"):
+        assert GlobalPlanner(cm, PlannerParams(algorithm=algorithm)).plan((0.5, 1.5), (5.5, 1.5)) is None
+
+
+def test_goal_in_an_obstacle_or_inscribed_zone_has_no_path(make_map, make_room):
+    data = make_room(40, 40)
+    data[20, 20] = 100
+    cm = Costmap(make_map(data, RES))
+    planner = GlobalPlanner(cm)
+    assert planner.plan((0.5, 0.5), centre(cm, 20, 20)) is None
+    assert planner.plan((0.5, 0.5), centre(cm, 20, 23)) is None
+
+
+def test_bad_coordinates_are_navigation_errors(make_map, make_room):
+    planner = GlobalPlanner(Costmap(make_map(make_room(), RES)))
+    with pytest.raises(NavigationError, match="finite"):
+        planner.plan((float("nan"), 1.0), (1.0, 1.0))
+    with pytest.raises(NavigationError, match="outside the map"):
+        planner.plan((1.0, 1.0), (50.0, 1.0))
+
+
+def test_start_pressed_against_a_wall_can_still_plan_out(make_map, make_room):
+    cm = Costmap(make_map(make_room(60, 80), RES))
+    start = (0.2, 1.5)  # 0.15 m from the wall's cell centre: inside the inscribed zone
+    assert cm.cost_at(*start) == INSCRIBED
+    path = GlobalPlanner(cm).plan(start, (3.0, 1.5))
+    assert path is not None
+
+
+def test_smoothed_path_is_shorter_and_never_enters_the_inscribed_zone(make_map):
+    rng = np.random.default_rng(3)
+    data = np.zeros((120, 160), dtype=np.int8)
+    data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
+    for _ in range(25):
+        r, c = rng.integers(5, 110), rng.integers(5, 150)
+        data[r:r + 6, c:c + 6] = 100
+    cm = Costmap(make_map(data, RES))
+    raw = GlobalPlanner(cm, PlannerParams(smooth=False)).plan((0.5, 0.5), (7.5, 5.5))
+    smooth = GlobalPlanner(cm).plan((0.5, 0.5), (7.5, 5.5))
+    assert raw is not None and smooth is not None
+    assert smooth.length_m < raw.length_m
+    dense = resample(smooth.points, 0.01)
+    assert (cm.cost_at(dense[:, 0], dense[:, 1]) < INSCRIBED).all()
+    assert np.allclose(smooth.points[0], (0.5, 0.5)) and np.allclose(smooth.points[-1], (7.5, 5.5))
