@@ -130,17 +130,21 @@ class Scheduler:
 
     # -- lifecycle -----------------------------------------------------------------------------
     def start(self) -> None:
-        """Call ``start()`` on every component that has one, in order; on failure undo what started."""
+        """Call ``start()`` on every component that has one, in order; on failure undo what started.
+
+        Every component, with or without ``start``, is then shut down by `shutdown` (if it has one).
+        """
         for entry in self._entries:
-            start = getattr(entry.component, "start", None)
-            if start is None or entry.component in self._started:
+            if entry.component in self._started:
                 continue
+            start = getattr(entry.component, "start", None)
             try:
-                start()
+                if start is not None:
+                    start()
             except BaseException:
                 self.shutdown()
                 raise
-            self._started.append(entry.component)
+            self._started.append(entry.component)  # shut down later even if it had no start()
             log.debug("started %s", entry.component.name)
 
     def shutdown(self) -> None:

@@ -1,0 +1,181 @@
+"""`build_robot`: the one place where the robot is wired from its configuration.
+
+Order matters only for parts due at the same instant (the scheduler runs ties in the order parts were
+added): the simulated world moves first, then the emulated hardware answers, then the primary side
+reads its inputs, decides (motion control) and sends (motor driver), then the agent looks at the result.
+
+In simulation every participant on the CAN bus (the primary's motor driver and link, each motor
+emulator, the secondary core) has its own python-can Bus on the robot's virtual channel, exactly as the
+separate devices share one wire on the robot. On the real robot (``simulation: false``) only the
+primary's parts are built, on socketcan.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+
+from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
+from atemr.config import Config
+from atemr.errors import AtemrError, HardwareError
+from atemr.io.can.bus import open_bus
+from atemr.io.motors.driver import RmdDriver
+from atemr.io.secondary_link import build_secondary_link
+from atemr.io.system_monitor import SystemMonitor
+from atemr.msgs import WheelSpeeds
+from atemr.robot.core import Robot
+from atemr.robot.health import FRESH_S, HealthBoard, fresh
+from atemr.robot.inputs import MotionInputs
+from atemr.robot.odometry import WheelOdometry
+from atemr.robot.settings_store import SettingsStore
+from atemr.scheduler import Component, Scheduler
+from atemr.skills.motion_pipeline import ControlInputs, MotionControl, MotionPipeline
+from atemr.skills.ramp import checked_limits
+from atemr.trees.ports import ComponentHealth
+
+log = logging.getLogger(__name__)
+
+#: Tick rates of the primary's periodic work, in Hz (the simulator's own rates are in ``sim.*``).
+RATES = {
+    "motor_emulator": 100.0,
+    "secondary_link": 50.0,
+    "motion": 50.0,
+    "odometry": 50.0,
+    "agent": 10.0,
+    "system_monitor": 1.0,
+}
+
+
+def make_clock(config: Config, *, realtime: bool) -> Clock:
+    """The clock for this run: wall clock on the robot; simulated, paced or not, in simulation."""
+    if not config.simulation:
+        return WallClock()
+    return RealTimeSimClock(speed=config.sim.speed) if realtime else SimClock()
+
+
+def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = None) -> Robot:
+    """Assemble the robot described by ``config``.
+
+    ``realtime`` paces a simulation against the wall clock (``./run``); without it the simulation runs
+    as fast as the CPU allows (``atemr sim --headless``, tests). ``clock`` overrides both.
+    """
+    clock = clock or make_clock(config, realtime=realtime)
+    scheduler = Scheduler(clock, realtime=realtime or not config.simulation)
+    robot = Robot(config, clock, scheduler)
+    scheduler.on_error = lambda component, exc: _on_component_error(robot, component, exc)
+    settings = SettingsStore(config.data_dir)
+    robot.extras["settings"] = settings
+    inputs = MotionInputs()
+    robot.extras["inputs"] = inputs
+    health = HealthBoard(clock.now)
+    robot.extras["health"] = health
+
+    if config.simulation:
+        _add_simulation(robot, health)
+    _add_primary(robot, inputs, health, settings)
+    robot.add(SystemMonitor(config.data_dir), RATES["system_monitor"])
+    return robot
+
+
+def _add_simulation(robot: Robot, health: HealthBoard) -> None:
+    """The simulated world, the two motor emulators and the emulated secondary core."""
+    from atemr.io.motors.emulator import RmdMotorEmulator
+    from atemr.io.sim.base import MountedWheel
+    from atemr.io.sim.simulation import build_simulation, params_from_config
+    from secondary_core.wiring import emulated_secondary
+
+    cfg = robot.config
+    left = RmdMotorEmulator(open_bus(cfg.can), cfg.motors.left_id, name="left_motor_emulator", steps_model=False)
+    right = RmdMotorEmulator(open_bus(cfg.can), cfg.motors.right_id, name="right_motor_emulator", steps_model=False)
+    wheels = (MountedWheel(left.model, cfg.motors.left_direction), MountedWheel(right.model, cfg.motors.right_direction))
+    sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params_from_config(cfg.sim), wheels=wheels)
+    robot.extras["sim"] = sim
+    for component, rate in sim.components():
+        robot.add(component, rate)
+    robot.add(left, RATES["motor_emulator"])
+    robot.add(right, RATES["motor_emulator"])
+    for component, rate in emulated_secondary(cfg, open_bus(cfg.can), lambda: sim.cliff_source.latest):
+        robot.add(component, rate)
+
+    def latest_t(source: object) -> float | None:
+        reading = getattr(source, "latest", None)
+        return getattr(reading, "t", None) if reading is not None else None
+
+    health.add("lidar", lambda now: fresh(latest_t(sim.lidar_source), now, FRESH_S["lidar"], "scan"))
+    health.add("imu", lambda now: fresh(latest_t(sim.imu_source), now, FRESH_S["imu"], "IMU sample"))
+    if sim.params.camera_hz > 0:
+        health.add("camera", lambda now: ComponentHealth(sim.camera_source.latest is not None, "no frame yet"))
+
+
+def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settings: SettingsStore) -> None:
+    """The primary core: secondary-core link, motion control, motor driver, odometry."""
+    cfg = robot.config
+    sim = robot.extras.get("sim")
+
+    def on_heartbeat(ok: bool) -> None:
+        # DESIGN §10: both cores stop the motors when the heartbeat fails for 2 s.
+        inputs.set_safety_stop("heartbeat lost", not ok)
+        robot.event("heartbeat", "0x157 heartbeat " + ("restored" if ok else "lost: motors stopped"))
+
+    link = build_secondary_link(cfg, open_bus(cfg.can), on_heartbeat=on_heartbeat)
+    robot.add(link, RATES["secondary_link"])
+
+    def on_fault(fault: HardwareError) -> None:
+        robot.event("motor fault", str(fault))
+
+    driver = RmdDriver.from_config(open_bus(cfg.can), cfg.motors, on_fault=on_fault)
+    stored = settings.load()
+    limits = cfg.motion
+    if isinstance(stored.get("motion"), dict):
+        try:
+            limits = checked_limits(stored["motion"], cfg.motion)
+        except AtemrError as exc:
+            log.error("ignoring stored speed limits: %s", exc)
+    inputs.awareness = bool(stored.get("reactive", {}).get("awareness", False))
+    pipeline = MotionPipeline(limits)
+    robot.extras["pipeline"] = pipeline
+
+    def read(now: float) -> ControlInputs:
+        scan = sim.lidar_source.latest if sim is not None else None
+        return inputs.control_inputs(now, scan, link.latest_cliff())
+
+    def command(wheels: WheelSpeeds) -> None:
+        # A latched motor fault already stops both motors (the driver keeps sending the stop); the
+        # pipeline's command is dropped until the agent's recovery resets the fault.
+        if driver.fault is None:
+            driver.set_speeds(wheels, robot.clock.now())
+
+    control = MotionControl(pipeline, read, command)
+    robot.add(control, RATES["motion"])
+    robot.add(driver, cfg.motors.rate_hz)
+    odometry = WheelOdometry(driver.feedback)
+    robot.add(odometry, RATES["odometry"])
+
+    def motor(side: str) -> Callable[[float], ComponentHealth]:
+        def probe(now: float) -> ComponentHealth:
+            if driver.fault is not None:
+                return ComponentHealth(False, str(driver.fault))
+            state = driver.states[side]
+            return fresh(state.last_reply_t, now, 2 * cfg.motors.silence_timeout_s, f"{side} motor reply")
+        return probe
+
+    health.add("left_motor", motor("left"))
+    health.add("right_motor", motor("right"))
+
+    def cliff(which: str) -> Callable[[float], ComponentHealth]:
+        def probe(now: float) -> ComponentHealth:
+            reading = link.latest_cliff()
+            return fresh(None if reading is None else reading.t, now, FRESH_S["ir"], f"IR {which} frame")
+        return probe
+
+    health.add("ir_front", cliff("front"))
+    health.add("ir_rear", cliff("rear"))
+
+
+def _on_component_error(robot: Robot, component: Component, exc: BaseException) -> None:
+    """A part's tick raised: record it for the operator; the loop goes on (the part's own health shows it)."""
+    log.error("%s failed: %s", component.name, exc, exc_info=not isinstance(exc, AtemrError))
+    robot.event("component error", f"{component.name}: {exc}")
+
+
+__all__ = ["RATES", "build_robot", "make_clock"]
