@@ -87,7 +87,8 @@ def _add_simulation(robot: Robot, health: HealthBoard) -> None:
     cfg = robot.config
     left = RmdMotorEmulator(open_bus(cfg.can), cfg.motors.left_id, name="left_motor_emulator", steps_model=False)
     right = RmdMotorEmulator(open_bus(cfg.can), cfg.motors.right_id, name="right_motor_emulator", steps_model=False)
-    wheels = (MountedWheel(left.model, cfg.motors.left_direction), MountedWheel(right.model, cfg.motors.right_direction))
+    wheels = (MountedWheel(left.model, cfg.motors.left_direction),
+              MountedWheel(right.model, cfg.motors.right_direction))
     sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params_from_config(cfg.sim), wheels=wheels)
     robot.extras["sim"] = sim
     for component, rate in sim.components():
