@@ -1,0 +1,332 @@
+"""The Navigator: one stateful object the agent's go-to-pose leaf drives every tick (move_base, in small).
+
+``start(goal, now, ...)`` checks the goal (`goal_check`) and plans; then each ``update(now, pose, scan,
+localized)`` folds the scan into the costmap, replans now and then (and at once when the path ahead is
+blocked), asks the local planner for a twist, watches progress, runs recoveries in order when stuck or
+without a path, and finally turns on the spot to the goal's heading. It returns a `NavStatus`: RUNNING with
+the twist to command (the motion pipeline's navigation input), the distance left, an ETA, the global path
+and the local trajectory for the dashboard; SUCCEEDED; or FAILED with the reason (no path, stuck,
+localization lost, timeout). Time comes only from ``now``; nothing here reads a clock or does I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from atemr.errors import NavigationError
+from atemr.io.sim.maps import OccupancyMap
+from atemr.msgs import ZERO_TWIST, LaserScan, Pose2D, Twist
+from atemr.skills.nav.costmap import INSCRIBED, Costmap, CostmapParams
+from atemr.skills.nav.global_planner import GlobalPath, GlobalPlanner, PlannerParams
+from atemr.skills.nav.goal_check import GoalCheck, check_goal
+from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, path_progress, wrap
+from atemr.skills.nav.recovery import RecoveryBehaviour, RecoveryParams
+
+FloatArray = NDArray[np.float64]
+NavState = Literal["IDLE", "RUNNING", "SUCCEEDED", "FAILED", "CANCELED"]
+FailReason = Literal["no path", "stuck", "localization lost", "timeout"]
+_EMPTY = np.zeros((0, 2), dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class NavParams:
+    """Everything the navigator needs; tolerances are the thesis's (0.25 m, 0.13 rad)."""
+
+    costmap: CostmapParams = field(default_factory=CostmapParams)
+    planner: PlannerParams = field(default_factory=PlannerParams)
+    local: LocalPlannerParams = field(default_factory=LocalPlannerParams)
+    recovery: RecoveryParams = field(default_factory=RecoveryParams)
+    xy_tolerance_m: float = 0.25
+    yaw_tolerance_rad: float = 0.13
+    #: Distance at which the approach ends and the final turn begins (inside the tolerance, with margin for
+    #: localization error).
+    arrive_m: float = 0.1
+    #: Plan again this often while following (the obstacle layer changes), and at once when blocked.
+    replan_period_s: float = 2.0
+    #: How far ahead along the path a blocked cell triggers an immediate replan.
+    blocked_lookahead_m: float = 2.0
+    #: No local trajectory for this long → stuck (recovery).
+    blocked_timeout_s: float = 2.0
+    #: The distance left must shrink by ``progress_m`` within this time, or the robot is stuck.
+    stuck_timeout_s: float = 10.0
+    progress_m: float = 0.15
+    #: Progress that proves a recovery worked (the sequence starts again from the first behaviour).
+    recovered_after_m: float = 1.0
+    localization_timeout_s: float = 10.0
+    timeout_s: float = 600.0
+
+    def __post_init__(self) -> None:
+        if self.arrive_m > self.xy_tolerance_m:
+            raise NavigationError(f"navigator: arrive_m ({self.arrive_m}) must not exceed xy_tolerance_m")
+        for name in ("xy_tolerance_m", "yaw_tolerance_rad", "arrive_m", "replan_period_s", "blocked_lookahead_m",
+                     "blocked_timeout_s", "stuck_timeout_s", "progress_m", "recovered_after_m",
+                     "localization_timeout_s", "timeout_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise NavigationError(f"navigator: {name} must be a finite number > 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class NavEvent:
+    """Something the operator may want to see in the log: a plan, a recovery, the end."""
+
+    t: float
+    kind: str
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class NavStatus:
+    """One tick's answer. ``twist`` is what to command (zero unless RUNNING)."""
+
+    state: NavState
+    twist: Twist = ZERO_TWIST
+    phase: str = ""
+    distance_left_m: float = math.nan
+    eta_s: float = math.nan
+    global_path: FloatArray = field(default_factory=lambda: _EMPTY)
+    local_trajectory: FloatArray = field(default_factory=lambda: _EMPTY)
+    reason: FailReason | None = None
+    message: str = ""
+    recovery: str | None = None
+
+
+class Navigator:
+    """Drives the base to one goal at a time on one map; see the module doc."""
+
+    def __init__(self, occupancy: OccupancyMap, params: NavParams | None = None) -> None:
+        self.params = params or NavParams()
+        self.events: list[NavEvent] = []
+        self.set_map(occupancy)
+        self.goal: Pose2D | None = None
+        self.state: NavState = "IDLE"
+        self._reset()
+
+    # -- set-up --------------------------------------------------------------------------------------------
+    def set_map(self, occupancy: OccupancyMap) -> None:
+        """Use another map (the operator selected one); cancels nothing, but the next plan uses it."""
+        p = self.params
+        self.costmap = Costmap(occupancy, p.costmap)
+        self.planner = GlobalPlanner(self.costmap, p.planner)
+        self.local = LocalPlanner(self.costmap, p.local)
+        self._path: GlobalPath | None = None
+
+    def _reset(self) -> None:
+        self._path = None
+        self._t_start = 0.0
+        self._t_plan = -math.inf
+        self._t_last = math.nan
+        self._last_scan_t = math.nan
+        self._velocity = ZERO_TWIST
+        self._blocked_since: float | None = None
+        self._lost_since: float | None = None
+        self._best_left = math.inf
+        self._t_progress = 0.0
+        self._recovery_index = 0
+        self._recovery: RecoveryBehaviour | None = None
+        self._recovery_best_left = math.inf
+        self._last_failure: FailReason = "stuck"
+        self._xy_reached = False
+        self._creeping = False
+        self._trajectory = _EMPTY
+        self._final: NavStatus | None = None
+
+    def check(self, goal: Pose2D, *, localized: bool = True, mode: str = "AUTO") -> GoalCheck:
+        """Whether ``goal`` would be accepted now (no side effects)."""
+        return check_goal(goal, self.costmap, localized=localized, mode=mode,
+                          allow_unknown=self.params.planner.allow_unknown)
+
+    def start(self, goal: Pose2D, now: float, *, localized: bool = True, mode: str = "AUTO") -> GoalCheck:
+        """Accept ``goal`` and begin; a refused goal raises `NavigationError` with the reason (the agent turns
+        it into its Error state) and leaves the navigator idle."""
+        verdict = self.check(goal, localized=localized, mode=mode)
+        if not verdict.ok:
+            self.events.append(NavEvent(now, "refused", verdict.reason))
+            verdict.raise_if_refused()
+        self._reset()
+        self.goal = goal
+        self.state = "RUNNING"
+        self._t_start = now
+        self._t_progress = now
+        self.events.append(NavEvent(now, "goal", f"({goal.x_m:.2f}, {goal.y_m:.2f}, {goal.yaw_rad:.2f})"))
+        return verdict
+
+    def cancel(self, now: float | None = None) -> NavStatus:
+        """Stop pursuing the goal; the next update returns CANCELED with a zero twist."""
+        if self.state == "RUNNING":
+            self.state = "CANCELED"
+            self._final = NavStatus("CANCELED", phase="canceled", message="goal canceled")
+            self.events.append(NavEvent(now if now is not None else self._t_last, "canceled"))
+        return self._final or NavStatus(self.state)
+
+    # -- the tick ------------------------------------------------------------------------------------------
+    def update(self, now: float, pose: Pose2D, scan: LaserScan | None = None, localized: bool = True,
+               velocity: Twist | None = None) -> NavStatus:
+        """One navigation tick; ``velocity`` is the measured twist if known (else the last command is used)."""
+        if self.state != "RUNNING" or self.goal is None:
+            return self._final or NavStatus(self.state)
+        p = self.params
+        dt = p.local.control_period_s if math.isnan(self._t_last) else min(max(now - self._t_last, 1e-3), 1.0)
+        self._t_last = now
+        if velocity is not None:
+            self._velocity = velocity
+        if now - self._t_start > p.timeout_s:
+            return self._fail(now, "timeout", f"goal not reached within {p.timeout_s:.0f} s")
+        pose_ok = all(math.isfinite(v) for v in (pose.x_m, pose.y_m, pose.yaw_rad))
+        if not (localized and pose_ok):
+            if self._lost_since is None:
+                self._lost_since = now
+                self.events.append(NavEvent(now, "waiting", "localization lost: stopped"))
+            if now - self._lost_since > p.localization_timeout_s:
+                return self._fail(now, "localization lost",
+                                  f"not localized for {p.localization_timeout_s:.0f} s")
+            return self._running(ZERO_TWIST, "waiting for localization")
+        if self._lost_since is not None:
+            self.events.append(NavEvent(now, "localized", "going on"))
+            self._lost_since = None
+            self._t_progress = now
+            self._t_plan = -math.inf
+        if scan is not None and scan.t != self._last_scan_t:
+            self.costmap.update_from_scan(scan, pose)
+            self._last_scan_t = scan.t
+        goal = self.goal
+        d_goal = math.hypot(goal.x_m - pose.x_m, goal.y_m - pose.y_m)
+
+        # Final approach: once at the goal (latched, as move_base's latch_xy_goal_tolerance), turn to its
+        # heading. "At the goal" is within ``arrive_m``, or within the tolerance when the local planner
+        # cannot get closer, so the robot ends well inside the tolerance, not on its edge.
+        if d_goal <= p.arrive_m or self._xy_reached or (d_goal <= p.xy_tolerance_m and self._creeping):
+            if not self._xy_reached:
+                self.events.append(NavEvent(now, "position reached", f"{d_goal:.2f} m from the goal"))
+            self._xy_reached = True
+            err = float(wrap(goal.yaw_rad - pose.yaw_rad))
+            if d_goal > p.xy_tolerance_m:  # pushed away while turning: approach again
+                self._xy_reached = self._creeping = False
+                self.events.append(NavEvent(now, "position lost", f"{d_goal:.2f} m from the goal"))
+            elif abs(err) <= 0.5 * p.yaw_tolerance_rad:  # aim at half the tolerance: margin for estimate error
+                return self._succeed(now, d_goal, err)
+            else:
+                return self._running(self.local.rotate(err, self._velocity, dt), "rotating to the goal heading",
+                                     d_goal)
+
+        if self._recovery is not None:
+            twist, done = self._recovery.step(now, pose, self.costmap)
+            if not done:
+                return self._running(twist, f"recovery: {self._recovery.kind}", d_goal)
+            self.events.append(NavEvent(now, "recovery done", self._recovery.kind))
+            self._recovery = None
+            self._t_plan = -math.inf
+            self._blocked_since = None
+            self._t_progress = now
+
+        # Global plan: periodic, at once when the path ahead became blocked.
+        if self._path is None or now - self._t_plan >= p.replan_period_s or self._path_blocked(pose):
+            replanned = self._plan(now, pose)
+            if not replanned:
+                return self._begin_recovery(now, pose, "no path", d_goal)
+        assert self._path is not None
+        path = self._path.points
+        left = self._distance_left(pose, path)
+
+        # Progress watchdog.
+        if left < self._best_left - p.progress_m:
+            self._best_left = left
+            self._t_progress = now
+        if left < self._recovery_best_left - p.recovered_after_m:
+            self._recovery_index = 0
+            self._recovery_best_left = math.inf
+        if now - self._t_progress > p.stuck_timeout_s:
+            return self._begin_recovery(now, pose, "stuck", d_goal)
+
+        plan = self.local.compute(pose, self._velocity, path, (goal.x_m, goal.y_m), dt)
+        self._trajectory = plan.trajectory
+        if not plan.ok:
+            if self._blocked_since is None:
+                self._blocked_since = now
+                self._t_plan = -math.inf  # replan at the next tick: the way may be open elsewhere
+            if now - self._blocked_since > p.blocked_timeout_s:
+                return self._begin_recovery(now, pose, "stuck", d_goal)
+            return self._running(ZERO_TWIST, "blocked: waiting", left)
+        self._blocked_since = None
+        self._creeping = abs(plan.twist.linear_mps) < 0.03
+        return self._running(plan.twist, "following the path", left)
+
+    # -- helpers -------------------------------------------------------------------------------------------
+    def _plan(self, now: float, pose: Pose2D) -> bool:
+        assert self.goal is not None
+        first = self._path is None
+        path = self.planner.plan((pose.x_m, pose.y_m), (self.goal.x_m, self.goal.y_m))
+        self._t_plan = now
+        if path is None:
+            self._path = None
+            self.events.append(NavEvent(now, "no path", f"from ({pose.x_m:.2f}, {pose.y_m:.2f})"))
+            return False
+        self._path = path
+        # Progress is judged along the current plan: a detour round a new obstacle is progress too.
+        self._best_left = self._distance_left(pose, path.points)
+        self.events.append(NavEvent(now, "plan" if first else "replan", f"{path.length_m:.2f} m"))
+        return True
+
+    def _path_blocked(self, pose: Pose2D) -> bool:
+        """Whether a stretch of the current path just ahead now lies in the inscribed zone."""
+        if self._path is None:
+            return True
+        pts = self._path.points
+        i, s = path_progress(pts, pose.x_m, pose.y_m)
+        j = int(np.searchsorted(s, s[i] + self.params.blocked_lookahead_m))
+        ahead = pts[i:j + 1]
+        # Skip the stretch under and right around the robot: it may start in the inscribed zone (pushed
+        # against something) and the planner lets it out through there.
+        ahead = ahead[np.hypot(ahead[:, 0] - pose.x_m, ahead[:, 1] - pose.y_m) > self.params.planner.escape_radius_m]
+        if len(ahead) == 0:
+            return False
+        return bool((self.costmap.cost_at(ahead[:, 0], ahead[:, 1]) >= INSCRIBED).any())
+
+    @staticmethod
+    def _distance_left(pose: Pose2D, path: FloatArray) -> float:
+        i, s = path_progress(path, pose.x_m, pose.y_m)
+        return float(s[-1] - s[i] + math.hypot(path[i, 0] - pose.x_m, path[i, 1] - pose.y_m))
+
+    def _begin_recovery(self, now: float, pose: Pose2D, why: FailReason, d_goal: float) -> NavStatus:
+        seq = self.params.recovery.sequence
+        self._last_failure = why
+        if self._recovery_index >= len(seq):
+            detail = {"no path": "no path to the goal", "stuck": "the robot is stuck"}.get(why, why)
+            return self._fail(now, why, f"{detail} after recoveries ({', '.join(seq)})")
+        kind = seq[self._recovery_index]
+        self._recovery_index += 1
+        self._recovery_best_left = min(self._recovery_best_left, self._best_left)
+        self._recovery = RecoveryBehaviour(kind, self.params.recovery, now, pose)
+        self._blocked_since = None
+        self.events.append(NavEvent(now, "recovery", f"{kind} ({why})"))
+        return self._running(ZERO_TWIST, f"recovery: {kind}", d_goal)
+
+    def _running(self, twist: Twist, phase: str, left: float = math.nan) -> NavStatus:
+        self._velocity = twist
+        speed = max(0.6 * self.params.local.max_linear_mps, 0.05)
+        path = self._path.points if self._path is not None else _EMPTY
+        return NavStatus("RUNNING", twist, phase, left, left / speed if math.isfinite(left) else math.nan, path,
+                         self._trajectory, None, "", self._recovery.kind if self._recovery else None)
+
+    def _fail(self, now: float, why: FailReason, message: str) -> NavStatus:
+        self.state = "FAILED"
+        self._velocity = ZERO_TWIST
+        self.events.append(NavEvent(now, "failed", f"{why}: {message}"))
+        path = self._path.points if self._path is not None else _EMPTY
+        self._final = NavStatus("FAILED", ZERO_TWIST, "failed", math.nan, math.nan, path, _EMPTY, why,
+                                f"{why}: {message}")
+        return self._final
+
+    def _succeed(self, now: float, d_goal: float, yaw_err: float) -> NavStatus:
+        self.state = "SUCCEEDED"
+        self._velocity = ZERO_TWIST
+        self.events.append(NavEvent(now, "succeeded", f"{d_goal:.2f} m, {yaw_err:.2f} rad from the goal"))
+        path = self._path.points if self._path is not None else _EMPTY
+        self._final = NavStatus("SUCCEEDED", ZERO_TWIST, "reached", d_goal, 0.0, path, _EMPTY, None,
+                                f"reached within {d_goal:.2f} m and {abs(yaw_err):.2f} rad")
+        return self._final
