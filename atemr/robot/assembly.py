@@ -95,8 +95,8 @@ def _add_simulation(robot: Robot, health: HealthBoard) -> None:
         robot.add(component, rate)
     robot.add(left, RATES["motor_emulator"])
     robot.add(right, RATES["motor_emulator"])
-    for component, rate in emulated_secondary(cfg, open_bus(cfg.can), lambda: sim.cliff_source.latest):
-        robot.add(component, rate)
+    for board_part, rate in emulated_secondary(cfg, open_bus(cfg.can), lambda: sim.cliff_source.latest):
+        robot.add(board_part, rate)
 
     def latest_t(source: object) -> float | None:
         reading = getattr(source, "latest", None)
