@@ -76,7 +76,7 @@ def test_a_short_loss_of_localization_pauses_a_long_one_fails(make_map):
     nav = Navigator(two_rooms(make_map), NavParams(localization_timeout_s=3.0))
     nav.start(Pose2D(4.0, 1.5, 0.0), 0.0)
     # Lost between 1 s and 2.5 s: stops, then goes on and arrives.
-    pose, statuses = run(nav, Pose2D(0.8, 0.8, 0.0), 60.0, localized=lambda t: not 1.0 <= t < 2.5)
+    _, statuses = run(nav, Pose2D(0.8, 0.8, 0.0), 60.0, localized=lambda t: not 1.0 <= t < 2.5)
     waiting = [s for s in statuses if s.phase == "waiting for localization"]
     assert waiting and all(s.twist.is_zero for s in waiting)
     assert statuses[-1].state == "SUCCEEDED"
