@@ -35,3 +35,9 @@ def studio_map() -> OccupancyMap:
 def living_room_drive():  # type: ignore[no-untyped-def]
     """One lap round the living room (seed 3), about 27 simulated seconds, 10 Hz scans."""
     return load_simdrive().drive(seed=3)
+
+
+@pytest.fixture(scope="session")
+def simdrive() -> ModuleType:
+    """The drive-and-record helper module (for tests that need their own drive)."""
+    return load_simdrive()

@@ -68,8 +68,12 @@ def drive(
     max_s: float = 120.0,
     start: Pose2D | None = None,
     params: SimParams | None = None,
+    kidnap: tuple[float, Pose2D] | None = None,
 ) -> Recording:
-    """Drive the route in the studio; stop when it is done (or after ``max_s`` simulated seconds)."""
+    """Drive the route in the studio; stop when it is done (or after ``max_s`` simulated seconds).
+
+    ``kidnap=(t, pose)`` teleports the robot at simulated time ``t`` (whole seconds); it then drives on.
+    """
     sim = build_simulation("studio", seed, params=params)
     if start is not None:
         sim.kidnap(start)
@@ -90,4 +94,6 @@ def drive(
     while not follower.done and t < max_s:
         t += 1.0
         sched.run(until=t)
+        if kidnap is not None and kidnap[0] == t:
+            sim.kidnap(kidnap[1])
     return rec
