@@ -19,3 +19,5 @@ def configure_logging(level: str = "INFO") -> None:
     handler._atemr = True  # type: ignore[attr-defined]
     root.addHandler(handler)
     root.setLevel(level.upper())
+    # transitions logs every callback at INFO: that is library tracing, not robot events.
+    logging.getLogger("transitions").setLevel(max(logging.WARNING, root.level))

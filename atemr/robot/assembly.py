@@ -18,7 +18,6 @@ from collections.abc import Callable
 from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
 from atemr.config import Config
 from atemr.errors import AtemrError, HardwareError
-from atemr.io.can.bus import open_bus
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.secondary_link import build_secondary_link
 from atemr.io.system_monitor import SystemMonitor
@@ -85,8 +84,8 @@ def _add_simulation(robot: Robot, health: HealthBoard) -> None:
     from secondary_core.wiring import emulated_secondary
 
     cfg = robot.config
-    left = RmdMotorEmulator(open_bus(cfg.can), cfg.motors.left_id, name="left_motor_emulator", steps_model=False)
-    right = RmdMotorEmulator(open_bus(cfg.can), cfg.motors.right_id, name="right_motor_emulator", steps_model=False)
+    left = RmdMotorEmulator(robot.open_bus(), cfg.motors.left_id, name="left_motor_emulator", steps_model=False)
+    right = RmdMotorEmulator(robot.open_bus(), cfg.motors.right_id, name="right_motor_emulator", steps_model=False)
     wheels = (MountedWheel(left.model, cfg.motors.left_direction),
               MountedWheel(right.model, cfg.motors.right_direction))
     sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params_from_config(cfg.sim), wheels=wheels)
@@ -95,7 +94,7 @@ def _add_simulation(robot: Robot, health: HealthBoard) -> None:
         robot.add(component, rate)
     robot.add(left, RATES["motor_emulator"])
     robot.add(right, RATES["motor_emulator"])
-    for board_part, rate in emulated_secondary(cfg, open_bus(cfg.can), lambda: sim.cliff_source.latest):
+    for board_part, rate in emulated_secondary(cfg, robot.open_bus(), lambda: sim.cliff_source.latest):
         robot.add(board_part, rate)
 
     def latest_t(source: object) -> float | None:
@@ -118,13 +117,13 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
         inputs.set_safety_stop("heartbeat lost", not ok)
         robot.event("heartbeat", "0x157 heartbeat " + ("restored" if ok else "lost: motors stopped"))
 
-    link = build_secondary_link(cfg, open_bus(cfg.can), on_heartbeat=on_heartbeat)
+    link = build_secondary_link(cfg, robot.open_bus(), on_heartbeat=on_heartbeat)
     robot.add(link, RATES["secondary_link"])
 
     def on_fault(fault: HardwareError) -> None:
         robot.event("motor fault", str(fault))
 
-    driver = RmdDriver.from_config(open_bus(cfg.can), cfg.motors, on_fault=on_fault)
+    driver = RmdDriver.from_config(robot.open_bus(), cfg.motors, on_fault=on_fault)
     stored = settings.load()
     limits = cfg.motion
     if isinstance(stored.get("motion"), dict):

@@ -9,8 +9,11 @@ from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any
 
+import can
+
 from atemr.clock import Clock
 from atemr.config import Config
+from atemr.io.can.bus import open_bus
 from atemr.scheduler import Component, Scheduler
 
 log = logging.getLogger(__name__)
@@ -39,6 +42,8 @@ class Robot:
     events: deque[RobotEvent] = field(default_factory=lambda: deque(maxlen=200))
     #: Extra objects that are not scheduled (inputs, health board, simulation, stores), by name.
     extras: dict[str, Any] = field(default_factory=dict)
+    #: CAN buses opened for the parts; closed after every part has shut down.
+    buses: list[can.BusABC] = field(default_factory=list)
     _events_lock: threading.Lock = field(default_factory=threading.Lock)
 
     def add(self, component: Component, rate_hz: float) -> None:
@@ -69,9 +74,21 @@ class Robot:
         """Ask `run` to return; safe from a signal handler or another thread."""
         self.scheduler.stop()
 
+    def open_bus(self) -> can.BusABC:
+        """A new Bus on the robot's channel for one participant; the robot closes it at shutdown."""
+        bus = open_bus(self.config.can)
+        self.buses.append(bus)
+        return bus
+
     def shutdown(self) -> None:
-        """Shut components down in reverse order; idempotent."""
+        """Shut components down in reverse order, then close the buses; idempotent."""
         self.scheduler.shutdown()
+        while self.buses:
+            bus = self.buses.pop()
+            try:
+                bus.shutdown()
+            except Exception:
+                log.exception("closing a CAN bus failed")
 
     def __enter__(self) -> Robot:
         self.start()
