@@ -20,10 +20,10 @@ from typing import Literal, Protocol, runtime_checkable
 from atemr.io.can import HardwareBits, PowerState, PrimaryStatus
 from atemr.msgs import ZERO_TWIST, Pose2D, Twist
 
-#: The twist-mux inputs the agent may command (DESIGN.md §4, `atemr.skills.twist_mux`): the operator's
-#: joystick (MANUAL) and navigation (AUTO: goals, missions, Rotate). The safety stop and the reactive engine
-#: are never commanded by the agent.
-VelocitySource = Literal["joystick", "navigation"]
+#: The motion pipeline's inputs the agent may command (`atemr.skills.motion_pipeline`): the operator's
+#: joystick (MANUAL), navigation (AUTO: GoToPose), and ``agent`` for the agent's own motions (Rotate),
+#: admitted in both modes above navigation. The safety stop and the reactive engine are never the agent's.
+VelocitySource = Literal["joystick", "navigation", "agent"]
 Mode = Literal["MANUAL", "AUTO"]
 
 #: Components whose health fills a 0x153 hardware bit: ``HardwareBits`` member names in lower case
@@ -48,7 +48,7 @@ class RobotPort(Protocol):
         ...
 
     def stop_motors(self) -> None:
-        """Command zero on the joystick and navigation inputs at once."""
+        """Command zero on the joystick, navigation and agent inputs at once."""
         ...
 
     def set_mode(self, mode: Mode) -> None:

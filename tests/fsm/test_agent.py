@@ -233,7 +233,7 @@ def test_cancel_stops_the_task(rig: Rig) -> None:
     progress = rig.agent.snapshot()["task_progress"]
     assert progress["outcome"] == "running" and progress["steps"][0]["status"] == "running"
     assert rig.command("cancel").dest == "IDLE.AUTO"  # type: ignore[attr-defined]
-    agent_cmds = [c for c in rig.port.commands if c[0] == "navigation"]
+    agent_cmds = [c for c in rig.port.commands if c[0] == "agent"]
     assert agent_cmds[-1][1] == Twist(), "Rotate commands zero when interrupted"
     report = rig.agent.task_reports[-1]
     assert report["outcome"] == "cancelled" and report["steps"][0]["status"] == "interrupted"

@@ -45,7 +45,7 @@ SAMPLES: dict[str, dict[str, Any]] = {
     "GoToPose": {"x_m": 1.0, "y_m": 0.5, "yaw_rad": 0.3},
 }
 #: Leaves that command a velocity, and on which mux input.
-DRIVING = {"DriveJoystick": "joystick", "Rotate": "navigation", "GoToPose": "navigation"}
+DRIVING = {"DriveJoystick": "joystick", "Rotate": "agent", "GoToPose": "navigation"}
 
 
 class Bench:

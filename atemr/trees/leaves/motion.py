@@ -21,9 +21,9 @@ def wrap_angle(angle_rad: float) -> float:
 
 @behaviours.register("StopMotors")
 class StopMotors(Leaf):
-    """Stop the base at once (joystick and navigation inputs to zero); always SUCCESS."""
+    """Stop the base at once (joystick, navigation and agent inputs to zero); always SUCCESS."""
 
-    summary = "command zero velocity on the joystick and navigation inputs"
+    summary = "command zero velocity on the joystick, navigation and agent inputs"
 
     def update(self) -> py_trees.common.Status:
         self.ctx.port.stop_motors()
@@ -74,8 +74,8 @@ class Rotate(Leaf):
 
     A proportional controller on the remaining angle, saturated at ``max_speed_radps``; the remaining
     angle is integrated from heading changes so turns beyond half a revolution work. SUCCESS within
-    ``tolerance_rad``; FAILURE when there is no pose to steer by. Commands on the mux's ``navigation``
-    input (an autonomous motion, AUTO mode).
+    ``tolerance_rad``; FAILURE when there is no pose to steer by. Commands on the pipeline's ``agent``
+    input (the agent's own motions, admitted in MANUAL and AUTO above navigation).
     """
 
     Params = RotateParams
@@ -94,13 +94,13 @@ class Rotate(Leaf):
         self._last_yaw = pose.yaw_rad
         self.feedback_message = f"{math.degrees(self._remaining):.1f} deg left"
         if abs(self._remaining) <= self.params.tolerance_rad:
-            self.ctx.port.command_velocity("navigation", ZERO_TWIST, self.ctx.now)
+            self.ctx.port.command_velocity("agent", ZERO_TWIST, self.ctx.now)
             return Status.SUCCESS
         limit = self.params.max_speed_radps
         speed = max(-limit, min(limit, self.params.gain * self._remaining))
-        self.ctx.port.command_velocity("navigation", Twist(0.0, speed), self.ctx.now)
+        self.ctx.port.command_velocity("agent", Twist(0.0, speed), self.ctx.now)
         return Status.RUNNING
 
     def terminate(self, new_status: py_trees.common.Status) -> None:
         if self._context is not None:
-            self.ctx.port.command_velocity("navigation", ZERO_TWIST, self.ctx.now)
+            self.ctx.port.command_velocity("agent", ZERO_TWIST, self.ctx.now)
