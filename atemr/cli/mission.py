@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +49,7 @@ class MissionCommand:
             return worst
         for report in reports:
             if not report["valid"]:
-                print(f"error: {report['error']}")
+                print(f"error: {report['error']}", file=sys.stderr)
                 continue
             print(f"{report['file']}: OK, mission '{report['name']}', {len(report['steps'])} steps")
             blocked = [s for s in report["steps"] if not s["runnable"]]
