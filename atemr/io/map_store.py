@@ -1,0 +1,211 @@
+"""The map store: named maps under ``<data_dir>/maps/`` in the ROS map_server format, and which one is active.
+
+Each map is ``name.yaml`` + ``name.pgm`` written by `save_map` and read by `load_map` (the package's one
+map reader/writer), so a map saved here opens in ROS tools and a map from another robot uploads as it
+is. The default world's map (``studio``) is always available as a read-only built-in; it is the active
+map until the operator selects another. The choice is persisted in ``maps/active`` (written atomically),
+so it survives a restart; an active map that was deleted falls back to the default.
+
+Uploads are validated before anything is stored: the files land in a private temporary directory
+inside ``maps/``, names pass through `werkzeug.utils.secure_filename`, the YAML's ``image`` must name
+one of the uploaded files (never a path elsewhere on the robot), the map must load with `load_map`,
+and only then is it written under its name. A refused upload raises `ConfigError` saying why and
+leaves the store exactly as it was.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from werkzeug.utils import secure_filename
+
+from atemr.errors import ConfigError
+from atemr.io.sim.maps import OccupancyMap, load_map, save_map
+from atemr.yamlsafe import load_yaml
+
+#: The shipped default world's map: a built-in every store offers.
+DEFAULT_MAP = "studio"
+BUILTIN_MAPS: dict[str, Path] = {
+    DEFAULT_MAP: Path(__file__).resolve().parents[1] / "worlds" / "studio" / "studio.yaml",
+}
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
+#: Largest upload accepted (all files together), bytes.
+MAX_UPLOAD_BYTES = 50 * 1024 * 1024
+
+
+@dataclass(frozen=True)
+class MapInfo:
+    """One entry of the list the dashboard shows."""
+
+    name: str
+    builtin: bool
+    active: bool
+
+
+def clean_name(name: str) -> str:
+    """A map name as stored: through ``secure_filename``, without a ``.yaml``/``.pgm`` suffix, 1–64 characters.
+
+    Raises `ConfigError` when nothing usable is left (``"../"``, ``""``, only symbols).
+    """
+    if not isinstance(name, str):
+        raise ConfigError(f"map name must be text, got {type(name).__name__}", path="map.name")
+    safe = secure_filename(name.strip())
+    for suffix in (".yaml", ".yml", ".pgm", ".png"):
+        if safe.lower().endswith(suffix):
+            safe = safe[: -len(suffix)]
+    if not _NAME.match(safe):
+        raise ConfigError(f"invalid map name {name!r}: use 1-64 letters, digits, '.', '_' or '-' "
+                          f"(starting with a letter or digit)", path="map.name")
+    return safe
+
+
+class MapStore:
+    """Maps in ``<data_dir>/maps``; see the module docstring."""
+
+    def __init__(self, data_dir: str | Path, *, builtins: Mapping[str, Path] | None = None,
+                 max_upload_bytes: int = MAX_UPLOAD_BYTES) -> None:
+        self.dir = Path(data_dir) / "maps"
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.builtins = dict(BUILTIN_MAPS if builtins is None else builtins)
+        self.max_upload_bytes = max_upload_bytes
+        self._active_file = self.dir / "active"
+
+    # -- queries -----------------------------------------------------------------------------------
+    def names(self) -> list[str]:
+        """Every map name, built-ins first, then stored maps alphabetically."""
+        stored = sorted(p.stem for p in self.dir.glob("*.yaml") if _NAME.match(p.stem) and p.stem not in self.builtins)
+        return [*self.builtins, *stored]
+
+    def list(self) -> list[MapInfo]:
+        active = self.active_name()
+        return [MapInfo(n, n in self.builtins, n == active) for n in self.names()]
+
+    def exists(self, name: str) -> bool:
+        return name in self.builtins or (self.dir / f"{name}.yaml").is_file()
+
+    def path(self, name: str) -> Path:
+        """The YAML of map ``name``; `ConfigError` if there is no such map."""
+        if name in self.builtins:
+            return self.builtins[name]
+        clean = clean_name(name)
+        path = self.dir / f"{clean}.yaml"
+        if clean != name or not path.is_file():
+            raise ConfigError(f"no map named {name!r}; known maps: {', '.join(self.names())}", path="map.name")
+        return path
+
+    def load(self, name: str) -> OccupancyMap:
+        """Map ``name`` (`ConfigError` if unknown or unreadable)."""
+        return load_map(self.path(name))
+
+    # -- the active map ----------------------------------------------------------------------------
+    def active_name(self) -> str | None:
+        """The selected map, or the default built-in when none was selected or the selected one is gone."""
+        try:
+            name = self._active_file.read_text(encoding="utf-8").strip()
+        except OSError:
+            name = ""
+        if name and self.exists(name):
+            return name
+        if DEFAULT_MAP in self.builtins:
+            return DEFAULT_MAP
+        names = self.names()
+        return names[0] if names else None
+
+    def active_map(self) -> OccupancyMap | None:
+        name = self.active_name()
+        return None if name is None else self.load(name)
+
+    def select(self, name: str) -> OccupancyMap:
+        """Make ``name`` the active map (it must load); persisted atomically. Returns the map."""
+        grid = self.load(name)
+        tmp = self._active_file.with_name("active.tmp")
+        tmp.write_text(name + "\n", encoding="utf-8")
+        tmp.replace(self._active_file)
+        return grid
+
+    # -- changes -----------------------------------------------------------------------------------
+    def save(self, name: str, grid: OccupancyMap, *, overwrite: bool = False, activate: bool = False) -> str:
+        """Store ``grid`` as ``name`` (cleaned; the stored name is returned); built-in names are refused."""
+        clean = clean_name(name)
+        if clean in self.builtins:
+            raise ConfigError(f"'{clean}' is a built-in map and cannot be replaced; choose another name",
+                              path="map.name")
+        if not overwrite and (self.dir / f"{clean}.yaml").exists():
+            raise ConfigError(f"a map named '{clean}' already exists", path="map.name")
+        save_map(grid, self.dir / f"{clean}.yaml")
+        if activate:
+            self.select(clean)
+        return clean
+
+    def delete(self, name: str) -> None:
+        """Remove a stored map (both files); built-ins cannot be deleted. The active map falls back to the default."""
+        if name in self.builtins:
+            raise ConfigError(f"'{name}' is a built-in map and cannot be deleted", path="map.name")
+        yaml_path = self.path(name)
+        image = self._image_of(yaml_path)
+        yaml_path.unlink()
+        if image is not None and image.parent == self.dir and image.is_file():
+            image.unlink()
+
+    def _image_of(self, yaml_path: Path) -> Path | None:
+        try:
+            doc = load_yaml(yaml_path)
+        except ConfigError:
+            return None
+        image = doc.get("image") if isinstance(doc, dict) else None
+        if not isinstance(image, str) or Path(image).name != image:
+            return None
+        return yaml_path.parent / image
+
+    def upload(self, files: Mapping[str, bytes], *, name: str | None = None, overwrite: bool = False) -> str:
+        """Validate and store an uploaded map: ``files`` maps file names to contents (one ``.yaml`` and its image).
+
+        The map is stored under ``name`` (default: the YAML's file name) and the stored name returned.
+        Raises `ConfigError` naming the problem; nothing is stored then.
+        """
+        total = sum(len(b) for b in files.values())
+        if total > self.max_upload_bytes:
+            raise ConfigError(f"upload of {total} bytes is larger than the limit of {self.max_upload_bytes}",
+                              path="map.upload")
+        safe: dict[str, bytes] = {}
+        for raw, content in files.items():
+            fname = secure_filename(str(raw))
+            if not fname or fname in safe:
+                raise ConfigError(f"unusable or duplicate file name {raw!r}", path="map.upload")
+            safe[fname] = bytes(content)
+        yamls = [f for f in safe if f.lower().endswith((".yaml", ".yml"))]
+        if len(yamls) != 1:
+            raise ConfigError(f"an upload needs exactly one .yaml file (the map_server description), got {len(yamls)}",
+                              path="map.upload")
+        target = clean_name(name if name is not None else yamls[0])
+        if target in self.builtins:
+            raise ConfigError(f"'{target}' is a built-in map and cannot be replaced; choose another name",
+                              path="map.name")
+        if not overwrite and (self.dir / f"{target}.yaml").exists():
+            raise ConfigError(f"a map named '{target}' already exists", path="map.name")
+        staging = Path(tempfile.mkdtemp(prefix=".upload-", dir=self.dir))
+        try:
+            for fname, content in safe.items():
+                (staging / fname).write_bytes(content)
+            yaml_path = staging / yamls[0]
+            try:
+                doc = load_yaml(yaml_path)
+                image = doc.get("image") if isinstance(doc, dict) else None
+                if isinstance(image, str) and (Path(image).name != image or image not in safe):
+                    raise ConfigError(f"the map's image {image!r} must be one of the uploaded files "
+                                      f"({', '.join(sorted(safe))})", path="image")
+                grid = load_map(yaml_path)  # every other check: keys, thresholds, origin, a readable image
+            except ConfigError as exc:  # name the uploaded file, not the staging directory
+                reason = exc.reason.replace(f"{staging}/", "")
+                raise ConfigError(reason, file=yamls[0], line=exc.line, column=exc.column, path=exc.path) from None
+            return self.save(target, grid, overwrite=overwrite)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+
+
+__all__ = ["BUILTIN_MAPS", "DEFAULT_MAP", "MAX_UPLOAD_BYTES", "MapInfo", "MapStore", "clean_name"]
