@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import logging
 import threading
+from typing import Any
 
 from flask import Flask
-from werkzeug.serving import BaseWSGIServer, make_server
+from werkzeug.serving import BaseWSGIServer, WSGIRequestHandler, make_server
 
 from atemr.clock import Clock
 from atemr.config import Config
@@ -24,6 +25,49 @@ from atemr.ui.gateway import RobotGateway
 from atemr.ui.users import HASH_METHOD
 
 log = logging.getLogger(__name__)
+http_log = logging.getLogger("atemr.ui.http")
+
+
+#: Responses up to this size are read out and closed before werkzeug writes them (see `CloseEarly`).
+CLOSE_EARLY_MAX_BYTES = 8 * 1024 * 1024
+
+
+class CloseEarly:
+    """WSGI middleware: reads small responses of known length into memory and closes them at once.
+
+    werkzeug's development server skips ``close()`` of a response when the browser has already dropped the
+    connection (its clean-up fails on the closed socket first), which leaks the open file of every static
+    asset or download a navigating page abandons. Reading out small bodies first closes them on every
+    path; large ones (videos) still stream.
+    """
+
+    def __init__(self, app: Any, max_bytes: int = CLOSE_EARLY_MAX_BYTES) -> None:
+        self.app = app
+        self.max_bytes = max_bytes
+
+    def __call__(self, environ: dict[str, Any], start_response: Any) -> Any:
+        length: list[int | None] = [None]
+
+        def capture(status: str, headers: list[tuple[str, str]], exc_info: Any = None) -> Any:
+            length[0] = next((int(v) for k, v in headers if k.lower() == "content-length" and v.isdigit()), None)
+            return start_response(status, headers, exc_info)
+
+        body = self.app(environ, capture)
+        if length[0] is None or length[0] > self.max_bytes or not hasattr(body, "close"):
+            return body
+        try:
+            return [b"".join(body)]
+        finally:
+            body.close()
+
+
+class _RequestHandler(WSGIRequestHandler):
+    """werkzeug's handler, logging through ``atemr.ui.http`` (requests at DEBUG) instead of attaching its
+    own stderr handler, so the robot's log configuration decides what is shown."""
+
+    def log(self, type: str, message: str, *args: Any) -> None:
+        level = logging.DEBUG if type == "info" else logging.WARNING
+        http_log.log(level, "%s %s", self.address_string(), message % args)
 
 #: How often the robot should tick the server (state pushes per second).
 PUSH_RATE_HZ = 10.0
@@ -71,7 +115,10 @@ class DashboardServer:
         if self._server is not None:
             return
         try:
-            self._server = make_server(self.config.ui.host, self.config.ui.port, self.app, threaded=True)
+            self._server = make_server(
+                self.config.ui.host, self.config.ui.port, CloseEarly(self.app), threaded=True,
+                request_handler=_RequestHandler,
+            )
         except (OSError, SystemExit) as exc:  # werkzeug exits (!) when the port is taken
             why = exc.strerror if isinstance(exc, OSError) else "the address is in use or not available"
             raise HardwareError(

@@ -142,7 +142,7 @@ def _subscription(event: str, room: str, members: Callable[[Sessions], set[str]]
             else:
                 leave_room(room)
                 members(sessions).discard(sid)
-        except ValueError:  # the client left (page closed) while its event was still queued
+        except (ValueError, KeyError):  # the client left (page closed) while its event was still queued
             members(sessions).discard(sid)
             return CommandResult.refused("disconnected").to_json()
         return {"ok": True, "reason": "", "on": on}

@@ -2,10 +2,35 @@
 
 from __future__ import annotations
 
+import argparse
 import io
 
-from atemr.cli.main import main
+from atemr.cli.user import UserCommand
+from atemr.errors import AtemrError
 from atemr.ui.users import UserStore
+
+
+def main(argv):
+    """Run ``atemr user ...`` as atemr.cli.main does (AtemrError → message and exit 2), without importing
+    the other subcommands."""
+    parser = argparse.ArgumentParser(prog="atemr")
+    sub = parser.add_subparsers(dest="command", required=True)
+    command = UserCommand()
+    command.configure(sub.add_parser("user"))
+    args = parser.parse_args(argv)
+    try:
+        return command.run(args)
+    except AtemrError as exc:
+        import sys
+
+        print(f"atemr user: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def test_user_is_a_builtin_command():
+    from atemr.cli import main as cli_main
+
+    assert "atemr.cli.user" in cli_main.COMMAND_MODULES
 
 
 def test_set_admin_password_from_stdin(tmp_path, monkeypatch, capsys):

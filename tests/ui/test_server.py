@@ -54,3 +54,33 @@ def test_works_as_a_scheduler_component(tmp_path, gateway, ui):
         sched.shutdown()
     assert server.pushes == 11  # t = 0.0, 0.1, ..., 1.0
     assert not server.running
+
+
+def test_close_early_closes_small_bodies_and_streams_big_ones():
+    from atemr.ui.server import CloseEarly
+
+    closed = []
+
+    class Body:
+        def __init__(self, chunks):
+            self.chunks = chunks
+
+        def __iter__(self):
+            return iter(self.chunks)
+
+        def close(self):
+            closed.append(self)
+
+    def app_of(body, length):
+        def app(environ, start_response):
+            start_response("200 OK", [("Content-Length", str(length))] if length is not None else [])
+            return body
+        return app
+
+    small = Body([b"ab", b"c"])
+    out = CloseEarly(app_of(small, 3), max_bytes=10)({}, lambda *a: None)
+    assert out == [b"abc"] and closed == [small]
+    big = Body([b"x" * 20])
+    assert CloseEarly(app_of(big, 20), max_bytes=10)({}, lambda *a: None) is big and closed == [small]
+    unknown = Body([b"y"])
+    assert CloseEarly(app_of(unknown, None), max_bytes=10)({}, lambda *a: None) is unknown
