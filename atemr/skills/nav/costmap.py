@@ -52,6 +52,11 @@ class CostmapParams:
     inflation_radius_m: float = 0.8
     cost_scaling: float = 6.0
     unknown: UnknownPolicy = "lethal"
+    #: Extra room kept from what only the obstacle layer sees (people, pets, things not in the map): they
+    #: count as this much closer. People walk up to a robot that hugs their line; the margin keeps it off
+    #: their line and, when one comes closer anyway, puts the robot inside the inscribed zone, where the
+    #: local planner allows only moves that open the gap (it steps aside or backs away).
+    obstacle_padding_m: float = 0.2
     #: Returns farther than this do not mark (noise grows with range); beams clear up to their return.
     obstacle_range_m: float = 4.0
     raytrace_range_m: float = 6.0
@@ -61,8 +66,10 @@ class CostmapParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise NavigationError(f"costmap: {name} must be a finite number > 0, got {value!r}")
-        if not (math.isfinite(self.footprint_padding_m) and self.footprint_padding_m >= 0):
-            raise NavigationError(f"costmap: footprint_padding_m must be >= 0, got {self.footprint_padding_m!r}")
+        for name in ("footprint_padding_m", "obstacle_padding_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise NavigationError(f"costmap: {name} must be a finite number >= 0, got {value!r}")
         if self.unknown not in ("lethal", "free", "unknown"):
             raise NavigationError(f"costmap: unknown must be 'lethal', 'free' or 'unknown', got {self.unknown!r}")
 
@@ -87,7 +94,8 @@ class Costmap:
     """The layered costmap over one `OccupancyMap` (same grid, frame and resolution).
 
     ``cost`` (uint8, ROS scale) is what the planners read; ``distance_m`` (distance from each cell centre
-    to the nearest lethal cell centre) is what collision checks read. Both are recomputed lazily after
+    to the nearest lethal cell centre, less ``obstacle_padding_m`` for obstacle-layer cells) is what
+    collision checks read. Both are recomputed lazily after
     the obstacle layer changed.
     """
 
@@ -109,7 +117,7 @@ class Costmap:
         self._cache_version = -1
         self._cost: NDArray[np.uint8] = np.zeros(self.shape, dtype=np.uint8)
         self._dist: NDArray[np.float32] = self._static_distance
-        self._inflate_cells = math.ceil(p.inflation_radius_m / self.resolution_m) + 1
+        self._inflate_cells = math.ceil((p.inflation_radius_m + p.obstacle_padding_m) / self.resolution_m) + 1
 
     # -- distances and costs -------------------------------------------------------------------------
     def _distance(self, lethal: NDArray[np.bool_]) -> NDArray[np.float32]:
@@ -127,7 +135,7 @@ class Costmap:
             m = self._inflate_cells
             r0, r1 = max(int(rows.min()) - m, 0), min(int(rows.max()) + m + 1, self.shape[0])
             c0, c1 = max(int(cols.min()) - m, 0), min(int(cols.max()) + m + 1, self.shape[1])
-            window = self._distance(self.obstacles[r0:r1, c0:c1])
+            window = self._distance(self.obstacles[r0:r1, c0:c1]) - np.float32(self.params.obstacle_padding_m)
             dist = dist.copy()
             np.minimum(dist[r0:r1, c0:c1], window, out=dist[r0:r1, c0:c1])
         cost = inflation_costs(dist, self.params)

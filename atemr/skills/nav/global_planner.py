@@ -153,17 +153,27 @@ class GlobalPlanner:
             raise NavigationError(f"planner: {what} ({x:.2f}, {y:.2f}) is outside the map '{self.costmap.map.name}'")
         return int(row), int(col)
 
-    def plan(self, start_xy: tuple[float, float], goal_xy: tuple[float, float]) -> GlobalPath | None:
-        """The cheapest path from ``start_xy`` to ``goal_xy`` (world metres), or None when there is none."""
+    def plan(self, start_xy: tuple[float, float], goal_xy: tuple[float, float], *, tolerance_m: float = 0.0
+             ) -> GlobalPath | None:
+        """The cheapest path from ``start_xy`` to ``goal_xy`` (world metres), or None when there is none.
+
+        ``tolerance_m``: when the goal cell itself cannot be entered (a chair was put there, a person stands
+        next to it), plan to the enterable cell nearest the goal within this distance instead (global_planner's
+        ``default_tolerance``); the path then ends at that cell.
+        """
         cm = self.costmap
         p = self.params
         s = self._cell(*start_xy, what="start")
         g = self._cell(*goal_xy, what="goal")
         rows, cols = cm.shape
         indptr, indices = _structure(rows, cols)
-        cost = cm.cost
-        if cost[g] >= INSCRIBED and not (p.allow_unknown and cost[g] == NO_INFORMATION):
-            return None
+        if not self._enterable(g):
+            near = self._nearest_enterable(g, tolerance_m)
+            if near is None:
+                return None
+            g = near
+            gx, gy = cm.map.cell_to_world(g[0], g[1])
+            goal_xy = (float(gx), float(gy))
         n = rows * cols
         s_flat, g_flat = s[0] * cols + s[1], g[0] * cols + g[1]
         if s_flat == g_flat:
@@ -208,6 +218,29 @@ class GlobalPlanner:
         seg = np.diff(pts, axis=0)
         length = float(np.hypot(seg[:, 0], seg[:, 1]).sum())
         return GlobalPath(pts, flat, length, total, expanded)
+
+    def _enterable(self, cell: tuple[int, int]) -> bool:
+        c = int(self.costmap.cost[cell])
+        return c < INSCRIBED or (self.params.allow_unknown and c == NO_INFORMATION)
+
+    def _nearest_enterable(self, cell: tuple[int, int], tolerance_m: float) -> tuple[int, int] | None:
+        cm = self.costmap
+        rad = int(tolerance_m / cm.resolution_m)
+        if rad <= 0:
+            return None
+        r0, c0 = max(cell[0] - rad, 0), max(cell[1] - rad, 0)
+        window = cm.cost[r0:cell[0] + rad + 1, c0:cell[1] + rad + 1]
+        ok = window < INSCRIBED
+        if self.params.allow_unknown:
+            ok |= window == NO_INFORMATION
+        rr, cc = np.nonzero(ok)
+        if len(rr) == 0:
+            return None
+        d = np.hypot(rr + r0 - cell[0], cc + c0 - cell[1])
+        best = int(np.argmin(d))
+        if d[best] > rad:
+            return None
+        return int(rr[best] + r0), int(cc[best] + c0)
 
     def _grids(self, start: tuple[int, int]) -> tuple[NDArray[np.uint8], NDArray[np.bool_]]:
         """Cost and passability for a search from ``start``: when the start lies in the inscribed zone (the

@@ -1,20 +1,22 @@
-"""Local planner: the dynamic window approach with trajectory rollout, all samples at once.
+"""Local planner: trajectory rollout (the dynamic window), all samples at once.
 
-Each tick: the velocities reachable within one control period from the current one (acceleration and
-speed limits) are sampled on a (v, ω) grid; every pair is rolled out as a constant-velocity arc over
-``sim_time_s`` at ``sim_step_s`` — one (pairs × steps) array, closed-form arcs, no loop — and each
-trajectory is checked against the costmap's clearance (any pose within the inscribed radius of an
-obstacle rules it out) and scored (lower is better):
+Each tick: target velocities (v, ω) are sampled over the whole speed range; each is rolled out as the
+base would drive it — from the current velocity towards the target at the acceleration limits, then
+held (TrajectoryPlanner's model, so a sharp turn from rest is planned as it will really happen) — over
+``sim_time_s`` at ``sim_step_s``: one (targets × steps) array, no Python loop. Each trajectory is checked
+against the costmap's clearance (any pose within the inscribed radius of an obstacle rules it out) and
+scored (lower is better):
 
 * ``path_weight`` × distance from its end to the global path (stay on the plan),
 * ``goal_weight`` × path length still to go from its end (progress),
 * ``obstacle_weight`` × the highest inflation cost it crosses / 252 (keep away from walls),
 * ``heading_weight`` × its final heading error to the carrot, a path point ``lookahead_m`` ahead / π.
 
-Speed also falls with the distance left (``v ≤ √(2·a·d)``), so the base can always stop at the goal.
-When the carrot is far to the side or behind, the base first turns on the spot (a round base may), as
-ROS's planners do, rather than sweeping a wide arc. The chosen twist goes to the motion pipeline's
-navigation input; the chosen trajectory goes to the dashboard.
+The command is one acceleration step towards the best target, so speed and acceleration limits hold
+tick by tick. Speed also falls with the distance left (``v ≤ √(2·a·d)``), so the base can always stop
+at the goal. When the path ahead is far to the side or behind, the base first turns on the spot (a round
+base may), rather than sweeping a wide arc. The chosen twist goes to the motion pipeline's navigation
+input; the chosen trajectory goes to the dashboard.
 """
 
 from __future__ import annotations
@@ -44,8 +46,8 @@ class LocalPlannerParams:
     control_period_s: float = 0.1
     sim_time_s: float = 1.6
     sim_step_s: float = 0.1
-    linear_samples: int = 8
-    angular_samples: int = 21
+    linear_samples: int = 9
+    angular_samples: int = 25
     path_weight: float = 1.2
     goal_weight: float = 1.0
     obstacle_weight: float = 0.4
@@ -103,6 +105,24 @@ def rollout(pose: Pose2D, v: FloatArray, w: FloatArray, times: FloatArray) -> tu
     return np.where(straight, x_line, x_arc), np.where(straight, y_line, y_arc), th
 
 
+def ramped_rollout(pose: Pose2D, velocity: Twist, v_target: FloatArray, w_target: FloatArray, step_s: float,
+                   steps: int, linear_accel: float, angular_accel: float
+                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Poses (x, y, yaw), each (P, steps), when the base goes from ``velocity`` towards each target (v, ω)
+    at the acceleration limits and then holds it (TrajectoryPlanner's model): a sharp turn from rest is
+    planned as the base would really drive it. Midpoint integration per step, all targets at once."""
+    t_mid = (np.arange(steps, dtype=np.float64) + 0.5) * step_s
+    dv = np.clip(v_target[:, None] - velocity.linear_mps, -linear_accel * t_mid, linear_accel * t_mid)
+    dw = np.clip(w_target[:, None] - velocity.angular_radps, -angular_accel * t_mid, angular_accel * t_mid)
+    v = velocity.linear_mps + dv
+    w = velocity.angular_radps + dw
+    yaw = pose.yaw_rad + np.cumsum(w * step_s, axis=1)
+    yaw_mid = yaw - w * (step_s / 2)
+    x = pose.x_m + np.cumsum(v * np.cos(yaw_mid) * step_s, axis=1)
+    y = pose.y_m + np.cumsum(v * np.sin(yaw_mid) * step_s, axis=1)
+    return x, y, yaw
+
+
 def path_progress(path: FloatArray, x: float, y: float) -> tuple[int, FloatArray]:
     """Index of the path point nearest (x, y) and the cumulative arc length of the path."""
     seg = np.hypot(*np.diff(path, axis=0).T) if len(path) > 1 else np.zeros(0)
@@ -118,26 +138,36 @@ class LocalPlanner:
         self.costmap = costmap
         self.params = params or LocalPlannerParams()
         p = self.params
-        k = max(round(p.sim_time_s / p.sim_step_s), 1)
-        self.times = np.arange(1, k + 1, dtype=np.float64) * p.sim_step_s
 
-    def window(self, velocity: Twist, dt_s: float, v_cap: float, *, reverse: bool = False
-               ) -> tuple[FloatArray, FloatArray]:
-        """The sampled (v, ω) pairs (flattened grid) reachable within ``dt_s`` from ``velocity``; forward
-        only, unless ``reverse`` (something is inside the inscribed radius: backing away may be the way out)."""
+    def targets(self, velocity: Twist, v_cap: float, *, reverse: bool = False) -> tuple[FloatArray, FloatArray]:
+        """The sampled target (v, ω) pairs (flattened grid) over the whole speed range, plus the current
+        velocity and straight ahead; forward only, unless ``reverse`` (something is inside the inscribed
+        radius: backing away may be the way out)."""
         p = self.params
         v_min = -p.escape_reverse_mps if reverse else 0.0
-        v_hi = min(v_cap, velocity.linear_mps + p.linear_accel_mps2 * dt_s)
-        v_lo = max(v_min, velocity.linear_mps - p.linear_accel_mps2 * dt_s)
-        v_lo = min(v_lo, v_hi)
-        w_hi = min(p.max_angular_radps, velocity.angular_radps + p.angular_accel_radps2 * dt_s)
-        w_lo = max(-p.max_angular_radps, velocity.angular_radps - p.angular_accel_radps2 * dt_s)
-        vs = np.linspace(v_lo, v_hi, p.linear_samples)
-        ws = np.linspace(w_lo, w_hi, p.angular_samples)
-        if w_lo < 0.0 < w_hi:
-            ws = np.append(ws, 0.0)
+        v_hi = max(v_cap, v_min)
+        vs = np.append(np.linspace(v_min, v_hi, p.linear_samples), np.clip(velocity.linear_mps, v_min, v_hi))
+        w_max = p.max_angular_radps
+        ws = np.append(np.linspace(-w_max, w_max, p.angular_samples),
+                       [0.0, float(np.clip(velocity.angular_radps, -w_max, w_max))])
         vv, ww = np.meshgrid(vs, ws, indexing="ij")
         return vv.reshape(-1), ww.reshape(-1)
+
+    def first_command(self, velocity: Twist, v_target: float, w_target: float, dt_s: float) -> Twist:
+        """The command for this control period on the way to a target: one acceleration step towards it."""
+        p = self.params
+        dv = p.linear_accel_mps2 * dt_s
+        dw = p.angular_accel_radps2 * dt_s
+        v = velocity.linear_mps + float(np.clip(v_target - velocity.linear_mps, -dv, dv))
+        w = velocity.angular_radps + float(np.clip(w_target - velocity.angular_radps, -dw, dw))
+        return Twist(v, w)
+
+    def _rollout(self, pose: Pose2D, velocity: Twist, vs: FloatArray, ws: FloatArray, horizon_s: float
+                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        p = self.params
+        steps = max(round(horizon_s / p.sim_step_s), 1)
+        return ramped_rollout(pose, velocity, vs, ws, p.sim_step_s, steps, p.linear_accel_mps2,
+                              p.angular_accel_radps2)
 
     def rotate(self, yaw_error_rad: float, velocity: Twist, dt_s: float) -> Twist:
         """Turn on the spot towards a heading: proportional, within the rate and acceleration limits, slowing
@@ -168,9 +198,11 @@ class LocalPlanner:
         # Carrot: lookahead along the path from the nearest point (the goal at the end).
         i_carrot = int(np.searchsorted(s, s[i_near] + p.lookahead_m))
         carrot = path[min(i_carrot, len(path) - 1)]
-        heading_err = float(wrap(math.atan2(carrot[1] - pose.y_m, carrot[0] - pose.x_m) - pose.yaw_rad))
+        # Turn on the spot first when the path just ahead (a short carrot, so a corner is not cut) is far off.
+        near = path[min(int(np.searchsorted(s, s[i_near] + 0.35)), len(path) - 1)]
+        heading_err = float(wrap(math.atan2(near[1] - pose.y_m, near[0] - pose.x_m) - pose.yaw_rad))
         clearance_here = float(cm.distance_at(pose.x_m, pose.y_m))
-        if abs(heading_err) > p.rotate_threshold_rad and np.hypot(*(carrot - here)) > 1e-3:
+        if abs(heading_err) > p.rotate_threshold_rad and np.hypot(*(near - here)) > 0.05:
             twist = self.rotate(heading_err, velocity, dt)
             traj = np.repeat(here[None, :], 2, axis=0)
             return LocalPlan(twist, traj, True, 1, 1)
@@ -178,8 +210,8 @@ class LocalPlanner:
         # Slow down for the goal: able to stop there (√(2·a·d)), and creeping over the last decimetres.
         v_cap = min(p.max_linear_mps, math.sqrt(2 * p.linear_accel_mps2 * d_goal), max(0.08, 1.2 * d_goal))
         escaping = clearance_here < r_in
-        vs, ws = self.window(velocity, dt, v_cap, reverse=escaping)
-        xs, ys, th = rollout(pose, vs, ws, self.times)
+        vs, ws = self.targets(velocity, v_cap, reverse=escaping)
+        xs, ys, th = self._rollout(pose, velocity, vs, ws, p.sim_time_s)
         clear = cm.distance_at(xs, ys)
         # Valid: never inside the inscribed radius; from inside it (pushed against something, or something
         # came close), never closer than now and ending farther away: the way out, never a creep inwards.
@@ -207,4 +239,26 @@ class LocalPlanner:
             return LocalPlan(Twist(0.0, 0.0), np.repeat(here[None, :], 2, axis=0), False, len(vs), 0)
         best = int(np.argmin(score))
         traj = np.vstack([here, np.column_stack([xs[best], ys[best]])])
-        return LocalPlan(Twist(float(vs[best]), float(ws[best])), traj, True, len(vs), n_valid)
+        twist = self.first_command(velocity, float(vs[best]), float(ws[best]), dt)
+        # A stop chosen because every move is ruled out is a blocked robot, not progress.
+        moving = abs(twist.linear_mps) > 1e-3 or abs(twist.angular_radps) > 1e-3 or abs(vs[best]) > 1e-3
+        return LocalPlan(twist, traj, moving, len(vs), n_valid)
+
+    def evade(self, pose: Pose2D, velocity: Twist, dt_s: float | None = None) -> Twist:
+        """While waiting: if something is inside the inscribed radius (a person walked up), the move in the
+        window (reverse allowed) that opens the gap most without ever closing it; zero when nothing is close
+        or nothing helps. A robot that stands still in someone's way gets walked into."""
+        p = self.params
+        cm = self.costmap
+        dt = p.control_period_s if dt_s is None else min(max(dt_s, 1e-3), 1.0)
+        here = float(cm.distance_at(pose.x_m, pose.y_m))
+        if here >= cm.params.inscribed_radius_m:
+            return Twist(0.0, 0.0)
+        vs, ws = self.targets(velocity, 0.3, reverse=True)
+        xs, ys, _ = self._rollout(pose, velocity, vs, ws, 1.0)
+        clear = cm.distance_at(xs, ys)
+        gain = np.where(clear.min(axis=1) >= here, clear[:, -1] - here, -np.inf)
+        best = int(np.argmax(gain))
+        if gain[best] <= 0.01:
+            return Twist(0.0, 0.0)
+        return self.first_command(velocity, float(vs[best]), float(ws[best]), dt)

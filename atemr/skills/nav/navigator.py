@@ -51,7 +51,11 @@ class NavParams:
     #: How far ahead along the path a blocked cell triggers an immediate replan.
     blocked_lookahead_m: float = 2.0
     #: No local trajectory for this long → stuck (recovery).
-    blocked_timeout_s: float = 2.0
+    blocked_timeout_s: float = 4.0
+    #: No global path: wait this long (planning again every ``path_retry_s``) before each recovery; in a home
+    #: the way is usually blocked by someone who will step aside.
+    path_wait_s: float = 8.0
+    path_retry_s: float = 1.0
     #: The distance left must shrink by ``progress_m`` within this time, or the robot is stuck.
     stuck_timeout_s: float = 10.0
     progress_m: float = 0.15
@@ -64,7 +68,7 @@ class NavParams:
         if self.arrive_m > self.xy_tolerance_m:
             raise NavigationError(f"navigator: arrive_m ({self.arrive_m}) must not exceed xy_tolerance_m")
         for name in ("xy_tolerance_m", "yaw_tolerance_rad", "arrive_m", "replan_period_s", "blocked_lookahead_m",
-                     "blocked_timeout_s", "stuck_timeout_s", "progress_m", "recovered_after_m",
+                     "blocked_timeout_s", "path_wait_s", "path_retry_s", "stuck_timeout_s", "progress_m", "recovered_after_m",
                      "localization_timeout_s", "timeout_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -124,6 +128,8 @@ class Navigator:
         self._last_scan_t = math.nan
         self._velocity = ZERO_TWIST
         self._blocked_since: float | None = None
+        self._no_path_since: float | None = None
+        self._planned = False
         self._lost_since: float | None = None
         self._best_left = math.inf
         self._t_progress = 0.0
@@ -217,19 +223,29 @@ class Navigator:
         if self._recovery is not None:
             twist, done = self._recovery.step(now, pose, self.costmap)
             if not done:
+                if twist.is_zero:
+                    twist = self.local.evade(pose, self._velocity, dt)
                 return self._running(twist, f"recovery: {self._recovery.kind}", d_goal)
             self.events.append(NavEvent(now, "recovery done", self._recovery.kind))
             self._recovery = None
+            self._no_path_since = None
             self._t_plan = -math.inf
             self._blocked_since = None
             self._t_progress = now
 
-        # Global plan: periodic, at once when the path ahead became blocked.
-        if self._path is None or now - self._t_plan >= p.replan_period_s or self._path_blocked(pose):
-            replanned = self._plan(now, pose)
-            if not replanned:
+        # Global plan: periodic, at once when the path ahead became blocked; without one, wait and retry.
+        if self._path is None:
+            due = now - self._t_plan >= p.path_retry_s
+        else:
+            due = now - self._t_plan >= p.replan_period_s or self._path_blocked(pose)
+        if due and not self._plan(now, pose):
+            if self._no_path_since is None:
+                self._no_path_since = now
+        if self._path is None:
+            if self._no_path_since is not None and now - self._no_path_since > p.path_wait_s:
                 return self._begin_recovery(now, pose, "no path", d_goal)
-        assert self._path is not None
+            return self._running(self.local.evade(pose, self._velocity, dt), "no path: waiting", d_goal)
+        self._no_path_since = None
         path = self._path.points
         left = self._distance_left(pose, path)
 
@@ -243,7 +259,8 @@ class Navigator:
         if now - self._t_progress > p.stuck_timeout_s:
             return self._begin_recovery(now, pose, "stuck", d_goal)
 
-        plan = self.local.compute(pose, self._velocity, path, (goal.x_m, goal.y_m), dt)
+        end = (float(path[-1, 0]), float(path[-1, 1]))  # the goal, or the nearest enterable cell to it
+        plan = self.local.compute(pose, self._velocity, path, end, dt)
         self._trajectory = plan.trajectory
         if not plan.ok:
             if self._blocked_since is None:
@@ -251,7 +268,7 @@ class Navigator:
                 self._t_plan = -math.inf  # replan at the next tick: the way may be open elsewhere
             if now - self._blocked_since > p.blocked_timeout_s:
                 return self._begin_recovery(now, pose, "stuck", d_goal)
-            return self._running(ZERO_TWIST, "blocked: waiting", left)
+            return self._running(self.local.evade(pose, self._velocity, dt), "blocked: waiting", left)
         self._blocked_since = None
         self._creeping = abs(plan.twist.linear_mps) < 0.03
         return self._running(plan.twist, "following the path", left)
@@ -259,17 +276,24 @@ class Navigator:
     # -- helpers -------------------------------------------------------------------------------------------
     def _plan(self, now: float, pose: Pose2D) -> bool:
         assert self.goal is not None
-        first = self._path is None
-        path = self.planner.plan((pose.x_m, pose.y_m), (self.goal.x_m, self.goal.y_m))
+        before = self._path
+        tolerance = max(self.params.xy_tolerance_m - 0.05, 0.0)
+        path = self.planner.plan((pose.x_m, pose.y_m), (self.goal.x_m, self.goal.y_m), tolerance_m=tolerance)
         self._t_plan = now
         if path is None:
+            if before is not None or not self._planned:
+                self.events.append(NavEvent(now, "no path", f"from ({pose.x_m:.2f}, {pose.y_m:.2f})"))
             self._path = None
-            self.events.append(NavEvent(now, "no path", f"from ({pose.x_m:.2f}, {pose.y_m:.2f})"))
+            self._planned = True
             return False
         self._path = path
         # Progress is judged along the current plan: a detour round a new obstacle is progress too.
-        self._best_left = self._distance_left(pose, path.points)
-        self.events.append(NavEvent(now, "plan" if first else "replan", f"{path.length_m:.2f} m"))
+        left = self._distance_left(pose, path.points)
+        self._best_left = left
+        # Log a plan when there was none, or when the way changed (not every periodic replan).
+        if before is None or abs(left - self._distance_left(pose, before.points)) > 0.5:
+            self.events.append(NavEvent(now, "replan" if self._planned else "plan", f"{path.length_m:.2f} m"))
+        self._planned = True
         return True
 
     def _path_blocked(self, pose: Pose2D) -> bool:

@@ -63,11 +63,20 @@ def test_turns_on_the_spot_when_the_path_is_behind(open_room):
     assert plan.twist.linear_mps == 0.0 and plan.twist.angular_radps != 0.0
 
 
-def test_slows_for_the_goal(open_room):
-    lp = LocalPlanner(open_room)
-    path = straight_path(1.0, 2.0, 2.0)
-    plan = lp.compute(Pose2D(1.9, 2.0, 0.0), Twist(0.5, 0.0), path, (2.0, 2.0), 0.1)
-    assert plan.twist.linear_mps <= 0.13
+def test_slows_for_the_goal_and_stops_there(open_room):
+    from atemr.io.sim.base import integrate_arc
+
+    params = LocalPlannerParams()
+    lp = LocalPlanner(open_room, params)
+    path = straight_path(1.0, 3.0, 2.0)
+    pose, v = Pose2D(1.0, 2.0, 0.0), Twist(params.max_linear_mps, 0.0)
+    for _ in range(60):
+        plan = lp.compute(pose, v, path, (3.0, 2.0), 0.1)
+        assert abs(plan.twist.linear_mps - v.linear_mps) <= params.linear_accel_mps2 * 0.1 + 1e-9
+        v = plan.twist
+        pose = integrate_arc(pose, v.linear_mps, v.angular_radps, 0.1)
+    assert abs(pose.x_m - 3.0) < 0.1 and abs(pose.y_m - 2.0) < 0.05
+    assert v.linear_mps < 0.1
 
 
 def test_never_drives_into_a_wall_ahead(make_map, make_room):
