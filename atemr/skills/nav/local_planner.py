@@ -105,7 +105,7 @@ def rollout(pose: Pose2D, v: FloatArray, w: FloatArray, times: FloatArray) -> tu
     return np.where(straight, x_line, x_arc), np.where(straight, y_line, y_arc), th
 
 
-def ramped_rollout(pose: Pose2D, velocity: Twist, v_target: FloatArray, w_target: FloatArray, step_s: float,
+def ramped_rollout(pose: Pose2D, velocity: Twist, v_target: FloatArray, w_target: FloatArray, *, step_s: float,
                    steps: int, linear_accel: float, angular_accel: float
                    ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Poses (x, y, yaw), each (P, steps), when the base goes from ``velocity`` towards each target (v, ω)
@@ -137,7 +137,6 @@ class LocalPlanner:
     def __init__(self, costmap: Costmap, params: LocalPlannerParams | None = None) -> None:
         self.costmap = costmap
         self.params = params or LocalPlannerParams()
-        p = self.params
 
     def targets(self, velocity: Twist, v_cap: float, *, reverse: bool = False) -> tuple[FloatArray, FloatArray]:
         """The sampled target (v, ω) pairs (flattened grid) over the whole speed range, plus the current
@@ -166,8 +165,8 @@ class LocalPlanner:
                  ) -> tuple[FloatArray, FloatArray, FloatArray]:
         p = self.params
         steps = max(round(horizon_s / p.sim_step_s), 1)
-        return ramped_rollout(pose, velocity, vs, ws, p.sim_step_s, steps, p.linear_accel_mps2,
-                              p.angular_accel_radps2)
+        return ramped_rollout(pose, velocity, vs, ws, step_s=p.sim_step_s, steps=steps,
+                              linear_accel=p.linear_accel_mps2, angular_accel=p.angular_accel_radps2)
 
     def rotate(self, yaw_error_rad: float, velocity: Twist, dt_s: float) -> Twist:
         """Turn on the spot towards a heading: proportional, within the rate and acceleration limits, slowing

@@ -68,8 +68,8 @@ class NavParams:
         if self.arrive_m > self.xy_tolerance_m:
             raise NavigationError(f"navigator: arrive_m ({self.arrive_m}) must not exceed xy_tolerance_m")
         for name in ("xy_tolerance_m", "yaw_tolerance_rad", "arrive_m", "replan_period_s", "blocked_lookahead_m",
-                     "blocked_timeout_s", "path_wait_s", "path_retry_s", "stuck_timeout_s", "progress_m", "recovered_after_m",
-                     "localization_timeout_s", "timeout_s"):
+                     "blocked_timeout_s", "path_wait_s", "path_retry_s", "stuck_timeout_s", "progress_m",
+                     "recovered_after_m", "localization_timeout_s", "timeout_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise NavigationError(f"navigator: {name} must be a finite number > 0, got {value!r}")
@@ -238,9 +238,8 @@ class Navigator:
             due = now - self._t_plan >= p.path_retry_s
         else:
             due = now - self._t_plan >= p.replan_period_s or self._path_blocked(pose)
-        if due and not self._plan(now, pose):
-            if self._no_path_since is None:
-                self._no_path_since = now
+        if due and not self._plan(now, pose) and self._no_path_since is None:
+            self._no_path_since = now
         if self._path is None:
             if self._no_path_since is not None and now - self._no_path_since > p.path_wait_s:
                 return self._begin_recovery(now, pose, "no path", d_goal)
