@@ -7,8 +7,18 @@
   const A = window.ATEMR;
   const TOP = ["STARTUP", "IDLE", "EXEC", "MAPPING", "ERROR", "SHUTDOWN"];
 
-  A.socket.on("connect", () => A.command("agent_view", { on: true }));
-  A.socket.on("agent", draw);
+  let subscribed = false;
+  let lastAgent = 0;
+  async function subscribe() {
+    subscribed = true;
+    const ack = await A.command("agent_view", { on: true });
+    if (!ack.ok) subscribed = false;
+  }
+  A.socket.on("connect", subscribe);
+  A.socket.on("disconnect", () => { subscribed = false; });
+  A.socket.on("agent", (snap) => { lastAgent = Date.now(); draw(snap); });
+  // Self-healing: no agent snapshot for 2 s while states arrive → subscribe again.
+  A.onState(() => { if (!subscribed || (lastAgent && Date.now() - lastAgent > 2000)) { lastAgent = Date.now(); subscribe(); } });
   A.onState((s) => {
     const m = s.mission;
     $("agent-mission").textContent = m ? `${m.name}: ${m.state || ""}` : "no mission";

@@ -10,8 +10,11 @@
   const cam = $("camera"), camOff = $("camera-off"), camBtn = $("cam-toggle");
   let camOn = false;
   let camWanted = true; // CAM-ON by default (thesis 3.5.3); off saves bandwidth
+  let camPending = false;
   async function setCamera(on) {
+    camPending = true;
     const ack = await A.command("camera", { on });
+    camPending = false;
     if (!ack.ok) return;
     camOn = on;
     camBtn.textContent = on ? "CAM-ON" : "CAM-OFF";
@@ -21,6 +24,8 @@
   camBtn.addEventListener("click", () => { camWanted = !camOn; setCamera(camWanted); });
   A.socket.on("camera", (f) => { if (camOn && f && f.jpeg) cam.src = `data:image/jpeg;base64,${f.jpeg}`; });
   A.socket.on("connect", () => setCamera(camWanted));
+  // Self-healing: a subscription lost on the way (reconnect, a refused ack) is asked for again.
+  A.onState(() => { if (camWanted !== camOn && !camPending && A.socket.status === "ONLINE") setCamera(camWanted); });
 
   // -- map modes: MAP CTL (pan/zoom) / SEND CMD, and INITIAL POS. / SEND GOAL ---------------------------
   const ctlBtn = $("map-ctl"), cmdBtn = $("map-cmd");
