@@ -1,0 +1,172 @@
+"""The whole localization stack as one scheduler component: ``odom`` from the odometry EKF, ``map`` from AMCL.
+
+Inputs arrive through callbacks (cheap, any order the sources produce them): wheel speeds
+(`on_wheels`, from the motor driver's feedback), IMU samples (`on_imu`) and scans (`on_scan`, kept
+until the next tick). Each tick handles the newest scan:
+
+1. ICP of the scan against the previous one, starting from the odometry EKF's own increment, gives
+   the scan-matcher measurement of the twist (`OdometryEkf.update_scan_match`);
+2. the `Localizer` gets the scan with the ``odom`` pose of its time (AMCL, map EKF, covariance monitor,
+   relocalization).
+
+Tick it at the lidar rate (10 Hz). Outputs: `odom_pose`, `estimate` (map pose + covariance, None while
+not localized), `localized` (0x153 bit 4), `map_to_odom`, and `drain_events` for the agent and the
+dashboard. No I/O and no clock of its own: every time comes from the inputs or the scheduler's ``now``.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+
+import numpy as np
+
+from atemr.errors import NavigationError
+from atemr.io.sim.maps import OccupancyMap
+from atemr.msgs import ImuSample, LaserScan, Pose2D, WheelSpeeds
+from atemr.skills.diff_drive import DiffDrive
+from atemr.skills.localization.amcl import PoseEstimate
+from atemr.skills.localization.geometry import as_array, as_pose, compose, relative
+from atemr.skills.localization.icp import IcpTarget, icp
+from atemr.skills.localization.localizer import LocalizationEvent, Localizer, LocalizerParams
+from atemr.skills.localization.odometry_ekf import OdometryEkf, OdometryEkfParams
+from atemr.skills.localization.scan import scan_points
+
+#: Odometry poses kept to look up the pose at a scan's time (2 s at 50 Hz).
+_HISTORY = 100
+
+
+class LocalizationPipeline:
+    """See the module docstring. ``grid`` is the active map (None: odometry only until `set_map`)."""
+
+    name = "localization"
+
+    def __init__(
+        self,
+        grid: OccupancyMap | None,
+        rng: np.random.Generator,
+        *,
+        drive: DiffDrive | None = None,
+        odometry: OdometryEkfParams | None = None,
+        localizer: LocalizerParams | None = None,
+    ) -> None:
+        self.drive = drive or DiffDrive()
+        self.rng = rng
+        self.localizer_params = localizer or LocalizerParams()
+        self.odometry = OdometryEkf(odometry)
+        self.localizer: Localizer | None = None
+        self._times: deque[float] = deque(maxlen=_HISTORY)
+        self._poses: deque[Pose2D] = deque(maxlen=_HISTORY)
+        self._pending: LaserScan | None = None
+        self._prev: tuple[LaserScan, IcpTarget, Pose2D] | None = None
+        self._events: list[LocalizationEvent] = []
+        self.scans_used = 0
+        self.icp_failures = 0
+        if grid is not None:
+            self.set_map(grid)
+
+    # -- control -----------------------------------------------------------------------------------
+    def set_map(self, grid: OccupancyMap) -> None:
+        """Localize against ``grid`` from now on (the operator selected another map): pose unknown again."""
+        if self.localizer is not None:
+            self._events.extend(self.localizer.events)
+        self.localizer = Localizer(grid, self.rng, self.localizer_params)
+
+    def _need(self) -> Localizer:
+        if self.localizer is None:
+            raise NavigationError("no active map: select or build a map before localizing")
+        return self.localizer
+
+    def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None) -> None:
+        """The operator's pose on the map (`NavigationError` if it is not in free space)."""
+        self._need().set_initial_pose(now, pose, covariance)
+
+    def start_global(self, now: float) -> None:
+        """Global localization (the pose is unknown)."""
+        self._need().start_global(now, "requested")
+
+    # -- inputs ------------------------------------------------------------------------------------
+    def _remember(self) -> None:
+        est = self.odometry.estimate
+        self._times.append(est.t)
+        self._poses.append(est.pose)
+
+    def on_wheels(self, now: float, wheels: WheelSpeeds) -> None:
+        """Measured wheel speeds at ``now``."""
+        if self.odometry.update_wheels(now, self.drive.measured(wheels)):
+            self._remember()
+
+    def on_imu(self, sample: ImuSample) -> None:
+        if self.odometry.update_imu(sample):
+            self._remember()
+
+    def on_scan(self, scan: LaserScan) -> None:
+        """Keep the newest scan for the next tick (an older unhandled one is superseded)."""
+        self._pending = scan
+
+    # -- tick --------------------------------------------------------------------------------------
+    def odom_at(self, t: float) -> Pose2D:
+        """The ``odom`` pose at time ``t`` (the latest one recorded at or before it)."""
+        if not self._times:
+            return self.odometry.estimate.pose
+        i = bisect.bisect_right(self._times, t) - 1
+        return self._poses[max(i, 0)]
+
+    def tick(self, now: float) -> None:
+        scan, self._pending = self._pending, None
+        if scan is None or not math.isfinite(scan.t):
+            return
+        odom = self.odom_at(scan.t)
+        points = scan_points(scan)
+        target = IcpTarget(points)
+        if self._prev is not None and points.shape[0] >= 20:
+            prev_scan, prev_target, prev_odom = self._prev
+            dt = scan.t - prev_scan.t
+            if dt > 0:
+                guess = relative(as_array(prev_odom), as_array(odom))
+                match = icp(points, prev_target, as_pose(guess))
+                if match.ok and match.inlier_fraction > 0.5:
+                    self.odometry.update_scan_match(max(scan.t, self.odometry.t), match.pose, dt, match.covariance)
+                    self._remember()
+                else:
+                    self.icp_failures += 1
+        self._prev = (scan, target, odom)
+        if self.localizer is not None:
+            self.localizer.update(scan.t, odom, scan)
+        self.scans_used += 1
+
+    # -- outputs -----------------------------------------------------------------------------------
+    @property
+    def odom_pose(self) -> Pose2D:
+        return self.odometry.estimate.pose
+
+    @property
+    def localized(self) -> bool:
+        return self.localizer is not None and self.localizer.localized
+
+    @property
+    def estimate(self) -> PoseEstimate | None:
+        """Map pose at the last scan, or None while not localized."""
+        return None if self.localizer is None else self.localizer.estimate
+
+    def map_pose(self) -> Pose2D | None:
+        """The current map pose: the map→odom correction composed with the newest odometry."""
+        if self.localizer is None or not self.localizer.localized:
+            return None
+        corr = self.localizer.map_to_odom()
+        if corr is None:
+            return None
+        return as_pose(compose(as_array(corr), as_array(self.odom_pose)))
+
+    def drain_events(self) -> list[LocalizationEvent]:
+        """Events since the last call (lost, relocalized, localized, ...), oldest first."""
+        out = self._events
+        if self.localizer is not None:
+            out = out + self.localizer.events
+            self.localizer.events = []
+        self._events = []
+        return out
+
+
+__all__ = ["LocalizationPipeline"]
