@@ -135,7 +135,7 @@ class Navigator:
         self._t_progress = 0.0
         self._recovery_index = 0
         self._recovery: RecoveryBehaviour | None = None
-        self._recovery_best_left = math.inf
+        self._recovery_d_goal = math.inf
         self._last_failure: FailReason = "stuck"
         self._xy_reached = False
         self._creeping = False
@@ -252,9 +252,10 @@ class Navigator:
         if left < self._best_left - p.progress_m:
             self._best_left = left
             self._t_progress = now
-        if left < self._recovery_best_left - p.recovered_after_m:
+        # A recovery worked when the robot got really closer (straight-line, not along a new plan: clearing the
+        # costmap shortens the plan without moving anything); then the sequence may start over.
+        if self._recovery_index and d_goal < self._recovery_d_goal - p.recovered_after_m:
             self._recovery_index = 0
-            self._recovery_best_left = math.inf
         if now - self._t_progress > p.stuck_timeout_s:
             return self._begin_recovery(now, pose, "stuck", d_goal)
 
@@ -323,7 +324,7 @@ class Navigator:
             return self._fail(now, why, f"{detail} after recoveries ({', '.join(seq)})")
         kind = seq[self._recovery_index]
         self._recovery_index += 1
-        self._recovery_best_left = min(self._recovery_best_left, self._best_left)
+        self._recovery_d_goal = min(self._recovery_d_goal, d_goal)
         self._recovery = RecoveryBehaviour(kind, self.params.recovery, now, pose)
         self._blocked_since = None
         self.events.append(NavEvent(now, "recovery", f"{kind} ({why})"))

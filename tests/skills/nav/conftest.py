@@ -41,6 +41,9 @@ class Drive:
     t_end: float
     collisions: list[Any]
     statuses: list[NavStatus] = field(default_factory=list)
+    #: For each collision, the linear speed the navigator was commanding just before it (≈ 0: the robot
+    #: stood still and a person or pet walked into it — the simulator counts that as a contact too).
+    commanded_at_contact: list[float] = field(default_factory=list)
 
 
 class NavComponent:
@@ -53,10 +56,13 @@ class NavComponent:
         self.on_tick = on_tick
         self.status: NavStatus | None = None
         self.statuses: list[NavStatus] = []
+        self.commanded_at_contact: list[float] = []
 
     def tick(self, now: float) -> None:
         if self.on_tick is not None:
             self.on_tick(now, self.sim)
+        while len(self.commanded_at_contact) < len(self.sim.collisions):
+            self.commanded_at_contact.append(self.status.twist.linear_mps if self.status else 0.0)
         status = self.nav.update(now, self.sim.pose, self.sim.lidar_source.latest, True)
         self.sim.command_twist(status.twist.linear_mps, status.twist.angular_radps)
         self.status = status
@@ -78,7 +84,7 @@ def drive(sim: Simulation, nav: Navigator, goal: Pose2D, *, max_s: float = 120.0
         if comp.status is not None and comp.status.state != "RUNNING":
             break
     assert comp.status is not None
-    return Drive(comp.status, t, list(sim.collisions), comp.statuses)
+    return Drive(comp.status, t, list(sim.collisions), comp.statuses, comp.commanded_at_contact)
 
 
 @pytest.fixture
