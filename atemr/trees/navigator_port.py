@@ -1,0 +1,51 @@
+"""`NavigationPort` over the real `atemr.skills.nav.navigator.Navigator`.
+
+The navigator is a pure skill (data in, data out); this adapter feeds it what it needs each tick (the
+pose, the latest scan, whether localization is confident) from callables the robot wiring provides, and
+hands the agent's `GoToPose` leaf a `NavProgress`. It keeps the navigator's last full status
+(``last_status``: global path, local trajectory, phase, recovery) for the dashboard.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from atemr.msgs import LaserScan, Pose2D, Twist
+from atemr.skills.nav.navigator import Navigator, NavStatus
+from atemr.trees.ports import NavProgress
+
+_NO_POSE = Pose2D(math.nan, math.nan, math.nan)
+
+
+class NavigatorPort:
+    """The agent's navigation: ``Agent(spec, port, link, navigation=NavigatorPort(navigator, ...))``.
+
+    ``pose`` gives the map-frame pose (None before any), ``scan`` the latest lidar scan (None: none yet),
+    ``localized`` whether the pose can be trusted, ``velocity`` the measured twist if known.
+    """
+
+    def __init__(self, navigator: Navigator, *, pose: Callable[[], Pose2D | None],
+                 scan: Callable[[], LaserScan | None] = lambda: None, localized: Callable[[], bool] = lambda: True,
+                 velocity: Callable[[], Twist | None] = lambda: None) -> None:
+        self.navigator = navigator
+        self._pose, self._scan, self._localized, self._velocity = pose, scan, localized, velocity
+        self.last_status: NavStatus | None = None
+
+    def check_goal(self, goal: Pose2D) -> str | None:
+        verdict = self.navigator.check(goal, localized=self._localized(), mode="AUTO")
+        return None if verdict.ok else verdict.reason
+
+    def start(self, goal: Pose2D, now: float) -> None:
+        self.navigator.start(goal, now, localized=self._localized(), mode="AUTO")
+
+    def update(self, now: float) -> NavProgress:
+        pose = self._pose()
+        status = self.navigator.update(now, pose if pose is not None else _NO_POSE, self._scan(),
+                                       self._localized(), self._velocity())
+        self.last_status = status
+        reason = status.message or (status.reason or "")
+        return NavProgress(status.state, status.twist, status.distance_left_m, status.eta_s, reason)
+
+    def cancel(self, now: float) -> None:
+        self.last_status = self.navigator.cancel(now)
