@@ -34,10 +34,12 @@ def test_studio_person_in_the_doorway_then_stepping_aside(closed_loop):
     sim = build_simulation("studio", 12)
     person = sim.drop_obstacle(*DOORWAY, size_m=0.44, shape="circle", name="person", height_m=1.7)
 
-    def step_aside(now, s, state={"gone": False}):
-        if now >= 15.0 and not state["gone"]:
+    gone = []
+
+    def step_aside(now, s):
+        if now >= 15.0 and not gone:
             s.remove_obstacle(person)
-            state["gone"] = True
+            gone.append(now)
 
     goal = Pose2D(6.3, 0.8, 0.0)
     nav = Navigator(sim.world.map, NavParams(path_wait_s=4.0))
