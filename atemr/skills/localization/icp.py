@@ -32,6 +32,9 @@ from atemr.errors import ConfigError
 from atemr.msgs import Pose2D
 from atemr.skills.localization.geometry import FloatArray, as_array, as_pose, compose, transform_points
 
+#: Coordinates beyond this are not lidar points (and would overflow squared distances): dropped.
+MAX_COORD_M = 1e6
+
 
 @dataclass(frozen=True)
 class IcpParams:
@@ -84,7 +87,8 @@ def _clean(points: FloatArray, what: str) -> FloatArray:
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2:
         raise ConfigError(f"icp: {what} points must have shape (M, 2), got {pts.shape}")
-    return pts[np.isfinite(pts).all(axis=1)]
+    with np.errstate(invalid="ignore"):
+        return pts[(np.abs(pts) < MAX_COORD_M).all(axis=1)]  # drops NaN and inf too
 
 
 class IcpTarget:
@@ -102,7 +106,8 @@ class IcpTarget:
         self.normals = np.full((n, 2), np.nan)
         if n >= p.normal_neighbours:
             _, nbr = self.tree.query(self.points, k=p.normal_neighbours)  # type: ignore[union-attr]
-            nb = self.points[nbr]  # (n, k, 2)
+            found = (nbr < n).all(axis=1)
+            nb = self.points[np.minimum(nbr, n - 1)]  # (n, k, 2)
             d = nb - nb.mean(axis=1, keepdims=True)
             cxx = (d[..., 0] ** 2).mean(axis=1)
             cyy = (d[..., 1] ** 2).mean(axis=1)
@@ -112,7 +117,7 @@ class IcpTarget:
             major, minor = half_tr + det_term, half_tr - det_term
             ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
             normals = np.column_stack([-np.sin(ang), np.cos(ang)])
-            linear = minor <= (p.max_planarity**2) * np.maximum(major, 1e-18)
+            linear = found & (major > 1e-12) & (minor <= (p.max_planarity**2) * major)
             self.normals[linear] = normals[linear]
 
     def __len__(self) -> int:

@@ -83,11 +83,11 @@ class LikelihoodField:
     def _flat_index(self, gx: FloatArray, gy: FloatArray) -> NDArray[np.intp]:
         """Flat table index of grid-frame metric points; off-map (and NaN) points → the extra cell."""
         res = self.map.resolution_m
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):
             col = np.floor(gx / res)
             row = np.floor(gy / res)
             inside = (col >= 0) & (col < self.map.width) & (row >= 0) & (row < self.map.height)
-        flat = np.where(inside, row * self.map.width + col, self._off_map)
+        flat = np.where(inside, np.where(inside, row, 0) * self.map.width + np.where(inside, col, 0), self._off_map)
         return flat.astype(np.intp)
 
     def _to_grid_frame(self, poses: FloatArray) -> FloatArray:
@@ -104,12 +104,14 @@ class LikelihoodField:
 
     def _indices(self, poses: FloatArray, points: FloatArray) -> NDArray[np.intp]:
         """Cell index of every point under every pose: ``(N, M)``."""
-        g = self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
-        c = np.cos(g[:, 2])[:, None]
-        s = np.sin(g[:, 2])[:, None]
+        with np.errstate(invalid="ignore", over="ignore"):
+            g = self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
+            c = np.cos(g[:, 2])[:, None]
+            s = np.sin(g[:, 2])[:, None]
         px, py = points[:, 0][None, :], points[:, 1][None, :]
-        gx = g[:, 0:1] + c * px - s * py
-        gy = g[:, 1:2] + s * px + c * py
+        with np.errstate(invalid="ignore", over="ignore"):  # absurd poses land off the map, never warn
+            gx = g[:, 0:1] + c * px - s * py
+            gy = g[:, 1:2] + s * px + c * py
         return self._flat_index(gx, gy)
 
     def distance(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
