@@ -221,3 +221,19 @@ def test_templates_have_no_inline_script_or_handlers(ui):
     for template in root.rglob("*.html"):
         text = template.read_text()
         assert not re.search(r"<script>|\son[a-z]+=|style=", text), template
+
+
+def test_registrations_per_address_are_limited(client, app, clock, ui):
+    def register(name, addr="10.1.1.1"):
+        token = ui.csrf_of(client, "/auth/register")
+        form = {"username": name, "password": "password1", "confirm": "password1", "csrf_token": token}
+        return client.post("/auth/register", data=form, environ_base={"REMOTE_ADDR": addr})
+
+    for i in range(3):  # login_max_failures=3 in the test app
+        assert register(f"new{i}").status_code == 302
+    refused = register("new3")
+    assert refused.status_code == 429 and "Retry-After" in refused.headers
+    assert app.extensions["atemr.users"].get("new3") is None
+    assert register("other", addr="10.1.1.2").status_code == 302
+    clock.advance(61.0)
+    assert register("new3").status_code == 302

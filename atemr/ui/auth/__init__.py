@@ -36,6 +36,8 @@ bp = Blueprint("auth", __name__, url_prefix="/auth", template_folder="templates"
 
 REMEMBER_COOKIE = "atemr_username"
 REMEMBER_DAYS = 30
+#: Rate-limit key of registrations (not a valid username, so it never collides with a login).
+REGISTER_KEY = " register"
 
 
 def _limiter() -> LoginRateLimiter:
@@ -100,6 +102,14 @@ def register() -> Any:
     """Create a user; new users have no access until an admin grants it."""
     if request.method == "GET":
         return render_template("auth/register.html")
+    # Anyone who can reach the page may register (thesis fig. 3.37), so one address gets only as many
+    # new accounts per lockout period as it gets failed logins.
+    address = request.remote_addr or "?"
+    wait = _limiter().retry_after(REGISTER_KEY, address)
+    if wait > 0:
+        return html_response(render_template("auth/register.html", error=f"Too many new users from this address: "
+                                             f"try again in {int(wait) + 1} s."), status=429,
+                             headers={"Retry-After": str(int(wait) + 1)})
     username = request.form.get("username", "").strip()
     password = request.form.get("password", "")
     if password != request.form.get("confirm", ""):
@@ -109,6 +119,7 @@ def register() -> Any:
         user_store().create(username, password)
     except UserError as exc:
         return html_response(render_template("auth/register.html", username=username, error=str(exc)), status=400)
+    _limiter().failed(REGISTER_KEY, address)
     flash(f"User {username} created. An administrator must grant access before you can log in.", "ok")
     return redirect(url_for("auth.login"))
 
