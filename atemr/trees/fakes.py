@@ -41,6 +41,7 @@ class RecordingPort:
     modes: list[Mode] = field(default_factory=list)
     images: list[str] = field(default_factory=list)
     maps: list[str | None] = field(default_factory=list)
+    relocalizations: list[float] = field(default_factory=list)
     mapping: bool = False
 
     def command_velocity(self, source: VelocitySource, twist: Twist, now: float) -> None:
@@ -73,6 +74,12 @@ class RecordingPort:
 
     def localized(self) -> bool | None:
         return self.is_localized
+
+    def relocalize(self, now: float) -> None:
+        if self.is_localized is None:
+            raise NavigationError("localization is not available in this build")
+        self.relocalizations.append(now)
+        self.is_localized = False
 
     def begin_mapping(self) -> None:
         if not self.mapping_available:

@@ -15,16 +15,18 @@ A mission file (``trees/missions/*.yaml``)::
         - capture_image: {label: kitchen}
         - wait: {duration_s: 5}
         - rotate: {angle_rad: 3.14}
+        - relocalize: {timeout_s: 30}      # global relocalization, wait until localized
         - visit: {waypoints: [{x_m: 1, y_m: 0}, {x_m: 1, y_m: 1}]}
         - patrol: {waypoints: [...], loops: 3}   # loops: 0 = forever
         - return_home: {}
 
 Step kinds are a fixed grammar (a typo is an error with the closest kinds); each kind names the
 behaviour it compiles to (``go_to``, ``visit``, ``patrol`` and ``return_home`` → ``GoToPose``; ``wait`` →
-``Wait``; ``capture_image`` → ``CaptureImage``; ``rotate`` → ``Rotate``). A kind whose behaviour is not
-registered (a build without a leaf, a plugin removed) still validates, its parameters fully checked, and is
-reported as *not runnable here*: the file is right, the build is not ready for it. The agent refuses to
-start such a mission with that reason, and one that drives to poses on a robot without navigation.
+``Wait``; ``capture_image`` → ``CaptureImage``; ``rotate`` → ``Rotate``; ``relocalize`` → ``Relocalize``).
+A kind whose behaviour is not registered (a build without a leaf, a plugin removed) still validates, its
+parameters fully checked, and is reported as *not runnable here*: the file is right, the build is not
+ready for it. The agent refuses to start such a mission with that reason, and one that drives to poses on
+a robot without navigation.
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ from atemr.trees.behaviours import behaviours, parse_params
 from atemr.trees.builder import NodeSpec, marked_subset
 from atemr.trees.leaves.media import CaptureImageParams
 from atemr.trees.leaves.motion import RotateParams
+from atemr.trees.leaves.navigation import RelocalizeParams
 from atemr.trees.leaves.timing import WaitParams
 from atemr.trees.nodes import RepeatOptions, RetryOptions, SequenceOptions, TimeoutOptions
 from atemr.trees.params import PoseParams
@@ -226,6 +229,7 @@ STEP_KINDS: dict[str, tuple[StepCompiler, tuple[str, ...]]] = {
     "wait": (_simple(WaitParams, "Wait"), ("Wait",)),
     "capture_image": (_simple(CaptureImageParams, "CaptureImage"), ("CaptureImage",)),
     "rotate": (_simple(RotateParams, "Rotate"), ("Rotate",)),
+    "relocalize": (_simple(RelocalizeParams, "Relocalize"), ("Relocalize",)),
 }
 
 

@@ -76,6 +76,11 @@ class RobotPort(Protocol):
         LOCALIZATION bit)."""
         ...
 
+    def relocalize(self, now: float) -> None:
+        """Start global relocalization on the active map (`Localizer.start_global`); raises an `AtemrError`
+        when this robot cannot localize."""
+        ...
+
     def begin_mapping(self) -> None:
         """Start SLAM; raises an `AtemrError` (e.g. `NavigationError`) when mapping is not available."""
         ...

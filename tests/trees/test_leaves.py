@@ -43,6 +43,7 @@ SAMPLES: dict[str, dict[str, Any]] = {
     "WatchHeartbeat": {},
     "WatchHealth": {"components": ["left_motor"]},
     "GoToPose": {"x_m": 1.0, "y_m": 0.5, "yaw_rad": 0.3},
+    "Relocalize": {"timeout_s": 0.3},
 }
 #: Leaves that command a velocity, and on which mux input.
 DRIVING = {"DriveJoystick": "joystick", "Rotate": "agent", "GoToPose": "navigation"}
@@ -289,3 +290,16 @@ def test_go_to_pose_refused_failed_and_interrupted() -> None:
     for _ in lonely.tick():
         pass
     assert lonely.status == Status.FAILURE and lonely.reason == "navigation is not available on this robot"
+
+
+def test_relocalize_waits_for_localization() -> None:
+    bench = Bench(make("Relocalize", timeout_s=0.3), port=RecordingPort(is_localized=True))
+    assert bench.tick() == Status.RUNNING and bench.port.relocalizations == [0.0]
+    bench.port.is_localized = True
+    assert bench.tick() == Status.SUCCESS
+    lost = Bench(make("Relocalize", timeout_s=0.3), port=RecordingPort(is_localized=False))
+    assert [lost.tick() for _ in range(4)] == [Status.RUNNING] * 3 + [Status.FAILURE]
+    assert lost.leaf.reason == "not localized after 0.3 s"
+    unable = Bench(make("Relocalize"), port=RecordingPort(is_localized=None))
+    assert unable.tick() == Status.FAILURE
+    assert unable.leaf.reason == "cannot relocalize: localization is not available in this build"

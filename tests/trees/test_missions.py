@@ -64,8 +64,10 @@ mission:
     - wait: {duration_s: 1}
       timeout_s: 5
     - return_home: {}
+    - relocalize: {timeout_s: 10}
 """)
-    first, patrol, wait, home = mission.spec.children
+    first, patrol, wait, home, relocalize = mission.spec.children
+    assert relocalize.children[0].type == "Relocalize" and relocalize.children[0].options.timeout_s == 10.0
     assert (first.type, first.options.num_failures) == ("Retry", 3)
     assert (first.children[0].type, first.children[0].options.duration_s) == ("Timeout", 30.0)
     assert first.children[0].children[0].options.pose().y_m == 2.0
@@ -74,7 +76,7 @@ mission:
     assert [c.options.x_m for c in repeat.children[0].children] == [1.0, 2.0]
     assert wait.options.duration_s == 5.0 and wait.children[0].options.duration_s == 1.0
     assert home.children[0].options.x_m == 0.0
-    assert [s.line for s in mission.steps] == [7, 9, 10, 12]
+    assert [s.line for s in mission.steps] == [7, 9, 10, 12, 13]
 
 
 BAD = [

@@ -1,8 +1,10 @@
-"""Go to a pose through the `NavigationPort` (planners, costmap, recoveries live behind it)."""
+"""Navigation leaves: go to a pose through the `NavigationPort` (planners, costmap, recoveries live behind
+it), and relocalize through the robot port."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import py_trees
 
@@ -67,3 +69,39 @@ class GoToPose(Leaf):
             navigation.cancel(self.ctx.now)
             self._started = False
         self.ctx.port.command_velocity("navigation", ZERO_TWIST, self.ctx.now)
+
+
+@dataclass(frozen=True)
+class RelocalizeParams:
+    timeout_s: float = field(default=30.0, metadata={"min": 0.1, "max": 600.0})
+
+
+@behaviours.register("Relocalize")
+class Relocalize(Leaf):
+    """Start global relocalization and wait until the robot is localized again (FAILURE after ``timeout_s``).
+
+    For a robot that knows it is lost (the covariance monitor) or was moved by hand; the base does not move
+    by itself here, the localization converges from what the lidar sees (or while a mission's Rotate turns).
+    """
+
+    Params = RelocalizeParams
+    summary = "relocalize globally on the active map, wait until localized"
+
+    def initialise(self) -> None:
+        self._deadline = self.ctx.now + self.params.timeout_s
+        self._refusal = ""
+        try:
+            self.ctx.port.relocalize(self.ctx.now)
+        except AtemrError as exc:
+            self._refusal = f"cannot relocalize: {exc}"
+
+    def update(self) -> py_trees.common.Status:
+        if self._refusal:
+            return self.fail(self._refusal)
+        if self.ctx.port.localized():
+            self.feedback_message = "localized"
+            return Status.SUCCESS
+        if self.ctx.now >= self._deadline - 1e-9:
+            return self.fail(f"not localized after {self.params.timeout_s:g} s")
+        self.feedback_message = "relocalizing"
+        return Status.RUNNING
