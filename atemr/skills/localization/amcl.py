@@ -211,6 +211,13 @@ class Amcl:
         mean, cov = weighted_mean_cov(self.particles, self.weights)
         self._estimate = PoseEstimate(now, Pose2D(*map(float, mean)), cov)
 
+    def request_update(self) -> None:
+        """Weigh the next scan even if the robot has not moved (ROS amcl's ``request_nomotion_update``).
+
+        For global localization of a robot that stands still (the agent stops it while it is lost).
+        """
+        self._force = True
+
     def _uniform_free(self, n: int) -> FloatArray:
         pick = self.rng.integers(0, self._free_rows.size, n)
         jitter = self.rng.random((2, n)) - 0.5

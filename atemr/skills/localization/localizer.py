@@ -66,6 +66,8 @@ class LocalizerParams:
     #: Cloud put round a matched pose (local relocalization, end of global localization).
     matched_std_m: float = 0.05
     matched_std_rad: float = 0.05
+    #: Scans weighed without motion after a global start (the agent stops the robot while it is lost).
+    global_static_updates: int = 30
 
 
 class Localizer:
@@ -86,6 +88,7 @@ class Localizer:
         self._odom: Pose2D | None = None
         #: An estimate waiting for the first odometry pose (the operator clicked before any scan arrived).
         self._pending: PoseEstimate | None = None
+        self._static_updates = 0
 
     # -- operator ----------------------------------------------------------------------------------
     def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None) -> None:
@@ -102,6 +105,7 @@ class Localizer:
     def start_global(self, now: float, why: str = "no initial pose") -> None:
         """Global localization over the whole map's free space."""
         self.amcl.initialize_global(now=now)
+        self._static_updates = 0
         self.state = "global"
         self.monitor.reset()
         self._event(now, "global_start", f"global localization: {why}")
@@ -130,6 +134,9 @@ class Localizer:
             self._anchor(self._pending, odom)
         elif self.map_ekf.initialized:
             self.map_ekf.predict(now, odom)
+        if self.state == "global" and self._static_updates < self.params.global_static_updates:
+            self.amcl.request_update()  # a stopped robot must still be able to find itself
+            self._static_updates += 1
         ran = self.amcl.update(now, odom, points)
         if self.state == "global":
             if ran:

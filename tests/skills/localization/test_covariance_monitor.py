@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from atemr.errors import ConfigError, NavigationError
-from atemr.msgs import Pose2D
+from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.amcl import PoseEstimate
 from atemr.skills.localization.covariance_monitor import CovarianceMonitor, MonitorParams
 from atemr.skills.localization.localizer import Localizer
@@ -102,3 +102,25 @@ def test_initial_pose_is_validated(studio_map) -> None:  # type: ignore[no-untyp
     with pytest.raises(NavigationError, match="finite"):
         loc.set_initial_pose(0.0, Pose2D(float("nan"), 2.0, 0.0))
     assert loc.state == "uninitialized" and loc.estimate is None
+
+
+def test_global_localization_of_a_robot_standing_still(studio_map) -> None:  # type: ignore[no-untyped-def]
+    """The agent stops a lost robot: global localization must still converge from scans alone (no-motion updates)."""
+    from atemr.clock import SimClock
+    from atemr.io.sim.simulation import build_simulation
+    from atemr.scheduler import Scheduler
+
+    sim = build_simulation("studio", 2)
+    sim.kidnap(Pose2D(7.5, 3.0, 2.0))  # in the bedroom
+    sched = Scheduler(SimClock())
+    sim.attach(sched)
+    scans: list[LaserScan] = []
+    sim.lidar_source.subscribe(scans.append)
+    sched.run(until=2.0)
+    loc = Localizer(studio_map, np.random.default_rng(2))
+    loc.start_global(0.0)
+    for scan in scans:
+        loc.update(scan.t, sim.odometry, scan)
+    e = loc.estimate
+    assert loc.localized and e is not None and e.pose.distance_to(sim.pose) < 0.1
+    assert [ev.kind for ev in loc.events] == ["global_start", "localized"]
