@@ -24,19 +24,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from atemr.errors import AtemrError, ConfigError
+from atemr.skills.fuzzy.compiled import FIRING_EPSILON, CompiledEngine, integrate, weighted_kind
 from atemr.skills.fuzzy.defuzzifiers import Centroid, Defuzzifier, IntegralDefuzzifier, WeightedDefuzzifier
 from atemr.skills.fuzzy.discrete_centroid import DiscreteCentroid
 from atemr.skills.fuzzy.norms import HEDGES, SNORMS, TNORMS, Norm, maximum
 from atemr.skills.fuzzy.rules import Rule
-from atemr.skills.fuzzy.separable import is_separable, separable_totals
+from atemr.skills.fuzzy.separable import is_separable
 from atemr.skills.fuzzy.terms import Constant, Linear, Term
 
 Array = NDArray[np.float64]
 
-#: fuzzylite's tolerance: a degree closer than this to 0 is 0 (the rule does not fire).
-FIRING_EPSILON = 1e-6
-#: Rows evaluated together by integral defuzzifiers (bounds memory at rows × resolution floats).
-_CHUNK_SAMPLES = 2_000_000
 #: Engine kinds a YAML ``type:`` may declare; the engine checks the declaration against its parts.
 ENGINE_TYPES = ("Mamdani", "Larsen", "Tsukamoto", "TakagiSugeno", "Hybrid")
 
@@ -112,6 +109,7 @@ class Engine:
     _grids: dict[str, tuple[Array, dict[str, Array]]] = field(
         default_factory=dict, init=False, repr=False, compare=False
     )
+    _plan: CompiledEngine = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         validate_engine(self)
@@ -120,11 +118,12 @@ class Engine:
             if isinstance(d, IntegralDefuzzifier):
                 x = d.samples(out.minimum, out.maximum)
                 self._grids[out.name] = (x, {t.name: t.membership(x) for t in out.terms})
+        object.__setattr__(self, "_plan", CompiledEngine(self, self._grids))
 
     @property
     def input_names(self) -> tuple[str, ...]:
         """Input variable names in declaration order (the column order of `atemr fuzzy eval`)."""
-        return tuple(v.name for v in self.inputs)
+        return self._plan.input_names
 
     @property
     def output_names(self) -> tuple[str, ...]:
@@ -142,35 +141,59 @@ class Engine:
         Returns name → array of the broadcast shape (a scalar input gives shape ()). Raises
         `FuzzyInputError` for missing or unknown names and values that are not numbers.
         """
+        plan = self._plan
+        if inputs.keys() != plan.input_set:
+            raise self._names_error(inputs)
+        values = [inputs[name] for name in plan.input_names]
+        if all(isinstance(v, float | int) for v in values):  # one row of plain numbers: the control tick
+            matrix = np.array([values], dtype=np.float64)
+            shape: tuple[int, ...] = ()
+        else:
+            matrix, shape = self._matrix(values)
+        result = plan.evaluate(matrix).T.reshape((len(self.outputs), *shape))
+        return {name: result[plan.position[name], ...] for name in self.output_names}
+
+    def _names_error(self, inputs: Mapping[str, ArrayLike]) -> FuzzyInputError:
         missing = [n for n in self.input_names if n not in inputs]
         unknown = [n for n in inputs if n not in self.input_names]
-        if missing or unknown:
-            parts = []
-            if missing:
-                parts.append(f"missing input(s) {', '.join(missing)}")
-            if unknown:
-                parts.append(f"unknown input(s) {', '.join(map(str, unknown))}")
-            raise FuzzyInputError(f"engine '{self.name}': {'; '.join(parts)}; inputs are {', '.join(self.input_names)}")
+        parts = []
+        if missing:
+            parts.append(f"missing input(s) {', '.join(missing)}")
+        if unknown:
+            parts.append(f"unknown input(s) {', '.join(map(str, unknown))}")
+        return FuzzyInputError(f"engine '{self.name}': {'; '.join(parts)}; inputs are {', '.join(self.input_names)}")
+
+    def _matrix(self, values: list[ArrayLike]) -> tuple[Array, tuple[int, ...]]:
+        """The (rows, inputs) matrix of the inputs broadcast together, and their broadcast shape."""
         arrays = []
-        for var in self.inputs:
+        for var, value in zip(self.inputs, values, strict=True):
             try:
-                arrays.append(np.asarray(inputs[var.name], dtype=np.float64))
+                arrays.append(np.asarray(value, dtype=np.float64))
             except (TypeError, ValueError):
-                raise FuzzyInputError(
-                    f"engine '{self.name}': input '{var.name}' is not numeric: {inputs[var.name]!r}"
-                ) from None
+                raise FuzzyInputError(f"engine '{self.name}': input '{var.name}' is not numeric: {value!r}") from None
         try:
             shaped = np.broadcast_arrays(*arrays)
         except ValueError:
             shapes = ", ".join(f"{v.name}{a.shape}" for v, a in zip(self.inputs, arrays, strict=True))
             raise FuzzyInputError(f"engine '{self.name}': input shapes do not broadcast: {shapes}") from None
-        shape = shaped[0].shape if shaped else ()
-        columns = {var.name: a.reshape(-1) for var, a in zip(self.inputs, shaped, strict=True)}
-        result = self.process_columns(columns)
-        return {name: values.reshape(shape) for name, values in result.items()}
+        if not shaped:
+            return np.zeros((1, 0)), ()
+        shape = shaped[0].shape
+        return np.stack([a.reshape(-1) for a in shaped], axis=1), shape
 
     def process_columns(self, columns: Mapping[str, Array]) -> dict[str, Array]:
         """Core of `process`: every input a 1-D float array of the same length N; no checks."""
+        plan = self._plan
+        if plan.input_names:
+            matrix = np.stack([np.asarray(columns[name], dtype=np.float64) for name in plan.input_names], axis=1)
+        else:
+            matrix = np.zeros((1, 0))
+        result = plan.evaluate(matrix).T
+        return {name: result[plan.position[name]] for name in self.output_names}
+
+    def process_columns_generic(self, columns: Mapping[str, Array]) -> dict[str, Array]:
+        """`process_columns` rule by rule, term by term: the reference the compiled plan is tested against
+        (same results to rounding), slower for few rows; nothing else calls it."""
         values: dict[str, Array] = {}
         for var in self.inputs:
             x = columns[var.name]
@@ -231,26 +254,10 @@ class Engine:
             items = [(mu[t], d, imp) for (t, imp), d in grouped.items()]
         else:
             items = [(mu[c.term.name], c.degree, c.implication) for c in parts]
-        if isinstance(out.defuzzifier, DiscreteCentroid):
-            return out.defuzzifier.defuzzify_terms(x, items, n)
+        separable = None
         if type(out.defuzzifier) is Centroid and agg is maximum and items:
-            m = np.stack([i[0] for i in items])
-            implications = [i[2] for i in items]
-            if is_separable(m, implications):
-                totals = separable_totals(m, np.stack([i[1] for i in items], axis=1), implications,
-                                          np.stack([np.ones_like(x), x], axis=1))
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    return totals[:, 1] / totals[:, 0]
-        crisp = np.full(n, np.nan)
-        chunk = max(1, _CHUNK_SAMPLES // max(1, len(x)))
-        for start in range(0, n, chunk):
-            stop = min(n, start + chunk)
-            y = np.zeros((stop - start, len(x)))
-            for m, d, imp in items:
-                implied = TNORMS.get(imp)(d[start:stop, None], m[None, :]) if imp else m[None, :]
-                y = agg(y, implied)
-            crisp[start:stop] = out.defuzzifier.reduce(x, y)
-        return crisp
+            separable = is_separable(np.stack([i[0] for i in items]), [i[2] for i in items])
+        return integrate(out.defuzzifier, x, items, n, agg, separable=separable)
 
     def _weighted(self, out: OutputVariable, parts: list[_Contribution], n: int, matrix: Array) -> Array:
         d = out.defuzzifier
@@ -304,17 +311,6 @@ class Engine:
                       f"  activation: {b.activation}"]
             lines += [f"  rule: {r.text}" for r in b.rules]
         return "\n".join(lines) + "\n"
-
-
-def weighted_kind(out: OutputVariable) -> str:
-    """'TakagiSugeno' or 'Tsukamoto' for an output with a weighted defuzzifier (Automatic is inferred)."""
-    d = out.defuzzifier
-    assert isinstance(d, WeightedDefuzzifier)
-    if d.type != "Automatic":
-        return d.type
-    if all(isinstance(t, Constant | Linear) for t in out.terms):
-        return "TakagiSugeno"
-    return "Tsukamoto"
 
 
 def validate_engine(engine: Engine) -> None:
