@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from atemr.errors import ConfigError
+from atemr.skills.localization.config import LocalizationConfig
 from atemr.skills.ramp import MotionLimits
 from atemr.typed import Source, field_paths, merge_into, nest
 from atemr.yamlsafe import load_yaml
@@ -137,6 +138,7 @@ class Config:
     #: Speed limits, slow/stop zones, idle time (`atemr.skills.ramp`); start values, the settings page
     #: changes them at run time through `MotionPipeline.set_limits`.
     motion: MotionLimits = field(default_factory=MotionLimits)
+    localization: LocalizationConfig = field(default_factory=LocalizationConfig)
 
 
 def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:
