@@ -50,6 +50,8 @@ class Term:
         xa = np.asarray(x, dtype=np.float64)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             mu = self.height * self._shape(xa)
+        if self._nan_at_nan():
+            return np.asarray(mu)
         return np.where(np.isnan(xa), np.nan, mu)
 
     def tsukamoto(self, y: ArrayLike) -> Array:
@@ -61,6 +63,10 @@ class Term:
 
     def _shape(self, x: Array) -> Array:
         raise NotImplementedError
+
+    def _nan_at_nan(self) -> bool:
+        """Whether `_shape` is NaN wherever x is NaN already, so `membership` need not mask NaN inputs."""
+        return False
 
     def describe(self) -> str:
         """The term as a `.fll`-style line fragment: ``NEAR Ramp 0.6 0.2``."""
@@ -162,9 +168,17 @@ class Ramp(Term):
 
     def _shape(self, x: Array) -> Array:
         s, e = self.params
-        if s < e:
-            return np.select([x <= s, x >= e], [0.0, 1.0], (x - s) / (e - s))
-        return np.select([x >= s, x <= e], [0.0, 1.0], (s - x) / (s - e))
+        if not self._nan_at_nan():  # an infinite end: the rise is inf/inf, keep the explicit cases
+            if s < e:
+                return np.select([x <= s, x >= e], [0.0, 1.0], (x - s) / (e - s))
+            return np.select([x >= s, x <= e], [0.0, 1.0], (s - x) / (s - e))
+        # the same numbers as the select above: the quotient is <= 0 exactly where x is at or before the
+        # start and >= 1 exactly where x is at or past the end (rounding is monotonic); NaN stays NaN
+        t = (x - s) / (e - s) if s < e else (s - x) / (s - e)
+        return np.minimum(np.maximum(t, 0.0), 1.0)
+
+    def _nan_at_nan(self) -> bool:
+        return math.isfinite(self.params[0]) and math.isfinite(self.params[1])
 
     def tsukamoto(self, y: ArrayLike) -> Array:
         s, e = self.params

@@ -293,3 +293,22 @@ def test_scalar_fast_path_equals_arrays() -> None:
     for name in manual.output_names:
         assert one[name].shape == () and isinstance(one[name], np.ndarray)
         assert float(one[name]) == float(arrays[name][0])
+
+
+def test_ramp_membership_is_its_select_form() -> None:
+    # Ramp.membership clips one quotient instead of selecting among three cases; the numbers are the same
+    rng = np.random.default_rng(13)
+    for _ in range(200):
+        s, e = rng.uniform(-2, 2, 2)
+        term = Ramp("r", (float(s), float(e)), float(rng.choice([1.0, 0.7])))
+        x = np.concatenate([rng.uniform(-3, 3, 300), [s, e, np.nextafter(s, e), np.nextafter(e, s)],
+                            [np.nan, np.inf, -np.inf]])
+        if s < e:
+            expected = np.select([x <= s, x >= e], [0.0, 1.0], (x - s) / (e - s))
+        else:
+            expected = np.select([x >= s, x <= e], [0.0, 1.0], (s - x) / (s - e))
+        expected = np.where(np.isnan(x), np.nan, term.height * expected)
+        got = term.membership(x)
+        np.testing.assert_array_equal(got, expected)
+        assert not np.signbit(got[got == 0.0]).any()
+        assert isinstance(term.membership(float(s)), np.ndarray) and term.membership(float(s)).shape == ()
