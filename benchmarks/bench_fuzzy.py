@@ -9,6 +9,11 @@ same numbers: the benchmark checks they agree within 1e-6 before reporting the s
 A second row times the shipped IDLE engine itself (Larsen, fuzzylite-style Centroid 200) on the same
 rows against evaluating them one at a time with the same engine, which shows what vectorising buys.
 
+The last rows time ONE row per call, what the 50 Hz control tick does: `Engine.process` (the plan
+compiled at load time, `atemr.skills.fuzzy.compiled`) against the rule-by-rule evaluation it replaced
+(`Engine.process_columns_generic`, called as `process` used to call it), for the shipped IDLE and MANUAL
+engines, and the Mamdani twin against one scikit-fuzzy ``compute()`` per row. Results are checked equal.
+
 Run: ``.venv/bin/python benchmarks/bench_fuzzy.py [--quick]``
 """
 
@@ -96,7 +101,66 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
         "ours": rows / batch_s, "baseline": loop_rows / loop_s, "ratio": (loop_s / loop_rows) / (batch_s / rows),
         "goal": None, "unit": "rows/s",
     })
+    result += single_row(quick)
     return result
+
+
+def generic_call(engine: Engine, row: dict[str, float]) -> dict[str, np.ndarray]:
+    """One row through the rule-by-rule path, as `Engine.process` did before it ran the compiled plan."""
+    columns = {k: np.asarray(v, dtype=np.float64).reshape(-1) for k, v in row.items()}
+    return {k: v.reshape(()) for k, v in engine.process_columns_generic(columns).items()}
+
+
+def single_row(quick: bool = False) -> list[dict[str, Any]]:
+    """Rows for one input row per call (the control tick's case); see the module docstring."""
+    from skfuzzy import control as ctrl
+
+    calls = 300 if quick else 2_000
+    rows: list[dict[str, Any]] = []
+    for name in ("idle", "manual"):
+        engine = load_builtin_engine(name)
+        data = inputs(engine, calls)
+        scenes = [{k: float(v[i]) for k, v in data.items()} for i in range(calls)]
+        ours_s, ours = best_of(lambda e=engine, sc=scenes: [e.process(r) for r in sc], 5)
+        base_s, base = best_of(lambda e=engine, sc=scenes: [generic_call(e, r) for r in sc], 2)
+        worst = max(abs(float(a[k]) - float(b[k])) for a, b in zip(ours, base, strict=True) for k in a)
+        if not worst <= 1e-12:
+            raise AssertionError(f"{engine.name}: compiled and rule-by-rule paths differ by {worst:.3g}")
+        rows.append({
+            "what": f"{engine.name} engine, one row per call: compiled plan vs rule-by-rule path "
+                    f"({1e6 * ours_s / calls:.0f} µs vs {1e6 * base_s / calls:.0f} µs per call)",
+            "ours": calls / ours_s, "baseline": calls / base_s, "ratio": base_s / ours_s, "goal": None,
+            "unit": "calls/s",
+        })
+
+    twin = mamdani_twin(load_builtin_engine("idle"))
+    sk_calls = 50 if quick else 200
+    data = inputs(twin, sk_calls)
+    scenes = [{k: float(v[i]) for k, v in data.items()} for i in range(sk_calls)]
+    with warnings.catch_warnings():  # see run(): scikit-fuzzy 0.5 on numpy 2.4
+        warnings.simplefilter("ignore", DeprecationWarning)
+        sim = ctrl.ControlSystemSimulation(to_skfuzzy(twin))
+
+        def skfuzzy_rows() -> list[dict[str, float]]:
+            out = []
+            for r in scenes:
+                sim.inputs(r)
+                sim.compute()
+                out.append(dict(sim.output))
+            return out
+
+        base_s, base = best_of(skfuzzy_rows, 1)
+    ours_s, ours = best_of(lambda: [twin.process(r) for r in scenes], 5)
+    worst = max(abs(float(a[k]) - float(b[k])) for a, b in zip(ours, base, strict=True) for k in a)
+    if not worst <= 1e-6:
+        raise AssertionError(f"single rows differ from scikit-fuzzy by {worst:.3g} (> 1e-6)")
+    rows.append({
+        "what": f"IDLE Mamdani twin, one row per call vs skfuzzy compute() per row "
+                f"({1e6 * ours_s / sk_calls:.0f} µs vs {1e6 * base_s / sk_calls:.0f} µs per call)",
+        "ours": sk_calls / ours_s, "baseline": sk_calls / base_s, "ratio": base_s / ours_s, "goal": None,
+        "unit": "calls/s",
+    })
+    return rows
 
 
 def main() -> None:

@@ -481,6 +481,8 @@ class CompiledEngine:
         order = [*lin, *weighted, *other, *empty]
         #: position of each output's column in the result of `evaluate`
         self.position = {outputs[oi].name: p for p, oi in enumerate(order)}
+        #: (name, position) of every output in declaration order
+        self.outputs = tuple((o.name, self.position[o.name]) for o in outputs)
         self.items = [it for oi in order for it in out_items[oi]]
         counts = [len(out_items[oi]) for oi in order[: len(order) - len(empty)]]
         self.starts = np.array(list(itertools.accumulate(counts, initial=0))[:-1], dtype=np.intp)

@@ -142,16 +142,16 @@ class Engine:
         `FuzzyInputError` for missing or unknown names and values that are not numbers.
         """
         plan = self._plan
-        if inputs.keys() != plan.input_set:
+        if plan.input_set != set(inputs):
             raise self._names_error(inputs)
         values = [inputs[name] for name in plan.input_names]
-        if all(isinstance(v, float | int) for v in values):  # one row of plain numbers: the control tick
+        if all(isinstance(v, (float, int)) for v in values):  # one row of plain numbers: the control tick
             matrix = np.array([values], dtype=np.float64)
             shape: tuple[int, ...] = ()
         else:
             matrix, shape = self._matrix(values)
         result = plan.evaluate(matrix).T.reshape((len(self.outputs), *shape))
-        return {name: result[plan.position[name], ...] for name in self.output_names}
+        return {name: result[p, ...] for name, p in plan.outputs}
 
     def _names_error(self, inputs: Mapping[str, ArrayLike]) -> FuzzyInputError:
         missing = [n for n in self.input_names if n not in inputs]
@@ -189,7 +189,7 @@ class Engine:
         else:
             matrix = np.zeros((1, 0))
         result = plan.evaluate(matrix).T
-        return {name: result[plan.position[name]] for name in self.output_names}
+        return {name: result[p] for name, p in plan.outputs}
 
     def process_columns_generic(self, columns: Mapping[str, Array]) -> dict[str, Array]:
         """`process_columns` rule by rule, term by term: the reference the compiled plan is tested against
