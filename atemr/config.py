@@ -89,6 +89,7 @@ class MotorsConfig:
 class UiConfig:
     """The operator dashboard (Flask + Socket.IO). Paths left empty live under ``data_dir``."""
 
+    enabled: bool = field(default=True, metadata={"help": "serve the dashboard (false: headless runs)"})
     host: str = field(default="127.0.0.1", metadata={"help": "address the dashboard listens on (0.0.0.0: all)"})
     port: int = field(default=5000, metadata={"min": 0, "max": 65535, "help": "TCP port (0: any free port)"})
     database: Path | None = field(default=None, metadata={"help": "users SQLite file (default data_dir/users.sqlite3)"})

@@ -15,27 +15,35 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 
+import numpy as np
+
 from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
 from atemr.config import Config
 from atemr.errors import AtemrError, HardwareError
+from atemr.fsm.agent import Agent
+from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.secondary_link import build_secondary_link
 from atemr.io.system_monitor import SystemMonitor
 from atemr.msgs import WheelSpeeds
-from atemr.robot.core import Robot
+from atemr.robot.core import Robot, Ticker
 from atemr.robot.health import FRESH_S, HealthBoard, fresh
 from atemr.robot.inputs import MotionInputs
-from atemr.robot.odometry import WheelOdometry
+from atemr.robot.mapping import MapService
+from atemr.robot.port import RobotPortImpl
 from atemr.robot.settings_store import SettingsStore
 from atemr.scheduler import Component, Scheduler
+from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.motion_pipeline import ControlInputs, MotionControl, MotionPipeline
 from atemr.skills.ramp import checked_limits
 from atemr.trees.ports import ComponentHealth
+from atemr.trees.secondary import SecondaryLinkPort
 
 log = logging.getLogger(__name__)
 
 #: Tick rates of the primary's periodic work, in Hz (the simulator's own rates are in ``sim.*``).
 RATES = {
+    "localization": 10.0,
     "motor_emulator": 100.0,
     "secondary_link": 50.0,
     "motion": 50.0,
@@ -72,8 +80,62 @@ def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = 
     if config.simulation:
         _add_simulation(robot, health)
     _add_primary(robot, inputs, health, settings)
+    _add_localization(robot)
+    _add_agent(robot)
+    if not config.ui.enabled:
+        # Headless: no web server is expected, so its absence is not a fault (0x153 bit 5 stays set).
+        health.add("webserver", lambda now: ComponentHealth(True, "dashboard disabled (headless run)"))
     robot.add(SystemMonitor(config.data_dir), RATES["system_monitor"])
     return robot
+
+
+def _add_localization(robot: Robot) -> None:
+    """Odometry fusion + AMCL against the active map, and the map service (active map, mapping)."""
+    cfg = robot.config
+    sim = robot.extras.get("sim")
+    driver: RmdDriver = robot.extras["driver"]
+    builtins = dict(BUILTIN_MAPS)
+    if sim is not None and sim.world.source is not None:
+        builtins.setdefault(sim.world.name, sim.world.source)
+    store = MapStore(cfg.data_dir, builtins=builtins)
+    rng = np.random.default_rng(cfg.localization.seed)
+    localization = LocalizationPipeline(None, rng, localizer=cfg.localization.localizer_params())
+    maps = MapService(store, localization, cfg.localization.slam_params(), on_event=robot.event)
+    robot.extras.update(map_store=store, localization=localization, maps=maps)
+
+    def feed_wheels(now: float) -> None:
+        localization.on_wheels(now, driver.feedback())
+
+    robot.add(Ticker("wheel_odometry", feed_wheels), RATES["odometry"])
+    robot.add(localization, cfg.sim.lidar_hz if sim is not None else RATES["localization"])
+    if sim is not None:
+        sim.lidar_source.subscribe(localization.on_scan)
+        sim.lidar_source.subscribe(maps.on_scan)
+        sim.imu_source.subscribe(localization.on_imu)
+        # The simulated robot starts where its world says, on that world's map, localized there: as if
+        # the operator had selected the map and clicked the initial pose.
+        maps.activate(sim.world.name, sim.world.map)
+        localization.set_initial_pose(robot.clock.now(), sim.world.start)
+    else:
+        name = store.active_name()
+        if name is not None:
+            maps.activate(name)
+
+
+def _add_agent(robot: Robot) -> None:
+    """The agent (lifecycle + trees + Monitor) over the robot's ports; when it halts, the robot stops."""
+    cfg = robot.config
+    sim = robot.extras.get("sim")
+    port = RobotPortImpl(
+        now=robot.clock.now, inputs=robot.extras["inputs"], health=robot.extras["health"],
+        localization=robot.extras["localization"], maps=robot.extras["maps"],
+        camera=(lambda: sim.camera_source.latest) if sim is not None else (lambda: None),
+        images_dir=cfg.data_dir / "media" / "images", wall_time=WallClock().wall_time,
+    )
+    link = robot.parts["secondary_link"]
+    agent = Agent.from_config(cfg, port, SecondaryLinkPort(link), on_halt=robot.stop)  # type: ignore[arg-type]
+    robot.extras["port"] = port
+    robot.add(agent, cfg.agent.rate_hz)
 
 
 def _add_simulation(robot: Robot, health: HealthBoard) -> None:
@@ -148,8 +210,7 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
     control = MotionControl(pipeline, read, command)
     robot.add(control, RATES["motion"])
     robot.add(driver, cfg.motors.rate_hz)
-    odometry = WheelOdometry(driver.feedback)
-    robot.add(odometry, RATES["odometry"])
+    robot.extras["driver"] = driver
 
     def motor(side: str) -> Callable[[float], ComponentHealth]:
         def probe(now: float) -> ComponentHealth:

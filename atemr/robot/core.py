@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any
@@ -29,6 +30,17 @@ class RobotEvent:
 
     def as_dict(self) -> dict[str, Any]:
         return {"t": self.t, "kind": self.kind, "text": self.text}
+
+
+class Ticker:
+    """A named scheduler component that calls ``fn(now)`` each tick: glue between two parts."""
+
+    def __init__(self, name: str, fn: Callable[[float], None]) -> None:
+        self.name = name
+        self.fn = fn
+
+    def tick(self, now: float) -> None:
+        self.fn(now)
 
 
 @dataclass

@@ -2,6 +2,11 @@
 
 One small lock-protected object, so the web server's threads never touch the pipeline: they record a
 timed command or a flag here and the next control tick picks it up. Times are on the robot's clock.
+
+The operator's joystick is kept apart from the mux's ``joystick`` input: the dashboard writes the
+former (`operate`), the agent's DriveJoystick leaf reads it and forwards it to the latter while the agent
+is in a state that lets the operator drive. Were they one slot, the leaf would re-stamp its own output
+every tick and a lost browser tab would never time out.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ class MotionInputs:
     mode: Mode = "MANUAL"
     awareness: bool = False
     _twists: dict[Source, TimedTwist] = field(default_factory=dict)
+    _operator: TimedTwist | None = None
     _stops: set[str] = field(default_factory=set)
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -31,6 +37,16 @@ class MotionInputs:
             raise ValueError(f"unknown motion source {source!r}")
         with self._lock:
             self._twists[source] = TimedTwist(twist, t)
+
+    def operate(self, twist: Twist, t: float) -> None:
+        """The operator's joystick at time ``t`` (from the dashboard); the agent decides whether it drives."""
+        with self._lock:
+            self._operator = TimedTwist(twist, t)
+
+    def operator(self) -> TimedTwist | None:
+        """The operator's latest joystick command, or None before the first."""
+        with self._lock:
+            return self._operator
 
     def zero(self, t: float, sources: tuple[Source, ...] = ("joystick", "navigation", "agent")) -> None:
         """Command zero on ``sources`` at once (a stop that does not wait for the timeout)."""

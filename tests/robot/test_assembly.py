@@ -14,7 +14,7 @@ from atemr.robot import build_robot
 @pytest.fixture
 def robot(tmp_path):
     config = load_config(environ={}, overrides={"data_dir": str(tmp_path), "can.channel": unique_channel("robot"),
-                                                "sim.seed": 1, "secondary.portal_serve": False})
+                                                "sim.seed": 1, "secondary.portal_serve": False, "ui.enabled": False})
     robot = build_robot(config, realtime=False, clock=SimClock())
     with robot:
         yield robot
@@ -26,7 +26,7 @@ def test_joystick_drives_the_simulated_base_over_can_and_a_lost_joystick_stops_i
     start = sim.pose
     t = robot.clock.now()
     while t < 5.0:  # the operator holds "forward" for 2 s, resending as the page does
-        inputs.offer("joystick", Twist(0.3, 0.0), t)
+        inputs.operate(Twist(0.3, 0.0), t)
         robot.run(until=t + 0.1)
         t = robot.clock.now()
     moved = sim.pose.x_m - start.x_m
@@ -50,13 +50,13 @@ def test_runs_are_deterministic(tmp_path):
     poses = []
     for _ in range(2):
         config = load_config(environ={}, overrides={"data_dir": str(tmp_path), "can.channel": unique_channel("det"),
-                                                    "sim.seed": 7, "secondary.portal_serve": False})
+                                                    "sim.seed": 7, "secondary.portal_serve": False, "ui.enabled": False})
         robot = build_robot(config, realtime=False, clock=SimClock())
         with robot:
             inputs = robot.extras["inputs"]
             t = 0.0
             while t < 3.0:
-                inputs.offer("joystick", Twist(0.25, 0.3), t)
+                inputs.operate(Twist(0.25, 0.3), t)
                 robot.run(until=t + 0.1)
                 t = robot.clock.now()
             poses.append(robot.extras["sim"].pose)

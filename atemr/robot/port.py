@@ -1,0 +1,91 @@
+"""The agent's `RobotPort` implemented over the assembled robot's parts.
+
+Everything the agent's leaves and guards ask of the robot goes through here: velocity onto the motion
+inputs, health from the health board, pose from localization (odometry before it), camera frames to the
+media directory, mapping to the map service.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable, Mapping
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from PIL import Image
+
+from atemr.errors import HardwareError
+from atemr.msgs import Pose2D, Twist
+from atemr.robot.health import HealthBoard
+from atemr.robot.inputs import MotionInputs
+from atemr.robot.mapping import MapService
+from atemr.skills.localization.pipeline import LocalizationPipeline
+from atemr.trees.ports import ComponentHealth, Mode, VelocitySource
+
+
+def jpeg(frame: NDArray[np.uint8], quality: int = 85) -> bytes:
+    """An RGB frame as JPEG bytes."""
+    buffer = io.BytesIO()
+    Image.fromarray(frame, "RGB").save(buffer, format="JPEG", quality=quality)
+    return buffer.getvalue()
+
+
+class RobotPortImpl:
+    """`atemr.trees.ports.RobotPort` over the robot (built by `atemr.robot.build_robot`)."""
+
+    def __init__(self, *, now: Callable[[], float], inputs: MotionInputs, health: HealthBoard,
+                 localization: LocalizationPipeline, maps: MapService,
+                 camera: Callable[[], NDArray[np.uint8] | None], images_dir: Path,
+                 wall_time: Callable[[], float]) -> None:
+        self._now = now
+        self.inputs = inputs
+        self.health_board = health
+        self.localization = localization
+        self.maps = maps
+        self.camera = camera
+        self.images_dir = images_dir
+        self.wall_time = wall_time
+
+    def command_velocity(self, source: VelocitySource, twist: Twist, now: float) -> None:
+        self.inputs.offer(source, twist, now)
+
+    def stop_motors(self) -> None:
+        self.inputs.zero(self._now(), ("navigation", "agent"))
+
+    def set_mode(self, mode: Mode) -> None:
+        self.inputs.mode = mode
+
+    def health(self) -> Mapping[str, ComponentHealth]:
+        return self.health_board.collect()
+
+    def pose(self) -> Pose2D | None:
+        return self.localization.map_pose() or self.localization.odom_pose
+
+    def joystick(self) -> tuple[Twist, float] | None:
+        latest = self.inputs.operator()
+        return None if latest is None else (latest.twist, latest.t)
+
+    def capture_image(self, label: str) -> str:
+        frame = self.camera()
+        if frame is None:
+            raise HardwareError("no camera frame to capture (is the camera on?)", component="camera")
+        stamp = datetime.fromtimestamp(self.wall_time(), UTC).strftime("%Y%m%d-%H%M%S-%f")
+        safe = "".join(c if c.isalnum() or c in "-_" else "-" for c in label)[:40] or "capture"
+        self.images_dir.mkdir(parents=True, exist_ok=True)
+        path = self.images_dir / f"{stamp}-{safe}.jpg"
+        path.write_bytes(jpeg(frame))
+        return str(path)
+
+    def localized(self) -> bool | None:
+        return self.localization.localized
+
+    def relocalize(self, now: float) -> None:
+        self.localization.start_global(now)
+
+    def begin_mapping(self) -> None:
+        self.maps.begin()
+
+    def end_mapping(self, save_as: str | None) -> None:
+        self.maps.end(save_as, self._now())
