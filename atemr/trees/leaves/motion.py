@@ -48,11 +48,13 @@ class DriveJoystick(Leaf):
 
     def update(self) -> py_trees.common.Status:
         latest = self.ctx.port.joystick()
-        twist = ZERO_TWIST
+        twist, stamp = ZERO_TWIST, self.ctx.now
         if latest is not None and self.ctx.now - latest[1] <= self.params.timeout_s:
-            twist = latest[0]
+            # Forward the operator's own time stamp, not ours: the mux then expires a lost browser tab's
+            # last command on time and stops hard (watchdog), instead of ramping down from a fresh zero.
+            twist, stamp = latest
         self.feedback_message = f"v={twist.linear_mps:.2f} m/s w={twist.angular_radps:.2f} rad/s"
-        self.ctx.port.command_velocity("joystick", twist, self.ctx.now)
+        self.ctx.port.command_velocity("joystick", twist, stamp)
         return Status.RUNNING
 
     def terminate(self, new_status: py_trees.common.Status) -> None:
