@@ -419,7 +419,7 @@ class SecondaryCore:
             if self.state == "power_on_sequence":
                 if "primary_running" not in self._t.pending_ops:
                     self._t.pending_ops.append("primary_running")
-            else:
+            elif self.state in ("ready", "power_on"):  # repeated 0x150 frames in OPS/CONFIG change nothing
                 self.trigger("primary_running")
         elif state is PowerState.POWER_OFF_ACK and previous is not PowerState.POWER_OFF_ACK:
             self._t.ack_at = now
