@@ -113,10 +113,15 @@ class Costmap:
         self.static_unknown: NDArray[np.bool_] = unknown & (p.unknown == "unknown")
         self._static_distance = self._distance(lethal)
         self.obstacles: NDArray[np.bool_] = np.zeros(self.shape, dtype=bool)
+        #: Where moving obstacles are going (`set_predicted`), replaced at every scan; treated as obstacles.
+        self.predicted: NDArray[np.bool_] = np.zeros(self.shape, dtype=bool)
+        #: The last scan's returns the map does not explain, world (x, y) in beam order (for the tracker).
+        self.unmapped_points: NDArray[np.float64] = np.zeros((0, 2))
         self.version = 0
         self._cache_version = -1
         self._cost: NDArray[np.uint8] = np.zeros(self.shape, dtype=np.uint8)
         self._dist: NDArray[np.float32] = self._static_distance
+        self._hard: NDArray[np.float32] = self._static_distance
         self._inflate_cells = math.ceil((p.inflation_radius_m + p.obstacle_padding_m) / self.resolution_m) + 1
 
     # -- distances and costs -------------------------------------------------------------------------
@@ -126,21 +131,28 @@ class Costmap:
         d = ndimage.distance_transform_edt(~lethal, sampling=self.resolution_m)
         return np.asarray(d, dtype=np.float32)
 
+    def _with_layer(self, base: NDArray[np.float32], layer: NDArray[np.bool_]) -> NDArray[np.float32]:
+        """``base`` lowered by the (padded) distance to the cells of ``layer``, computed over their bounding box."""
+        if not layer.any():
+            return base
+        rows, cols = np.nonzero(layer)
+        m = self._inflate_cells
+        r0, r1 = max(int(rows.min()) - m, 0), min(int(rows.max()) + m + 1, self.shape[0])
+        c0, c1 = max(int(cols.min()) - m, 0), min(int(cols.max()) + m + 1, self.shape[1])
+        window = self._distance(layer[r0:r1, c0:c1]) - np.float32(self.params.obstacle_padding_m)
+        out = base.copy()
+        np.minimum(out[r0:r1, c0:c1], window, out=out[r0:r1, c0:c1])
+        return out
+
     def _refresh(self) -> None:
         if self._cache_version == self.version:
             return
-        dist = self._static_distance
-        if self.obstacles.any():
-            rows, cols = np.nonzero(self.obstacles)
-            m = self._inflate_cells
-            r0, r1 = max(int(rows.min()) - m, 0), min(int(rows.max()) + m + 1, self.shape[0])
-            c0, c1 = max(int(cols.min()) - m, 0), min(int(cols.max()) + m + 1, self.shape[1])
-            window = self._distance(self.obstacles[r0:r1, c0:c1]) - np.float32(self.params.obstacle_padding_m)
-            dist = dist.copy()
-            np.minimum(dist[r0:r1, c0:c1], window, out=dist[r0:r1, c0:c1])
+        hard = self._with_layer(self._static_distance, self.obstacles)
+        dist = self._with_layer(hard, self.predicted) if self.predicted.any() else hard
         cost = inflation_costs(dist, self.params)
         if self.static_unknown.any():
             cost[self.static_unknown & (cost < INSCRIBED)] = NO_INFORMATION
+        self._hard = hard
         self._dist = dist
         self._cost = cost
         self._cache_version = self.version
@@ -171,15 +183,40 @@ class Costmap:
         return np.where(inside, self.cost[row, col], LETHAL).astype(np.uint8)
 
     def distance_at(self, x_m: NDArray[np.float64] | float, y_m: NDArray[np.float64] | float) -> NDArray[np.float64]:
-        """Clearance (m) at world points; 0 outside the grid."""
+        """Clearance (m) at world points, predictions of moving obstacles included; 0 outside the grid."""
         row, col, inside = self.cells(x_m, y_m)
         return np.where(inside, self.distance_m[row, col], 0.0).astype(np.float64)
+
+    def hard_distance_at(self, x_m: NDArray[np.float64] | float, y_m: NDArray[np.float64] | float
+                         ) -> NDArray[np.float64]:
+        """Clearance (m) from what is there now (map and obstacle layer, no predictions); 0 outside the grid."""
+        self._refresh()
+        row, col, inside = self.cells(x_m, y_m)
+        return np.where(inside, self._hard[row, col], 0.0).astype(np.float64)
+
+    def static_distance_at(self, x_m: NDArray[np.float64] | float, y_m: NDArray[np.float64] | float
+                           ) -> NDArray[np.float64]:
+        """Clearance (m) from the map alone; 0 outside the grid. A move that makes room for a person (who is
+        in the obstacle layer too) must still never take the robot closer to a wall."""
+        row, col, inside = self.cells(x_m, y_m)
+        return np.where(inside, self._static_distance[row, col], 0.0).astype(np.float64)
 
     # -- obstacle layer ------------------------------------------------------------------------------
     def clear_obstacles(self) -> None:
         """Forget everything the obstacle layer holds (the first recovery behaviour)."""
-        if self.obstacles.any():
+        if self.obstacles.any() or self.predicted.any():
             self.obstacles[:] = False
+            self.predicted[:] = False
+            self.version += 1
+
+    def set_predicted(self, points: NDArray[np.float64]) -> None:
+        """Replace the predicted layer with the cells of ``points`` (world (x, y), e.g. from the tracker)."""
+        new = np.zeros(self.shape, dtype=bool)
+        if len(points):
+            row, col, inside = self.cells(points[:, 0], points[:, 1])
+            new[row[inside], col[inside]] = True
+        if not np.array_equal(new, self.predicted):
+            self.predicted = new
             self.version += 1
 
     def update_from_scan(self, scan: LaserScan, pose: Pose2D) -> int:
@@ -198,6 +235,7 @@ class Costmap:
         valid = np.isfinite(r) & (r >= scan.range_min_m) & (r <= scan.range_max_m)
         valid &= r > 0
         if not valid.any():
+            self.unmapped_points = np.zeros((0, 2))
             return int(self.obstacles.sum())
         r = r[valid]
         mount = scan.sensor_pose
@@ -226,6 +264,7 @@ class Costmap:
         row, col = row[inside], col[inside]
         new = self._static_distance[row, col] > 1.5 * self.resolution_m
         self.obstacles[row[new], col[new]] = True
+        self.unmapped_points = np.column_stack([mx[inside][new], my[inside][new]])
         if before is None or not np.array_equal(before, self.obstacles):
             self.version += 1
         return int(self.obstacles.sum())

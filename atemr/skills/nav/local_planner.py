@@ -217,6 +217,12 @@ class LocalPlanner:
         valid = clear.min(axis=1) >= min(r_in, clearance_here)
         if clearance_here < r_in:
             valid &= clear[:, -1] > clearance_here
+            # Out of a person's way, but never towards a wall: the clearance from the map may not fall below
+            # the inscribed radius (with a margin: the base lags its commands), nor below what it is now.
+            hard_here = float(cm.static_distance_at(pose.x_m, pose.y_m))
+            hard = cm.static_distance_at(xs, ys)
+            floor = min(r_in + 0.05, hard_here)
+            valid &= (hard.min(axis=1) >= floor) & (hard[:, -1] >= floor)
         obstacle = np.minimum(cm.cost_at(xs, ys).max(axis=1), MAX_NON_OBSTACLE) / MAX_NON_OBSTACLE
         # Path terms against the part of the path ahead (a window of a few metres).
         j1 = int(np.searchsorted(s, s[i_near] + p.lookahead_m + p.max_linear_mps * p.sim_time_s + 0.5))
@@ -256,7 +262,12 @@ class LocalPlanner:
         vs, ws = self.targets(velocity, 0.3, reverse=True)
         xs, ys, _ = self._rollout(pose, velocity, vs, ws, 1.0)
         clear = cm.distance_at(xs, ys)
-        gain = np.where(clear.min(axis=1) >= here, clear[:, -1] - here, -np.inf)
+        # Never towards a wall: the real clearance stays above the inscribed radius with a margin (the base
+        # lags its commands), or, already below it, never falls.
+        floor = min(cm.params.inscribed_radius_m + 0.05, float(cm.static_distance_at(pose.x_m, pose.y_m)))
+        hard = cm.static_distance_at(xs, ys)
+        safe = (clear.min(axis=1) >= here) & (hard.min(axis=1) >= floor) & (hard[:, -1] >= floor)
+        gain = np.where(safe, clear[:, -1] - here, -np.inf)
         best = int(np.argmax(gain))
         if gain[best] <= 0.01:
             return Twist(0.0, 0.0)

@@ -25,6 +25,7 @@ from atemr.skills.nav.costmap import INSCRIBED, Costmap, CostmapParams
 from atemr.skills.nav.global_planner import GlobalPath, GlobalPlanner, PlannerParams
 from atemr.skills.nav.goal_check import GoalCheck, check_goal
 from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, path_progress, wrap
+from atemr.skills.nav.moving_obstacles import ObstacleTracker, TrackerParams
 from atemr.skills.nav.recovery import RecoveryBehaviour, RecoveryParams
 
 FloatArray = NDArray[np.float64]
@@ -41,6 +42,9 @@ class NavParams:
     planner: PlannerParams = field(default_factory=PlannerParams)
     local: LocalPlannerParams = field(default_factory=LocalPlannerParams)
     recovery: RecoveryParams = field(default_factory=RecoveryParams)
+    tracker: TrackerParams = field(default_factory=TrackerParams)
+    #: Predict where moving people and pets are going and keep out of their way (False: present only).
+    predict_movers: bool = True
     xy_tolerance_m: float = 0.25
     yaw_tolerance_rad: float = 0.13
     #: Distance at which the approach ends and the final turn begins (inside the tolerance, with margin for
@@ -118,6 +122,7 @@ class Navigator:
         self.costmap = Costmap(occupancy, p.costmap)
         self.planner = GlobalPlanner(self.costmap, p.planner)
         self.local = LocalPlanner(self.costmap, p.local)
+        self.tracker = ObstacleTracker(p.tracker)
         self._path: GlobalPath | None = None
 
     def _reset(self) -> None:
@@ -200,6 +205,9 @@ class Navigator:
         if scan is not None and scan.t != self._last_scan_t:
             self.costmap.update_from_scan(scan, pose)
             self._last_scan_t = scan.t
+            if p.predict_movers:
+                self.tracker.update(scan.t, self.costmap.unmapped_points)
+                self.costmap.set_predicted(self.tracker.predicted_points(self.costmap.resolution_m))
         goal = self.goal
         d_goal = math.hypot(goal.x_m - pose.x_m, goal.y_m - pose.y_m)
 

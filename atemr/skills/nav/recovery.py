@@ -94,6 +94,6 @@ class RecoveryBehaviour:
         d = np.array([0.05, 0.10])
         xs = pose.x_m - d * math.cos(pose.yaw_rad)
         ys = pose.y_m - d * math.sin(pose.yaw_rad)
-        here = float(costmap.distance_at(pose.x_m, pose.y_m))
+        here = float(costmap.hard_distance_at(pose.x_m, pose.y_m))
         limit = min(costmap.params.inscribed_radius_m, here)
-        return bool((costmap.distance_at(xs, ys) >= limit).all())
+        return bool((costmap.hard_distance_at(xs, ys) >= limit).all())
