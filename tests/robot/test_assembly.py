@@ -62,3 +62,12 @@ def test_runs_are_deterministic(tmp_path):
             poses.append(robot.extras["sim"].pose)
     assert poses[0] == poses[1]
     assert not math.isclose(poses[0].x_m, 0.0)
+
+
+def test_agent_starts_up_to_idle_and_reports_it_on_can(robot):
+    agent, link = robot.parts["agent"], robot.parts["secondary_link"]
+    robot.run(until=8.0)
+    assert agent.state == "IDLE.MANUAL", agent.snapshot()["transitions"]
+    assert link.status.state.name == "IDLE"
+    assert robot.parts["secondary_core"].state == "ops"  # the board saw 0x150 byte 0 = 1
+    assert robot.extras["localization"].localized
