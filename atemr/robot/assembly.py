@@ -25,11 +25,12 @@ from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.secondary_link import build_secondary_link
 from atemr.io.system_monitor import SystemMonitor
-from atemr.msgs import WheelSpeeds
+from atemr.msgs import Twist, WheelSpeeds
 from atemr.robot.core import Robot, Ticker
 from atemr.robot.health import FRESH_S, HealthBoard, fresh
 from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
+from atemr.robot.navigation import NavigationPortImpl
 from atemr.robot.port import RobotPortImpl
 from atemr.robot.settings_store import SettingsStore
 from atemr.scheduler import Component, Scheduler
@@ -132,9 +133,19 @@ def _add_agent(robot: Robot) -> None:
         camera=(lambda: sim.camera_source.latest) if sim is not None else (lambda: None),
         images_dir=cfg.data_dir / "media" / "images", wall_time=WallClock().wall_time,
     )
+    control: MotionControl = robot.parts["motion"]  # type: ignore[assignment]
+
+    def measured() -> Twist | None:
+        return None if control.last is None else control.last.twist
+
+    navigation = NavigationPortImpl(
+        robot.extras["maps"], robot.extras["localization"],
+        scan=(lambda: sim.lidar_source.latest) if sim is not None else (lambda: None), velocity=measured,
+    )
     link = robot.parts["secondary_link"]
-    agent = Agent.from_config(cfg, port, SecondaryLinkPort(link), on_halt=robot.stop)  # type: ignore[arg-type]
-    robot.extras["port"] = port
+    agent = Agent.from_config(cfg, port, SecondaryLinkPort(link),  # type: ignore[arg-type]
+                              navigation=navigation, on_halt=robot.stop)
+    robot.extras.update(port=port, navigation=navigation)
     robot.add(agent, cfg.agent.rate_hz)
 
 

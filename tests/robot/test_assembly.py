@@ -7,7 +7,7 @@ import pytest
 from atemr.clock import SimClock
 from atemr.config import load_config
 from atemr.io.can.bus import unique_channel
-from atemr.msgs import Twist
+from atemr.msgs import Pose2D, Twist
 from atemr.robot import build_robot
 
 
@@ -71,3 +71,39 @@ def test_agent_starts_up_to_idle_and_reports_it_on_can(robot):
     assert link.status.state.name == "IDLE"
     assert robot.parts["secondary_core"].state == "ops"  # the board saw 0x150 byte 0 = 1
     assert robot.extras["localization"].localized
+
+
+def test_a_goal_in_auto_is_reached_through_the_whole_stack(robot):
+    """Dashboard-style commands → agent → navigator → motion pipeline → CAN → motors → simulated base."""
+    agent, sim = robot.parts["agent"], robot.extras["sim"]
+    robot.run(until=6.0)
+    agent.submit("set_auto")
+    robot.run(until=6.5)
+    goal = Pose2D(6.0, 1.1, 0.0)
+    agent.submit("goal", goal=goal)
+    robot.run(until=7.0)
+    assert agent.state == "EXEC"
+    t = 7.0
+    while agent.state == "EXEC" and t < 60.0:
+        t += 1.0
+        robot.run(until=t)
+    assert agent.state == "IDLE.AUTO", agent.trace[-3:]
+    # The navigator stops within 0.25 m of the goal by its *estimated* pose; the true pose may differ
+    # by the localization error (target RMSE < 0.10 m).
+    assert robot.extras["localization"].map_pose().distance_to(goal) <= 0.25
+    assert sim.pose.distance_to(goal) <= 0.25 + 0.10
+    assert not sim.collisions
+    assert robot.extras["navigation"].latest.state == "SUCCEEDED"
+
+
+def test_an_invalid_goal_goes_to_error_with_the_reason_and_back_to_idle(robot):
+    agent = robot.parts["agent"]
+    robot.run(until=6.0)
+    agent.submit("set_auto")
+    robot.run(until=6.5)
+    agent.submit("goal", goal=Pose2D(100.0, 100.0, 0.0))
+    robot.run(until=8.0)
+    dests = [r.dest for r in agent.trace]
+    assert "ERROR" in dests and agent.state.startswith("IDLE")
+    error = next(r for r in agent.trace if r.dest == "ERROR")
+    assert "outside the map" in error.reason
