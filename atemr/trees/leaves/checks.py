@@ -29,8 +29,9 @@ class CheckComponentParams:
 class CheckComponent(Leaf):
     """Wait up to ``timeout_s`` for ``component`` to report healthy.
 
-    SUCCESS as soon as it is; FAILURE after the timeout, leaving a `HardwareError` (critical or not as
-    configured) in the context for the Error/Shutdown logic to classify. A component the port does not
+    SUCCESS as soon as it is; FAILURE after the timeout. A ``critical`` miss leaves a critical
+    `HardwareError` in the context for the Error/Shutdown logic; a non-critical one is only this leaf's
+    reason (wrap it in ``FailureIsSuccess`` so it does not fail its tree). A component the port does not
     know at all is reported as missing, not as healthy.
     """
 
@@ -53,8 +54,8 @@ class CheckComponent(Leaf):
             f"{detail} after {self.params.timeout_s:g} s", component=self.params.component,
             critical=self.params.critical,
         )
-        if self.ctx.error is None or (error.critical and not self.ctx.error.critical):
-            self.ctx.error = error
+        if error.critical and (self.ctx.error is None or not self.ctx.error.critical):
+            self.ctx.error = error  # a non-critical miss is only this leaf's reason (and the 0x153 bit)
         return self.fail(str(error))
 
 
