@@ -27,49 +27,48 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-from atemr.cli.sim import TwistCommander, can_motors
 from atemr.clock import SimClock
-from atemr.config import Config
-from atemr.io.motors.model import RmdMotorModel
-from atemr.io.sim.base import MountedWheel
+from atemr.config import load_config
 from atemr.io.sim.raycast import GridCaster
 from atemr.io.sim.simulation import SimParams, Simulation, build_simulation
-from atemr.msgs import Pose2D
+from atemr.msgs import Pose2D, Twist
+from atemr.robot.core import Ticker
+from atemr.robot.headless import build_headless_robot
 from atemr.scheduler import Scheduler
 
 
-def real_time_factor(camera_hz: float, sim_seconds: float, *, over_can: bool = False
+def real_time_factor(camera_hz: float, sim_seconds: float, *, whole_robot: bool = False
                      ) -> tuple[float, float, Simulation]:
     """Simulated seconds per CPU second of this (single-threaded) process, i.e. on one core, and per wall
-    second, for a driving robot in the studio (optionally with the RMD driver and motor emulators on a
-    virtual CAN bus, as ``atemr sim --motors can``). CPU time is the measure that does not depend on what
-    else the machine is running."""
-    params = SimParams(camera_hz=camera_hz)
-    sched = Scheduler(SimClock())
-    if over_can:
-        config = Config()
-        models = (RmdMotorModel(), RmdMotorModel())
-        wheels = (MountedWheel(models[0], config.motors.left_direction),
-                  MountedWheel(models[1], config.motors.right_direction))
-        sim = build_simulation("studio", 1, params=params, wheels=wheels)
-        parts, driver = can_motors(config, "bench_sim_rtf", models)
-        parts.insert(0, (TwistCommander(driver, *sim.wheel_speeds_for(0.3, 0.2)), config.motors.rate_hz))
-        sim.attach(sched)
-        for part, rate in parts:
-            sched.add(part, rate)
-        sched.start()
+    second, for a robot driving a curve in the studio: the simulator alone (wheel models commanded
+    directly), or the whole robot as ``atemr sim --headless`` runs it (motors over virtual CAN, secondary
+    core, motion pipeline, localization, agent; the curve held on the operator's joystick). CPU time is the
+    measure that does not depend on what else the machine is running."""
+    robot = None
+    if whole_robot:
+        config = load_config(environ={}, overrides={"sim.camera_hz": camera_hz, "sim.seed": 1})
+        robot = build_headless_robot(config)
+        sim = robot.extras["sim"]
+        inputs = robot.extras["inputs"]
+        robot.add(Ticker("bench.joystick", lambda now: inputs.operate(Twist(0.3, 0.2), now)), 10.0)
+        sched = robot.scheduler
+        robot.start()
     else:
-        sim = build_simulation("studio", 1, params=params)
+        sim = build_simulation("studio", 1, params=SimParams(camera_hz=camera_hz))
+        sched = Scheduler(SimClock(), realtime=False)
         sim.attach(sched)
         sim.command_twist(0.3, 0.2)
     try:
-        sched.run(duration=0.5)  # warm-up: first allocations, caches
+        sched.run(duration=6.0 if whole_robot else 0.5)  # warm-up (the robot: start-up to IDLE)
         t0, c0 = time.perf_counter(), time.process_time()
         sched.run(duration=sim_seconds)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         return sim_seconds / cpu, sim_seconds / wall, sim
     finally:
-        sched.shutdown()
+        if robot is not None:
+            robot.shutdown()
+        else:
+            sched.shutdown()
 
 
 def python_dda(grid: list[list[bool]], res: float, origin: tuple[float, float], angles: np.ndarray,
@@ -159,9 +158,9 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
     rows.append({"what": "  the same by the wall clock (shared machine: depends on its load)",
                  "ours": round(rtf_wall, 1), "baseline": 1.0, "ratio": round(rtf_wall, 1), "goal": None,
                  "unit": "x real time"})
-    rtf_can, _, _ = real_time_factor(0.0, 5.0 if quick else 20.0, over_can=True)
-    rows.append({"what": "real-time factor on one core, motors over virtual CAN (driver + 2 emulators)",
-                 "ours": round(rtf_can, 1), "baseline": 1.0, "ratio": round(rtf_can, 1), "goal": None,
+    rtf_robot, _, _ = real_time_factor(0.0, 5.0 if quick else 20.0, whole_robot=True)
+    rows.append({"what": "real-time factor on one core, the whole robot (CAN, agent, localization), camera off",
+                 "ours": round(rtf_robot, 1), "baseline": 1.0, "ratio": round(rtf_robot, 1), "goal": None,
                  "unit": "x real time"})
     rtf_cam, _, _ = real_time_factor(10.0, 3.0 if quick else 10.0)
     rows.append({"what": "real-time factor on one core, studio, lidar 10 Hz, camera 10 fps",

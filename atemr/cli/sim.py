@@ -1,68 +1,38 @@
 """``atemr sim``: run the simulated robot in a world and report what happened.
 
-``--headless`` runs as fast as the CPU allows on a `SimClock` (CI, benchmarks); without it the run is
-locked to real time with `RealTimeSimClock` (``--speed`` times real time). ``--json`` prints a
-machine-readable summary: simulated and wall seconds, real-time factor, collisions, final true pose
-and how many scans, IMU samples, cliff readings and camera frames were produced.
+By default the whole robot runs (``--stack robot``): motors over virtual CAN, the secondary core, the
+motion pipeline and the agent, exactly as ``atemr run`` wires them, with ``--twist`` held on the
+operator's joystick. ``--stack bare`` runs the simulator alone with the wheel models commanded
+directly (what the simulator benchmark measures). ``--headless`` runs as fast as the CPU allows on a
+`SimClock` (no dashboard, no portal); without it the run is locked to real time with `RealTimeSimClock`
+(``--speed`` times real time). ``--json`` prints a machine-readable summary: simulated and wall
+seconds, real-time factor, collisions, final true pose, counts of scans, IMU samples, cliff readings
+and camera frames, and (whole robot) the agent's final state and transitions.
 """
 
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import logging
-import os
 import signal
 from pathlib import Path
 from types import FrameType
 from typing import Any
 
-import can
-
 from atemr.cli.command import commands
-from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
-from atemr.config import Config, load_config
+from atemr.clock import RealTimeSimClock, SimClock, WallClock
+from atemr.config import load_config
 from atemr.errors import ConfigError
-from atemr.io.motors.driver import RmdDriver
-from atemr.io.motors.emulator import RmdMotorEmulator
-from atemr.io.motors.model import RmdMotorModel
-from atemr.io.sim.base import MountedWheel
 from atemr.io.sim.simulation import Simulation, build_simulation, params_from_config
-from atemr.msgs import WheelSpeeds
-from atemr.scheduler import Component, Scheduler
+from atemr.msgs import Twist
+from atemr.robot import Robot, build_robot
+from atemr.robot.core import Ticker
+from atemr.robot.headless import agent_summary, build_headless_robot
+from atemr.robot.inputs import MotionInputs
+from atemr.scheduler import Scheduler
 
 log = logging.getLogger(__name__)
-#: Numbers the virtual CAN channels of runs in one process (python-can's virtual channels are global).
-_RUNS = itertools.count()
-
-
-class TwistCommander:
-    """Keeps a constant twist commanded through the motor driver (whose watchdog wants fresh commands)."""
-
-    def __init__(self, driver: RmdDriver, left_radps: float, right_radps: float) -> None:
-        self.name = "sim.twist"
-        self.driver = driver
-        self.speeds = WheelSpeeds(left_radps, right_radps)
-
-    def tick(self, now: float) -> None:
-        self.driver.set_speeds(self.speeds, now)
-
-
-def can_motors(config: Config, channel: str, models: tuple[RmdMotorModel, RmdMotorModel]
-               ) -> tuple[list[tuple[Component, float]], RmdDriver]:
-    """The RMD driver and two motor emulators (answering for ``models``) on a virtual CAN bus.
-
-    The simulation steps the models (``steps_model=False``); the emulators only answer the driver.
-    """
-    m = config.motors
-    emulators = [
-        RmdMotorEmulator(can.Bus(interface="virtual", channel=channel), motor_id, model, steps_model=False,
-                         name=f"sim.motor_{side}")
-        for side, motor_id, model in (("left", m.left_id, models[0]), ("right", m.right_id, models[1]))
-    ]
-    driver = RmdDriver.from_config(can.Bus(interface="virtual", channel=channel), m)
-    return [(driver, m.rate_hz), *((e, 100.0) for e in emulators)], driver
 
 
 def summary(sim: Simulation, sim_seconds: float, wall_seconds: float, seed: int) -> dict[str, Any]:
@@ -104,9 +74,10 @@ class SimCommand:
         parser.add_argument("--camera-hz", type=float, help="camera frames per second (0: camera off)")
         parser.add_argument("--twist", type=float, nargs=2, metavar=("V_MPS", "W_RADPS"), default=(0.0, 0.0),
                             help="drive the base with this constant command (default: stand still)")
-        parser.add_argument("--motors", choices=("direct", "can"), default="direct",
-                            help="direct: command the wheel models; can: through the RMD driver and two motor "
-                                 "emulators on a virtual CAN bus (slower, the whole chain)")
+        parser.add_argument("--stack", choices=("robot", "bare"), default="robot",
+                            help="robot: the whole robot (CAN motors, secondary core, motion control, agent), "
+                                 "--twist on the operator's joystick; bare: the simulator alone, wheels commanded "
+                                 "directly (what the simulator benchmark measures)")
         parser.add_argument("--json", action="store_true", help="print the summary as JSON")
 
     def run(self, args: argparse.Namespace) -> int:
@@ -117,50 +88,49 @@ class SimCommand:
         duration = args.duration if args.duration is not None else (10.0 if args.headless else None)
         if duration is not None and not duration >= 0:
             raise ConfigError(f"must be >= 0 seconds, got {duration}", path="argument --duration")
-        params = params_from_config(config.sim)
         v, w = args.twist
-        parts: list[tuple[Component, float]] = []
-        if args.motors == "can":
-            m = config.motors
-            models = (RmdMotorModel(), RmdMotorModel())
-            wheels = (MountedWheel(models[0], m.left_direction), MountedWheel(models[1], m.right_direction))
-            sim = build_simulation(config.sim.world, config.sim.seed, params=params, wheels=wheels)
-            parts, driver = can_motors(config, f"atemr-sim-{os.getpid()}-{next(_RUNS)}", models)
-            parts.insert(0, (TwistCommander(driver, *sim.wheel_speeds_for(v, w)), m.rate_hz))
+        robot: Robot | None = None
+        if args.stack == "robot":
+            robot = build_headless_robot(config) if args.headless else build_robot(config, realtime=True)
+            scheduler, clock = robot.scheduler, robot.clock
+            sim: Simulation = robot.extras["sim"]
+            if v or w:
+                inputs: MotionInputs = robot.extras["inputs"]
+                robot.add(Ticker("sim.joystick", lambda now: inputs.operate(Twist(v, w), now)), 10.0)
         else:
-            sim = build_simulation(config.sim.world, config.sim.seed, params=params)
+            sim = build_simulation(config.sim.world, config.sim.seed, params=params_from_config(config.sim))
             sim.command_twist(v, w)
-        # The clock starts after the (slow) building, so a real-time run is paced from its first tick.
-        clock: Clock = SimClock() if args.headless else RealTimeSimClock(speed=config.sim.speed)
-        scheduler = Scheduler(clock)
-        sim.attach(scheduler)
-        for part, rate in parts:
-            scheduler.add(part, rate)
+            # The clock starts after the (slow) building, so a real-time run is paced from its first tick.
+            clock = SimClock() if args.headless else RealTimeSimClock(speed=config.sim.speed)
+            scheduler = Scheduler(clock, realtime=not args.headless)
+            sim.attach(scheduler)
 
         def on_signal(signum: int, frame: FrameType | None) -> None:
             log.info("%s received: stopping", signal.Signals(signum).name)
             scheduler.stop()
 
         previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-        # Headless, time is simulated: a tick that takes longer than its simulated period is no overrun.
-        sched_log = logging.getLogger("atemr.scheduler")
-        previous_level = sched_log.level
-        if args.headless:
-            sched_log.setLevel(logging.ERROR)
         wall = WallClock()
         t0_sim, t0_wall = clock.now(), wall.now()
         try:
-            scheduler.start()
+            if robot is not None:
+                robot.start()
+            else:
+                scheduler.start()
             if not args.json:
                 mode = "headless" if args.headless else f"real time x{config.sim.speed:g}"
-                print(f"simulating world '{sim.world.name}' (seed {config.sim.seed}, {mode})", flush=True)
+                print(f"simulating world '{sim.world.name}' (seed {config.sim.seed}, {mode}, {args.stack})", flush=True)
             scheduler.run(duration=duration)
         finally:
-            scheduler.shutdown()
-            sched_log.setLevel(previous_level)
+            if robot is not None:
+                robot.shutdown()
+            else:
+                scheduler.shutdown()
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
-        result = {**summary(sim, clock.now() - t0_sim, wall.now() - t0_wall, config.sim.seed), "motors": args.motors}
+        result = {**summary(sim, clock.now() - t0_sim, wall.now() - t0_wall, config.sim.seed), "stack": args.stack}
+        if robot is not None:
+            result.update(agent_summary(robot))
         if args.json:
             print(json.dumps(result, indent=2))
         else:
@@ -168,7 +138,8 @@ class SimCommand:
             print(f"{result['sim_seconds']:.2f} s simulated in {result['wall_seconds']:.2f} s "
                   f"({result['real_time_factor']}x real time); collisions: {result['collisions']}; "
                   f"final pose: ({p['x_m']:.3f}, {p['y_m']:.3f}, {p['yaw_rad']:.3f}); "
-                  f"scans: {result['scans']}, frames: {result['frames']}")
+                  f"scans: {result['scans']}, frames: {result['frames']}"
+                  + (f"; agent: {result['agent_state']}" if "agent_state" in result else ""))
         return 0
 
 

@@ -8,6 +8,8 @@ from atemr.cli.main import main
 
 
 def run_json(capsys, *args):
+    if "--stack" not in args:
+        args = ("--stack", "bare", *args)
     assert main(["sim", "--headless", "--json", *args]) == 0
     return json.loads(capsys.readouterr().out)
 
@@ -46,17 +48,20 @@ def test_bad_world_is_a_one_line_error(capsys, tmp_path):
 
 def test_real_time_run_is_paced(capsys):
     # 0.2 simulated seconds at 4x real time: about 50 ms of wall time
-    assert main(["sim", "--duration", "0.2", "--speed", "4", "--camera-hz", "0", "--json"]) == 0
+    assert main(["sim", "--stack", "bare", "--duration", "0.2", "--speed", "4", "--camera-hz", "0", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["wall_seconds"] >= 0.045
     assert out["real_time_factor"] <= 4.5
 
 
-def test_motors_over_a_virtual_can_bus(capsys):
-    direct = run_json(capsys, "--duration", "2", "--seed", "1", "--camera-hz", "0", "--twist", "0.5", "0.0")
-    over_can = run_json(capsys, "--duration", "2", "--seed", "1", "--camera-hz", "0", "--twist", "0.5", "0.0",
-                        "--motors", "can")
-    assert over_can["motors"] == "can"
-    # the driver's first command goes out on its first tick: the same drive, a tick or two later
-    assert over_can["distance_m"] == pytest.approx(direct["distance_m"], abs=0.05)
-    assert over_can["distance_m"] > 0.8
+def test_the_whole_robot_drives_with_the_operator_joystick(capsys):
+    """Default stack: the twist is held on the operator's joystick; the agent must reach IDLE.MANUAL and
+    forward it through the mux, the driver and the motor emulators over virtual CAN."""
+    bare = run_json(capsys, "--stack", "bare", "--duration", "9", "--seed", "1", "--camera-hz", "0",
+                    "--twist", "0.3", "0.0")
+    robot = run_json(capsys, "--stack", "robot", "--duration", "9", "--seed", "1", "--camera-hz", "0", "--twist", "0.3", "0.0")
+    assert robot["stack"] == "robot" and bare["stack"] == "bare"
+    assert robot["agent_state"] == "IDLE.MANUAL"
+    assert [t["dest"] for t in robot["agent_trace"] if t["accepted"]][:2] == ["STARTUP", "IDLE.MANUAL"]
+    # the robot only drives once start-up has finished and the secondary core released its brakes
+    assert 0.3 < robot["distance_m"] < bare["distance_m"]

@@ -1,0 +1,53 @@
+"""Headless runs of the whole robot in simulation (``atemr sim --headless``, ``atemr mission run``).
+
+A headless robot runs on a `SimClock` as fast as the CPU allows, with no dashboard and no captive
+portal (nothing listens on a port), on a CAN channel of its own so several runs in one process never
+hear each other.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import os
+from typing import Any
+
+from atemr.clock import SimClock
+from atemr.config import Config
+from atemr.robot.assembly import build_robot
+from atemr.robot.core import Robot
+
+_RUNS = itertools.count()
+
+
+def headless_config(config: Config) -> Config:
+    """``config`` for a headless run: dashboard and portal off, a private virtual CAN channel."""
+    if not config.simulation:
+        raise ValueError("a headless run is a simulation")
+    return dataclasses.replace(
+        config,
+        ui=dataclasses.replace(config.ui, enabled=False),
+        secondary=dataclasses.replace(config.secondary, portal_serve=False),
+        can=dataclasses.replace(config.can, interface="virtual",
+                                channel=f"{config.can.channel}-headless-{os.getpid()}-{next(_RUNS)}"),
+    )
+
+
+def build_headless_robot(config: Config) -> Robot:
+    """The whole robot on a simulated clock, as fast as possible."""
+    return build_robot(headless_config(config), realtime=False, clock=SimClock())
+
+
+def agent_summary(robot: Robot) -> dict[str, Any]:
+    """The agent's final state and its transitions, for a run's JSON report."""
+    agent = robot.parts.get("agent")
+    if agent is None:
+        return {}
+    return {
+        "agent_state": agent.state,  # type: ignore[attr-defined]
+        "agent_trace": [
+            {"t": round(r.t, 3), "trigger": r.trigger, "source": r.source, "dest": r.dest,
+             "accepted": r.accepted, "reason": r.reason}
+            for r in agent.trace  # type: ignore[attr-defined]
+        ],
+    }
