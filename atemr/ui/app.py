@@ -22,6 +22,7 @@ from atemr import __version__
 from atemr.clock import Clock, WallClock
 from atemr.config import Config
 from atemr.errors import ConfigError
+from atemr.io.map_store import MapStore
 from atemr.ui import sockets
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.media import files as media_files
@@ -64,12 +65,15 @@ def create_app(
     *,
     clock: Clock | None = None,
     hash_method: str = HASH_METHOD,
+    map_store: MapStore | None = None,
 ) -> Flask:
     """A dashboard app for ``config`` talking to the robot through ``gateway`` (None: pages work, every
     robot command is refused with "no robot is connected").
 
     ``clock`` times the login rate limit (wall clock by default); ``hash_method`` lets tests use cheaper
-    scrypt parameters ("scrypt:1024:8:1"). The Socket.IO server is ``app.extensions["socketio"]``.
+    scrypt parameters ("scrypt:1024:8:1"); ``map_store`` is the robot's map store (by default one over
+``data_dir/maps`` with the built-in maps), through which maps are listed, uploaded and deleted.
+    The Socket.IO server is ``app.extensions["socketio"]``.
     """
     config = config or Config()
     app = Flask(__name__, static_folder="static", template_folder="templates")
@@ -88,7 +92,9 @@ def create_app(
     app.extensions["atemr.limiter"] = LoginRateLimiter(
         clock or WallClock(), max_failures=config.ui.login_max_failures, lockout_s=config.ui.login_lockout_s
     )
-    app.extensions["atemr.media"] = media_files.MediaStore(config.data_dir)
+    maps = map_store or MapStore(config.data_dir)
+    app.extensions["atemr.maps"] = maps
+    app.extensions["atemr.media"] = media_files.MediaStore(config.data_dir, maps)
 
     app.before_request(check_csrf)
     app.after_request(_security_headers)

@@ -19,6 +19,7 @@ from werkzeug.serving import BaseWSGIServer, WSGIRequestHandler, make_server
 from atemr.clock import Clock
 from atemr.config import Config
 from atemr.errors import HardwareError
+from atemr.io.map_store import MapStore
 from atemr.ui import sockets
 from atemr.ui.app import create_app
 from atemr.ui.gateway import RobotGateway
@@ -88,10 +89,11 @@ class DashboardServer:
         *,
         clock: Clock | None = None,
         hash_method: str = HASH_METHOD,
+        map_store: MapStore | None = None,
     ) -> None:
         self.config = config
         self.gateway = gateway
-        self.app: Flask = create_app(config, gateway, clock=clock, hash_method=hash_method)
+        self.app: Flask = create_app(config, gateway, clock=clock, hash_method=hash_method, map_store=map_store)
         self._server: BaseWSGIServer | None = None
         self._thread: threading.Thread | None = None
         self.pushes = 0

@@ -34,9 +34,14 @@ FREE_GREY, OCCUPIED_GREY, UNKNOWN_GREY = 254, 0, 205
 class GridLike(Protocol):
     """What `render_map` needs of an occupancy grid (`atemr.io.sim.maps.OccupancyMap` has it)."""
 
-    data: NDArray[np.int8]
-    resolution_m: float
-    origin: Pose2D
+    @property
+    def data(self) -> NDArray[np.int8]: ...
+
+    @property
+    def resolution_m(self) -> float: ...
+
+    @property
+    def origin(self) -> Pose2D: ...
 
 
 def pose_json(pose: Pose2D | None) -> dict[str, float] | None:

@@ -58,7 +58,8 @@ def test_static_assets_are_served(alice):
 
 def test_mapping_page_lists_maps(alice, app):
     maps = app.config["ATEMR_CONFIG"].data_dir / "maps"
-    maps.mkdir(parents=True)
+    maps.mkdir(parents=True, exist_ok=True)  # the map store made it
     (maps / "kitchen.yaml").write_text("image: kitchen.pgm\n")
     html = alice.get("/mapping").get_data(as_text=True)
     assert '<option value="kitchen">kitchen.yaml</option>' in html
+    assert '<option value="studio">studio.yaml</option>' in html  # the built-in map is listed too

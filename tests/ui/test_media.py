@@ -99,13 +99,32 @@ def write_map(folder: Path, name: str = "room") -> None:
 def test_maps_download_as_zip_and_delete_with_their_image(alice, app, gateway, ui):
     write_map(data_dir(app) / "maps")
     listing = alice.get("/api/media/maps").get_json()
-    assert [f["name"] for f in listing["files"]] == ["room.yaml"]
+    # stored maps first, then the map store's read-only built-in
+    assert [(f["name"], f["builtin"]) for f in listing["files"]] == [("room.yaml", False), ("studio.yaml", True)]
     response = alice.get("/media/maps/room.yaml")
     assert response.headers["Content-Disposition"].endswith("room.zip")
     assert sorted(zipfile.ZipFile(io.BytesIO(response.data)).namelist()) == ["room.pgm", "room.yaml"]
     ui.post(alice, "/media/maps/room.yaml/delete")
     assert not list((data_dir(app) / "maps").iterdir())
     assert gateway.maps_changed_count == 1
+
+
+def test_built_in_maps_cannot_be_deleted(alice, app, gateway, ui):
+    write_map(data_dir(app) / "maps")
+    assert ui.post(alice, "/media/maps/studio.yaml/delete").status_code == 404
+    assert "studio" in app.extensions["atemr.maps"].names()
+    ui.post(alice, "/media/maps/delete-all")  # every stored map, never a built-in
+    assert not list((data_dir(app) / "maps").iterdir())
+    assert app.extensions["atemr.maps"].names() == ["studio"]
+    assert alice.get("/media/maps/studio.yaml").status_code == 200  # still downloadable
+
+
+def test_the_dashboard_and_the_robot_share_one_map_store(alice, app, ui):
+    store = app.extensions["atemr.maps"]
+    assert app.extensions["atemr.media"].maps is store
+    assert upload(alice, ui).status_code == 302
+    assert store.names() == ["studio", "room"]
+    assert store.load("room").data.shape == (10, 20)
 
 
 def upload(client, ui, yaml_bytes=MAP_YAML, image=None, yaml_name="room.yaml", image_name="room.pgm"):
@@ -119,37 +138,58 @@ def test_map_upload_validated_then_stored(alice, app, gateway, ui):
     assert response.status_code == 302
     maps = data_dir(app) / "maps"
     assert sorted(p.name for p in maps.iterdir()) == ["room.pgm", "room.yaml"]
-    assert gateway.names() == ["validate_map"] and gateway.maps_changed_count == 1
-    # the validator saw the staged file, not yet the listed one
-    assert gateway.calls[0][1][0].parent.name.startswith(".upload-")
+    assert gateway.maps_changed_count == 1
     # uploading the same name again does not overwrite
     assert upload(alice, ui).status_code == 409
+    assert "a map named &#39;room&#39; exists already" in alice.get("/mapping").get_data(as_text=True)
 
 
-def test_map_upload_refused_by_the_validator_stores_nothing(alice, app, gateway, ui):
-    gateway.refuse["validate_map"] = "free_thresh above occupied_thresh"
-    response = upload(alice, ui)
+def test_map_upload_refused_by_the_map_reader_stores_nothing(alice, app, gateway, ui):
+    response = upload(alice, ui, yaml_bytes=MAP_YAML.replace(b"free_thresh: 0.196", b"free_thresh: 0.9"))
     assert response.status_code == 400
-    assert not [p for p in (data_dir(app) / "maps").iterdir()]
+    assert not [p for p in (data_dir(app) / "maps").iterdir()]  # nor a staging directory left behind
     page = alice.get("/mapping").get_data(as_text=True)
-    assert "free_thresh above occupied_thresh" in page
+    assert "free_thresh: must be below occupied_thresh" in page
+    assert gateway.maps_changed_count == 0
+
+
+def test_a_built_in_map_cannot_be_replaced_by_an_upload(alice, app, ui):
+    yaml_bytes = MAP_YAML.replace(b"room.pgm", b"studio.pgm")
+    response = upload(alice, ui, yaml_bytes=yaml_bytes, yaml_name="studio.yaml", image_name="studio.pgm")
+    assert response.status_code == 400
+    assert "built-in map" in alice.get("/mapping").get_data(as_text=True)
+    assert not list((data_dir(app) / "maps").iterdir())
+
+
+def test_map_upload_size_limit_of_the_map_store(tmp_path, ui):
+    from atemr.io.map_store import MapStore
+    from atemr.ui.app import create_app
+
+    store = MapStore(tmp_path / "data", max_upload_bytes=100)
+    app = create_app(ui.make_config(tmp_path), None, hash_method=ui.FAST_SCRYPT, map_store=store)
+    app.extensions["atemr.users"].set_password("admin", ui.ADMIN_PW)
+    client = app.test_client()
+    ui.login(client, "admin", ui.ADMIN_PW)
+    assert upload(client, ui).status_code == 400
+    assert "larger than the limit of 100" in client.get("/mapping").get_data(as_text=True)
+    assert store.names() == ["studio"]
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"yaml_name": "room.txt"}, "must be a .yaml"),
     ({"image_name": "room.exe"}, "map image must be"),
-    ({"yaml_bytes": b"image: other.pgm\nresolution: 0.05\n"}, "names the image"),
-    ({"yaml_bytes": b"image: ../../ui.key\n"}, "names the image"),
-    ({"yaml_bytes": b"a: 1\na: 2\n"}, "not valid"),
-    ({"yaml_bytes": b"!!python/object:os.system {}\n"}, "not valid"),
+    ({"yaml_bytes": b"image: other.pgm\nresolution: 0.05\n"}, "must be one of the uploaded files"),
+    ({"yaml_bytes": b"image: ../../ui.key\n"}, "must be one of the uploaded files"),
+    ({"yaml_bytes": b"a: 1\na: 2\n"}, "duplicate key"),
+    ({"yaml_bytes": b"!!python/object:os.system {}\n"}, "unsafe or unknown tag refused"),
     ({"image": b""}, "neither may be empty"),
 ])
-def test_bad_map_uploads_are_refused_before_validation(alice, app, gateway, ui, kwargs, message):
+def test_bad_map_uploads_are_refused_and_store_nothing(alice, app, gateway, ui, kwargs, message):
     response = upload(alice, ui, **kwargs)
     assert response.status_code == 400
-    assert "validate_map" not in gateway.names()
-    assert message in alice.get("/mapping").get_data(as_text=True)
-    assert not list((data_dir(app) / "maps").iterdir())
+    assert gateway.maps_changed_count == 0
+    assert message in alice.get("/mapping").get_data(as_text=True).replace("&#39;", "'")
+    assert not list((data_dir(app) / "maps").iterdir())  # nothing stored, no staging directory left
 
 
 def test_upload_names_go_through_secure_filename(alice, app, gateway, ui):

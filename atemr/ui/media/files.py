@@ -1,15 +1,16 @@
 """The files the dashboard lists, serves and deletes: captured images, recorded videos and maps.
 
-Layout under ``data_dir``: ``media/images/``, ``media/videos/`` and ``maps/`` (ROS map_server pairs,
-``name.yaml`` + its image). Names coming from a browser go through `secure_filename` and every path
-through `safe_join`, so nothing outside these directories can be read, written or deleted.
+Layout under ``data_dir``: ``media/images/`` and ``media/videos/``; maps belong to the robot's
+`atemr.io.map_store.MapStore` (``maps/``, ROS map_server pairs, plus read-only built-ins), and every map
+listing, download, upload and delete goes through it, so the dashboard and the robot have one set of
+rules (built-ins protected, uploaded images only, size limit). Names coming from a browser go through
+`secure_filename` and every path through `safe_join`, so nothing outside these directories can be read,
+written or deleted.
 """
 
 from __future__ import annotations
 
 import io
-import shutil
-import uuid
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +20,7 @@ from werkzeug.security import safe_join
 from werkzeug.utils import secure_filename
 
 from atemr.errors import AtemrError, ConfigError
+from atemr.io.map_store import MapStore, clean_name
 from atemr.yamlsafe import load_yaml
 
 Kind = Literal["images", "videos", "maps"]
@@ -39,15 +41,17 @@ class MediaError(AtemrError):
 
 @dataclass(frozen=True)
 class MediaFile:
-    """One listed file (for maps: the map's name, its YAML's size and time)."""
+    """One listed file (for maps: ``name.yaml``, its YAML's size and time, and whether it is a built-in)."""
 
     kind: Kind
     name: str
     size_bytes: int
     modified: float
+    builtin: bool = False
 
     def to_json(self) -> dict[str, object]:
-        return {"kind": self.kind, "name": self.name, "size_bytes": self.size_bytes, "modified": self.modified}
+        return {"kind": self.kind, "name": self.name, "size_bytes": self.size_bytes, "modified": self.modified,
+                "builtin": self.builtin}
 
 
 def check_kind(kind: str) -> Kind:
@@ -57,14 +61,15 @@ def check_kind(kind: str) -> Kind:
 
 
 class MediaStore:
-    """Images, videos and maps under ``data_dir``."""
+    """Images and videos under ``data_dir``, and the maps of ``maps`` (default: a store over ``data_dir``)."""
 
-    def __init__(self, data_dir: Path) -> None:
+    def __init__(self, data_dir: Path, maps: MapStore | None = None) -> None:
         self.data_dir = Path(data_dir)
+        self.maps = maps or MapStore(self.data_dir)
         self.dirs: dict[Kind, Path] = {
             "images": self.data_dir / "media" / "images",
             "videos": self.data_dir / "media" / "videos",
-            "maps": self.data_dir / "maps",
+            "maps": self.maps.dir,
         }
 
     def dir(self, kind: str) -> Path:
@@ -74,6 +79,8 @@ class MediaStore:
 
     def path(self, kind: str, name: str) -> Path:
         """The file ``name`` of ``kind``; `MediaError` if the name is not a plain, listed file name."""
+        if check_kind(kind) == "maps":
+            return self.maps.path(self.map_name(name)) if self._is_map(name) else self._no_map(name)
         folder = self.dir(kind)
         if not name or secure_filename(name) != name or Path(name).suffix.lower() not in EXTENSIONS[check_kind(kind)]:
             raise MediaError(f"not a valid {kind} file name: {name!r}")
@@ -88,13 +95,48 @@ class MediaStore:
     def newest(self, kind: str, offset: int = 0, limit: int = PAGE_SIZE) -> tuple[list[MediaFile], int]:
         """The files of ``kind``, newest first, ``limit`` of them from ``offset``; and the total count."""
         k = check_kind(kind)
+        if k == "maps":
+            return self._maps_listing(offset, limit)
         folder = self.dir(k)
         files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in EXTENSIONS[k]]
         stats = sorted(((p, p.stat()) for p in files), key=lambda ps: (ps[1].st_mtime, ps[0].name), reverse=True)
         page = stats[max(0, offset): max(0, offset) + max(0, limit)]
         return [MediaFile(k, p.name, st.st_size, st.st_mtime) for p, st in page], len(stats)
 
-    # -- maps are pairs -------------------------------------------------------------------------------
+    # -- maps: through the map store -------------------------------------------------------------------
+    @staticmethod
+    def map_name(name: str) -> str:
+        """``room.yaml`` (as listed) → the map store's name ``room``."""
+        return name[: -len(Path(name).suffix)] if Path(name).suffix.lower() in EXTENSIONS["maps"] else name
+
+    def _is_map(self, name: str) -> bool:
+        if not name or secure_filename(name) != name or Path(name).suffix.lower() not in EXTENSIONS["maps"]:
+            return False
+        stem = self.map_name(name)
+        try:
+            return (stem in self.maps.builtins or clean_name(stem) == stem) and self.maps.exists(stem)
+        except ConfigError:
+            return False
+
+    @staticmethod
+    def _no_map(name: str) -> Path:
+        raise MediaError(f"no such map: {name!r}")
+
+    def _maps_listing(self, offset: int, limit: int) -> tuple[list[MediaFile], int]:
+        """Stored maps newest first, then the built-ins."""
+        stored: list[MediaFile] = []
+        builtin: list[MediaFile] = []
+        for info in self.maps.list():
+            try:
+                st = self.maps.path(info.name).stat()
+            except (ConfigError, OSError):
+                continue
+            entry = MediaFile("maps", f"{info.name}.yaml", st.st_size, st.st_mtime, builtin=info.builtin)
+            (builtin if info.builtin else stored).append(entry)
+        stored.sort(key=lambda f: (f.modified, f.name), reverse=True)
+        files = stored + builtin
+        return files[max(0, offset): max(0, offset) + max(0, limit)], len(files)
+
     def map_files(self, yaml_path: Path) -> list[Path]:
         """The YAML and the image it names, when that image is a plain file beside it."""
         files = [yaml_path]
@@ -119,24 +161,34 @@ class MediaStore:
 
     # -- deleting -------------------------------------------------------------------------------------
     def delete(self, kind: str, name: str) -> list[str]:
-        """Delete one file (a map with its image); returns the names deleted."""
+        """Delete one file (a map with its image; built-in maps are refused); returns the names deleted."""
         path = self.path(kind, name)
-        targets = self.map_files(path) if kind == "maps" else [path]
-        for target in targets:
-            target.unlink(missing_ok=True)
-        return [t.name for t in targets]
+        if kind == "maps":
+            targets = self.map_files(path)
+            try:
+                self.maps.delete(self.map_name(name))
+            except ConfigError as exc:
+                raise MediaError(exc.reason) from None
+            return [t.name for t in targets]
+        path.unlink(missing_ok=True)
+        return [path.name]
 
     def delete_all(self, kind: str) -> int:
-        """Delete every listed file of ``kind``; returns how many were listed."""
-        files, total = self.newest(kind, 0, 1_000_000)
-        for f in files:
+        """Delete every listed file of ``kind`` (maps: every stored map, never a built-in); returns how many."""
+        files, _ = self.newest(kind, 0, 1_000_000)
+        deletable = [f for f in files if not f.builtin]
+        for f in deletable:
             self.delete(kind, f.name)
-        return total
+        return len(deletable)
 
     # -- uploading maps -------------------------------------------------------------------------------
-    def stage_map_upload(self, yaml_name: str, yaml_bytes: bytes, image_name: str, image_bytes: bytes) -> Path:
-        """Write an uploaded map pair into a fresh staging directory (not yet listed) and return the
-        staged YAML's path; the caller validates it, then `commit_map` or `discard_staged`."""
+    def upload_map(self, yaml_name: str, yaml_bytes: bytes, image_name: str, image_bytes: bytes) -> str:
+        """Store an uploaded map pair through the map store (which validates it with the package's map
+        reader: keys, thresholds, an image that is one of the uploaded files, size); returns its name.
+
+        `MediaError` says why an upload was refused (nothing is stored then); `MapExistsError` when a map of that
+        name exists already.
+        """
         yaml_safe = secure_filename(yaml_name)
         image_safe = secure_filename(image_name)
         if Path(yaml_safe).suffix.lower() not in EXTENSIONS["maps"]:
@@ -147,38 +199,17 @@ class MediaStore:
             )
         if not yaml_bytes or not image_bytes:
             raise MediaError("both the map's YAML and its image are needed, and neither may be empty")
-        stage = self.dir("maps") / f".upload-{uuid.uuid4().hex}"
-        stage.mkdir()
-        yaml_path = stage / yaml_safe
-        yaml_path.write_bytes(yaml_bytes)
-        (stage / image_safe).write_bytes(image_bytes)
         try:
-            doc = load_yaml(yaml_path)
+            name = clean_name(yaml_safe)
         except ConfigError as exc:
-            self.discard_staged(yaml_path)
-            raise MediaError(f"the map YAML is not valid: {exc.reason}") from None
-        image = doc.get("image") if isinstance(doc, dict) else None
-        if image != image_safe:
-            self.discard_staged(yaml_path)
-            raise MediaError(
-                f"the map YAML names the image {image!r}; upload that file (a plain name beside the YAML), "
-                f"not {image_safe!r}"
-            )
-        return yaml_path
+            raise MediaError(exc.reason) from None
+        if name not in self.maps.builtins and self.maps.exists(name):
+            raise MapExistsError(f"a map named '{name}' exists already; delete it first or rename the upload")
+        try:
+            return self.maps.upload({yaml_safe: yaml_bytes, image_safe: image_bytes}, name=name)
+        except ConfigError as exc:
+            raise MediaError(f"not a valid ROS map: {exc}") from None
 
-    def commit_map(self, staged_yaml: Path) -> str:
-        """Move a validated staged map into the maps directory; refuses to overwrite an existing map."""
-        maps = self.dir("maps")
-        files = [p for p in staged_yaml.parent.iterdir() if p.is_file()]
-        clash = [p.name for p in files if (maps / p.name).exists()]
-        if clash:
-            self.discard_staged(staged_yaml)
-            raise MediaError(f"a map file called {', '.join(clash)} exists already; delete it first or rename")
-        for p in files:
-            p.replace(maps / p.name)
-        self.discard_staged(staged_yaml)
-        return staged_yaml.name
 
-    def discard_staged(self, staged_yaml: Path) -> None:
-        if staged_yaml.parent.name.startswith(".upload-"):
-            shutil.rmtree(staged_yaml.parent, ignore_errors=True)
+class MapExistsError(MediaError):
+    """An upload would replace a stored map."""

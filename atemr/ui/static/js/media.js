@@ -26,7 +26,13 @@
         const del = document.createElement("button");
         del.type = "submit"; del.className = "danger delete-one"; del.textContent = "DELETE";
         form.append(token, del);
-        li.append(a, size, form);
+        if (f.builtin) {
+          const tag = document.createElement("small");
+          tag.className = "builtin"; tag.textContent = "built-in";
+          li.append(a, size, tag);  // read-only: the map store refuses to delete it
+        } else {
+          li.append(a, size, form);
+        }
         list.appendChild(li);
       }
       if (offset + body.files.length >= body.total) btn.remove();
