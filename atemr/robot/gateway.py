@@ -1,0 +1,544 @@
+"""`RobotGatewayImpl`: the dashboard's `atemr.ui.gateway.RobotGateway` over the assembled robot.
+
+Every method may be called from the web server's threads. Nothing here ticks a part or changes the scene
+directly: commands go to the agent's inbox (`Agent.submit`, after `Agent.precheck` so a command that
+cannot be taken is refused at once with the reason), the joystick onto `MotionInputs`, simulation
+interventions through `Simulation.submit`, and the few actions that touch the control thread's objects
+(initial pose, map selection, draining localization events, reporting the agent's verdicts) are queued
+for the gateway's own scheduler component, ``dashboard_gateway``, which runs them on the robot's thread.
+What can be checked at once (a finite pose, a map that exists, limits within bounds) is checked at once.
+
+Building the gateway schedules two small components on the robot: the pump above and, when the robot
+has a camera, the `VideoRecorder`. Build it before the robot starts (`atemr.robot.dashboard.add_dashboard`
+does).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import queue
+import threading
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
+from pathlib import Path
+from typing import Any, cast
+
+import numpy as np
+from numpy.typing import NDArray
+
+from atemr.clock import WallClock
+from atemr.errors import AtemrError, ConfigError
+from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
+from atemr.io.map_store import MapStore
+from atemr.io.secondary_link import SecondaryLink
+from atemr.msgs import Pose2D, Twist
+from atemr.robot.core import Robot, Ticker
+from atemr.robot.health import HealthBoard
+from atemr.robot.inputs import MotionInputs
+from atemr.robot.mapping import MapService
+from atemr.robot.port import jpeg
+from atemr.robot.settings_store import SettingsStore
+from atemr.robot.video import VideoRecorder
+from atemr.skills.motion_pipeline import MotionControl, MotionPipeline
+from atemr.skills.ramp import checked_limits
+from atemr.ui.gateway import CommandResult, MapImage, Mode
+from atemr.ui.snapshot import points_json, pose_json, render_map, scan_points, status_levels, system_json
+
+log = logging.getLogger(__name__)
+
+#: How often the gateway's pump runs on the robot's thread.
+PUMP_RATE_HZ = 10.0
+#: Longest a web request waits for a WiFi join before answering "still joining".
+WIFI_WAIT_S = 10.0
+#: The secondary core's button: a press is at most this long (5 s powers off; a little margin).
+MAX_BUTTON_HOLD_S = 10.0
+#: Events shown on the dashboard.
+EVENTS_SHOWN = 30
+
+
+def _ok(result: bool, reason: str = "") -> CommandResult:
+    return CommandResult.accepted() if result else CommandResult.refused(reason)
+
+
+def _finite(*values: float) -> bool:
+    return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
+
+
+def _pose_ok(pose: Pose2D, what: str) -> str | None:
+    if not isinstance(pose, Pose2D):
+        return f"{what} must be a pose, got {type(pose).__name__}"
+    if not _finite(pose.x_m, pose.y_m, pose.yaw_rad):
+        return f"{what} has a non-finite coordinate: x={pose.x_m}, y={pose.y_m}, yaw={pose.yaw_rad}"
+    return None
+
+
+class RobotGatewayImpl:
+    """`atemr.ui.gateway.RobotGateway` over a `Robot` built by `atemr.robot.build_robot` (module docstring)."""
+
+    def __init__(self, robot: Robot, *, pump_rate_hz: float = PUMP_RATE_HZ) -> None:
+        self.robot = robot
+        self.config = robot.config
+        self.agent = cast(Agent, robot.parts["agent"])
+        self.inputs: MotionInputs = robot.extras["inputs"]
+        self.health: HealthBoard = robot.extras["health"]
+        self.pipeline: MotionPipeline = robot.extras["pipeline"]
+        self.settings: SettingsStore = robot.extras["settings"]
+        self.maps: MapService = robot.extras["maps"]
+        self.store: MapStore = robot.extras.get("map_store") or self.maps.store
+        self.sim: Any = robot.extras.get("sim")
+        self.link = cast(SecondaryLink, robot.parts["secondary_link"])
+        self.missions_dir = (self.config.agent.file or DEFAULT_AGENT_FILE).parent / "missions"
+        self._lock = threading.Lock()
+        self._actions: queue.SimpleQueue[tuple[str, Callable[[float], object]]] = queue.SimpleQueue()
+        self._watched: deque[tuple[int, str]] = deque()
+        self._events: deque[dict[str, Any]] = deque(maxlen=100)
+        self._camera_key: object = None
+        self._camera_jpeg: bytes | None = None
+        self._map_image: MapImage | None = None
+        self._map_key: tuple[int, int] | None = None
+        self._listing: dict[str, tuple[int, list[str]]] = {}
+        self._wifi = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-wifi")
+        self._wifi_ssid: str | None = None
+        robot.add(Ticker("dashboard_gateway", self._pump), pump_rate_hz)
+        self.recorder: VideoRecorder | None = None
+        if self.sim is not None and self.sim.params.camera_hz > 0:
+            self.recorder = VideoRecorder(self.config.data_dir / "media" / "videos", self._camera_frame,
+                                          WallClock().wall_time)
+            robot.add(self.recorder, self.sim.params.camera_hz)
+
+    # -- the robot's thread ------------------------------------------------------------------------------
+    def _pump(self, now: float) -> None:
+        """Run the queued actions, report the agent's refusals, collect localization events."""
+        while True:
+            try:
+                what, action = self._actions.get_nowait()
+            except queue.Empty:
+                break
+            try:
+                action(now)
+            except AtemrError as exc:
+                self.robot.event("refused", f"{what}: {exc}")
+            except Exception as exc:  # a failing action must not stop the others
+                log.exception("dashboard action %s failed", what)
+                self.robot.event("refused", f"{what}: {type(exc).__name__}: {exc}")
+        for _ in range(len(self._watched)):
+            command_id, trigger = self._watched.popleft()
+            result = self.agent.result(command_id)
+            if result is None:
+                self._watched.append((command_id, trigger))
+            elif not result.accepted:
+                self.robot.event("refused", f"{trigger}: {result.reason}")
+        localization = self.robot.extras.get("localization")
+        if localization is not None:
+            for event in localization.drain_events():
+                self.robot.event(f"localization {event.kind}", event.detail)
+
+    def _queue(self, what: str, action: Callable[[float], object]) -> None:
+        self._actions.put((what, action))
+
+    def _submit(self, trigger: str, **kwargs: Any) -> CommandResult:
+        """Queue ``trigger`` for the agent if it may be taken in the current state; else refuse at once."""
+        why = self.agent.precheck(trigger)
+        if why is not None:
+            return CommandResult.refused(why)
+        command_id = self.agent.submit(trigger, origin="dashboard", **kwargs)
+        with self._lock:
+            self._watched.append((command_id, trigger))
+        return CommandResult.accepted()
+
+    # -- reading -----------------------------------------------------------------------------------------
+    def _camera_frame(self) -> tuple[object, bytes] | None:
+        """The newest camera frame and its JPEG, encoded once per frame whoever asks."""
+        if self.sim is None:
+            return None
+        frame: NDArray[np.uint8] | None = self.sim.camera_source.latest
+        if frame is None:
+            return None
+        with self._lock:
+            if frame is self._camera_key and self._camera_jpeg is not None:
+                return frame, self._camera_jpeg
+        data = jpeg(frame)
+        with self._lock:
+            self._camera_key, self._camera_jpeg = frame, data
+        return frame, data
+
+    def _listing_of(self, kind: str, folder: Path, names: Callable[[], list[str]]) -> list[str]:
+        """A directory's listing, recomputed only when the directory changes."""
+        try:
+            stamp = folder.stat().st_mtime_ns
+        except OSError:
+            stamp = -1
+        with self._lock:
+            cached = self._listing.get(kind)
+            if cached is not None and cached[0] == stamp:
+                return list(cached[1])
+        listing = names()
+        with self._lock:
+            self._listing[kind] = (stamp, listing)
+        return list(listing)
+
+    def missions(self) -> list[str]:
+        """The mission files that can be started (their stems)."""
+        folder = self.missions_dir
+        return self._listing_of("missions", folder, lambda: sorted(p.stem for p in folder.glob("*.yaml")))
+
+    def _navigation(self) -> tuple[Any, Pose2D | None]:
+        """The navigator's latest status (with its paths) and goal, when navigation is wired."""
+        nav = self.robot.extras.get("navigation")
+        if nav is None:
+            return None, None
+        status = getattr(nav, "last_status", nav)
+        goal = getattr(getattr(nav, "navigator", nav), "goal", None)
+        return status, goal if isinstance(goal, Pose2D) else None
+
+    def _mission(self, snapshot: dict[str, Any]) -> dict[str, Any] | None:
+        report = snapshot.get("task_progress")
+        if not isinstance(report, dict):
+            return None
+        steps = report.get("steps") or []
+        done = sum(1 for s in steps if s.get("status") in ("reached", "failed", "not run", "interrupted"))
+        return {"name": report.get("mission"), "progress": round(done / len(steps), 3) if steps else 0.0,
+                "state": report.get("outcome")}
+
+    def state(self) -> dict[str, Any]:
+        agent = self.agent.snapshot(transitions=0)
+        localization = self.robot.extras.get("localization")
+        pose = None if localization is None else localization.map_pose()
+        out: dict[str, Any] = {
+            "agent_state": str(agent["state"]).split(".")[0],
+            "mode": agent["mode"] or self.inputs.mode,
+            "simulation": self.sim is not None,
+            "active_map": self.maps.active_name,
+            "map_version": self.maps.version,
+            "pose": pose_json(pose),
+            "mapping": self.maps.slam is not None,
+            "awareness": bool(self.inputs.awareness),
+            "recording": self.recorder is not None and self.recorder.recording,
+            "mission": self._mission(agent),
+            "missions": self.missions(),
+            "maps": self._listing_of("maps", self.store.dir, self.store.names),
+        }
+        scan = self.sim.lidar_source.latest if self.sim is not None else None
+        if scan is not None and pose is not None:
+            out["scan"] = points_json(scan_points(scan, pose))
+        status, goal = self._navigation()
+        running = status is not None and getattr(status, "state", None) == "RUNNING"
+        out["global_path"] = points_json(getattr(status, "global_path", None)) if running else []
+        out["local_path"] = points_json(getattr(status, "local_trajectory", None)) if running else []
+        out["goal"] = pose_json(goal) if running and out["agent_state"] == "EXEC" else None
+        driver = self.robot.extras.get("driver")
+        if driver is not None:
+            wheels = driver.feedback()
+            out["wheel_speeds"] = {"left_radps": round(wheels.left_radps, 3),
+                                   "right_radps": round(wheels.right_radps, 3)}
+        control = cast("MotionControl | None", self.robot.parts.get("motion"))
+        last = None if control is None else control.last
+        out["emergency"] = bool(last is not None and (last.emergency or last.cliff_stop))
+        out["level1"], out["level2"] = status_levels(self.link.status)
+        monitor = self.robot.parts.get("system_monitor")
+        out["system"] = system_json(getattr(monitor, "latest", None))
+        limits = self.pipeline.limits
+        out["limits"] = {"linear_mps": limits.max_linear_mps, "angular_radps": limits.max_angular_radps}
+        out["wifi_ssid"] = self._current_ssid()
+        out["events"] = self.robot.recent_events(EVENTS_SHOWN)
+        return out
+
+    def _current_ssid(self) -> str | None:
+        ssid = getattr(self.link.network, "ssid", None)
+        if isinstance(ssid, str):
+            return ssid
+        with self._lock:
+            return self._wifi_ssid
+
+    def map_image(self) -> MapImage | None:
+        """The drawable map, rendered once per map version."""
+        grid = self.maps.drawable()
+        if grid is None:
+            return None
+        key = (self.maps.version, id(grid))
+        with self._lock:
+            if self._map_key == key and self._map_image is not None:
+                return self._map_image
+        image = render_map(grid, self.maps.version)
+        with self._lock:
+            self._map_key, self._map_image = key, image
+        return image
+
+    def camera_jpeg(self) -> bytes | None:
+        frame = self._camera_frame()
+        return None if frame is None else frame[1]
+
+    def secondary_screen_png(self) -> bytes | None:
+        core = self.robot.parts.get("secondary_core")
+        screen = getattr(core, "screen_png", None)
+        return None if screen is None else cast(bytes, screen(scale=2, color=True))
+
+    def agent_snapshot(self) -> dict[str, Any] | None:
+        return self.agent.snapshot()
+
+    # -- driving -----------------------------------------------------------------------------------------
+    def joystick(self, twist: Twist) -> CommandResult:
+        if not isinstance(twist, Twist) or not _finite(twist.linear_mps, twist.angular_radps):
+            return CommandResult.refused(f"joystick: a finite velocity is needed, got {twist!r}")
+        if self.inputs.mode == "AUTO":
+            return CommandResult.refused("joystick ignored in AUTO: switch to MANUAL to drive")
+        self.inputs.operate(twist, self.robot.clock.now())
+        return CommandResult.accepted()
+
+    def set_mode(self, mode: Mode) -> CommandResult:
+        if mode not in ("MANUAL", "AUTO"):
+            return CommandResult.refused(f"mode must be MANUAL or AUTO, got {mode!r}")
+        state = self.agent.state
+        if state == f"IDLE.{mode}":
+            return CommandResult.accepted()
+        return self._submit("set_auto" if mode == "AUTO" else "set_manual")
+
+    def set_goal(self, goal: Pose2D) -> CommandResult:
+        why = _pose_ok(goal, "goal")
+        if why is not None:
+            return CommandResult.refused(why)
+        if self.agent.state == "IDLE.MANUAL":
+            return CommandResult.refused("switch to AUTO first")
+        navigation = self.agent.context.navigation
+        if self.agent.precheck("goal") is None:
+            if navigation is None:
+                return CommandResult.refused("navigation is not available on this robot")
+            verdict = navigation.check_goal(goal)
+            if verdict is not None:
+                return CommandResult.refused(verdict)
+        return self._submit("goal", goal=goal)
+
+    def set_initial_pose(self, pose: Pose2D) -> CommandResult:
+        why = _pose_ok(pose, "initial pose")
+        if why is not None:
+            return CommandResult.refused(why)
+        localization = self.robot.extras.get("localization")
+        if localization is None:
+            return CommandResult.refused("this robot has no localization")
+        grid = self.maps.active
+        if grid is None:
+            return CommandResult.refused("no active map: select or build a map first")
+        row, col = grid.world_to_cell(pose.x_m, pose.y_m)
+        if not grid.contains(row, col):
+            return CommandResult.refused(f"({pose.x_m:.2f}, {pose.y_m:.2f}) is outside the map {self.maps.active_name}")
+        self._queue("initial pose", lambda now: localization.set_initial_pose(now, pose))
+        return CommandResult.accepted()
+
+    def cancel_goal(self) -> CommandResult:
+        return self._submit("cancel")
+
+    # -- mapping -----------------------------------------------------------------------------------------
+    def begin_mapping(self) -> CommandResult:
+        if self.agent.state == "IDLE.AUTO":
+            return CommandResult.refused("mapping starts in MANUAL: switch to MANUAL first")
+        return self._submit("begin_mapping")
+
+    def end_mapping(self) -> CommandResult:
+        if not self.agent.state.startswith("MAPPING") or self.maps.slam is None:
+            return CommandResult.refused("no mapping session is running")
+        self.maps.pause()
+        return CommandResult.accepted()
+
+    def save_map(self, name: str) -> CommandResult:
+        from atemr.io.map_store import clean_name
+
+        try:
+            clean = clean_name(name)
+        except ConfigError as exc:
+            return CommandResult.refused(exc.reason)
+        if clean != name:
+            return CommandResult.refused(f"invalid map name {name!r}: use {clean!r}")
+        if name in self.store.builtins:
+            return CommandResult.refused(f"'{name}' is a built-in map and cannot be replaced; choose another name")
+        if self.store.exists(name):
+            return CommandResult.refused(f"a map named '{name}' already exists; choose another name")
+        return self._submit("save_map", name=name)
+
+    def discard_map(self) -> CommandResult:
+        return self._submit("discard_map")
+
+    def select_map(self, name: str) -> CommandResult:
+        if not isinstance(name, str) or not self.store.exists(name):
+            return CommandResult.refused(f"no map named {name!r}; known maps: {', '.join(self.store.names())}")
+        top = self.agent.state.split(".")[0]
+        if top != "IDLE":
+            return CommandResult.refused(f"maps are switched in IDLE only (now {self.agent.state})")
+        if name == self.maps.active_name:
+            return CommandResult.accepted()
+        try:
+            grid = self.store.load(name)
+        except ConfigError as exc:
+            return CommandResult.refused(f"map {name!r} cannot be loaded: {exc.reason}")
+        del grid  # loaded to refuse a broken map at once; `activate` loads and persists it on the robot's thread
+        self._queue("select map", lambda now: self.maps.activate(name))
+        return CommandResult.accepted()
+
+    def validate_map(self, yaml_path: Path) -> CommandResult:
+        from atemr.io.sim.maps import load_map
+
+        try:
+            load_map(Path(yaml_path))
+        except ConfigError as exc:
+            return CommandResult.refused(f"not a valid ROS map: {exc.reason}")
+        return CommandResult.accepted()
+
+    def maps_changed(self) -> None:
+        with self._lock:
+            self._listing.pop("maps", None)
+
+    # -- settings ----------------------------------------------------------------------------------------
+    def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:
+        changes = {"max_linear_mps": linear_mps, "max_angular_radps": angular_radps}
+        try:
+            checked_limits(changes, self.pipeline.limits)
+            applied = self.pipeline.set_limits(changes)
+        except ConfigError as exc:
+            return CommandResult.refused(f"speed limits not changed: {exc}")
+        try:
+            self.settings.update("motion", {"max_linear_mps": applied.max_linear_mps,
+                                            "max_angular_radps": applied.max_angular_radps})
+        except OSError as exc:
+            return CommandResult.refused(f"speed limits applied but not saved: {exc.strerror}")
+        self.robot.event("settings", f"speed limits {applied.max_linear_mps:g} m/s, "
+                                     f"{applied.max_angular_radps:g} rad/s")
+        return CommandResult.accepted()
+
+    def set_awareness(self, enabled: bool) -> CommandResult:
+        if not isinstance(enabled, bool):
+            return CommandResult.refused(f"awareness is on or off (true/false), got {enabled!r}")
+        self.inputs.awareness = enabled
+        try:
+            self.settings.update("reactive", {"awareness": enabled})
+        except OSError as exc:
+            return CommandResult.refused(f"awareness applied but not saved: {exc.strerror}")
+        self.robot.event("settings", f"awareness {'on' if enabled else 'off'}")
+        return CommandResult.accepted()
+
+    def set_wifi(self, ssid: str, password: str) -> CommandResult:
+        if not isinstance(ssid, str) or not 1 <= len(ssid.encode()) <= 32:
+            return CommandResult.refused("the WiFi name (SSID) is 1-32 bytes")
+        if not isinstance(password, str) or not 8 <= len(password.encode()) <= 63:
+            return CommandResult.refused("the WiFi password is 8-63 characters")
+        network = self.link.network
+        future: Future[None] = self._wifi.submit(network.connect, ssid, password)
+
+        def done(f: Future[None]) -> None:
+            exc = f.exception()
+            if exc is None:
+                with self._lock:
+                    self._wifi_ssid = ssid
+                self.robot.event("wifi", f"joined {ssid}")
+            else:
+                self.robot.event("wifi", f"joining {ssid} failed: {exc}")
+
+        future.add_done_callback(done)
+        try:
+            error = future.exception(timeout=WIFI_WAIT_S)
+        except FutureTimeout:
+            return CommandResult(True, f"still joining {ssid}; the result will be in the events")
+        return _ok(error is None, f"joining {ssid} failed: {error}")
+
+    # -- media and missions ------------------------------------------------------------------------------
+    def capture_image(self) -> CommandResult:
+        frame = self._camera_frame()
+        if frame is None:
+            return CommandResult.refused("no camera frame to capture (is the camera on?)")
+        from datetime import UTC, datetime
+
+        images = self.config.data_dir / "media" / "images"
+        stamp = datetime.fromtimestamp(WallClock().wall_time(), UTC).strftime("%Y%m%d-%H%M%S-%f")
+        try:
+            images.mkdir(parents=True, exist_ok=True)
+            (images / f"capture-{stamp}.jpg").write_bytes(frame[1])
+        except OSError as exc:
+            return CommandResult.refused(f"cannot save the image: {exc.strerror}")
+        return CommandResult.accepted()
+
+    def record_video(self, on: bool) -> CommandResult:
+        if self.recorder is None:
+            return CommandResult.refused("this robot has no camera to record")
+        try:
+            path = self.recorder.begin() if on else self.recorder.end()
+        except AtemrError as exc:
+            return CommandResult.refused(str(exc))
+        self.robot.event("video", f"{'recording' if on else 'recorded'} {path.name}")
+        return CommandResult.accepted()
+
+    def start_mission(self, name: str) -> CommandResult:
+        from atemr.trees.missions import load_mission
+
+        if not isinstance(name, str) or name not in self.missions():
+            return CommandResult.refused(f"no mission named {name!r}; known: {', '.join(self.missions()) or 'none'}")
+        why = self.agent.precheck("start_mission")
+        if why is not None:
+            return CommandResult.refused("switch to AUTO first" if self.agent.state == "IDLE.MANUAL" else why)
+        try:
+            mission = load_mission(self.missions_dir / f"{name}.yaml")
+        except ConfigError as exc:
+            return CommandResult.refused(f"mission {name!r} is not valid: {exc}")
+        return self._submit("start_mission", mission=mission)
+
+    def stop_mission(self) -> CommandResult:
+        return self._submit("cancel")
+
+    # -- simulation panel --------------------------------------------------------------------------------
+    def _sim_action(self, what: str, action: Callable[[], object]) -> CommandResult:
+        if self.sim is None:
+            return CommandResult.refused("not a simulation")
+        future = self.sim.submit(action)
+
+        def done(f: Future[object]) -> None:
+            exc = f.exception()
+            if exc is not None:
+                self.robot.event("simulation", f"{what} failed: {exc}")
+
+        future.add_done_callback(done)
+        return CommandResult.accepted()
+
+    def sim_button(self, hold_s: float) -> CommandResult:
+        core = self.robot.parts.get("secondary_core")
+        if self.sim is None or core is None:
+            return CommandResult.refused("not a simulation")
+        if not _finite(hold_s) or not 0 < hold_s <= MAX_BUTTON_HOLD_S:
+            return CommandResult.refused(f"a button press lasts 0-{MAX_BUTTON_HOLD_S:g} s, got {hold_s!r}")
+        cast(Any, core).button.hold(float(hold_s))
+        return CommandResult.accepted()
+
+    def _in_world(self, x_m: float, y_m: float) -> str | None:
+        if not _finite(x_m, y_m):
+            return f"a position must be finite numbers, got ({x_m!r}, {y_m!r})"
+        world = self.sim.world.map
+        if not world.contains(*world.world_to_cell(x_m, y_m)):
+            return f"({x_m:.2f}, {y_m:.2f}) is outside the simulated world"
+        return None
+
+    def sim_drop_obstacle(self, x_m: float, y_m: float) -> CommandResult:
+        if self.sim is None:
+            return CommandResult.refused("not a simulation")
+        why = self._in_world(x_m, y_m)
+        if why is not None:
+            return CommandResult.refused(why)
+        sim = self.sim
+        return self._sim_action("drop obstacle", lambda: sim.drop_obstacle(float(x_m), float(y_m)))
+
+    def sim_kidnap(self, pose: Pose2D) -> CommandResult:
+        if self.sim is None:
+            return CommandResult.refused("not a simulation")
+        why = _pose_ok(pose, "kidnap pose") or self._in_world(pose.x_m, pose.y_m)
+        if why is not None:
+            return CommandResult.refused(why)
+        sim = self.sim
+        contact = sim.clearance_at(pose.x_m, pose.y_m)
+        if contact.clearance_m < 0:
+            return CommandResult.refused(f"({pose.x_m:.2f}, {pose.y_m:.2f}) overlaps {contact.what}")
+        return self._sim_action("kidnap", lambda: sim.kidnap(pose))
+
+    def close(self) -> None:
+        """Stop the WiFi worker (the robot shuts the scheduled parts down)."""
+        self._wifi.shutdown(wait=False)
+
+
+__all__ = ["PUMP_RATE_HZ", "RobotGatewayImpl"]
