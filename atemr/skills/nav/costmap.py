@@ -122,6 +122,7 @@ class Costmap:
         self._cost: NDArray[np.uint8] = np.zeros(self.shape, dtype=np.uint8)
         self._dist: NDArray[np.float32] = self._static_distance
         self._hard: NDArray[np.float32] = self._static_distance
+        self._static_cost: NDArray[np.uint8] | None = None
         self._inflate_cells = math.ceil((p.inflation_radius_m + p.obstacle_padding_m) / self.resolution_m) + 1
 
     # -- distances and costs -------------------------------------------------------------------------
@@ -131,31 +132,53 @@ class Costmap:
         d = ndimage.distance_transform_edt(~lethal, sampling=self.resolution_m)
         return np.asarray(d, dtype=np.float32)
 
-    def _with_layer(self, base: NDArray[np.float32], layer: NDArray[np.bool_]) -> NDArray[np.float32]:
-        """``base`` lowered by the (padded) distance to the cells of ``layer``, computed over their bounding box."""
+    def _window(self, layer: NDArray[np.bool_]) -> tuple[int, int, int, int] | None:
+        """Bounding box of ``layer``'s cells grown by the inflation reach (rows r0:r1, cols c0:c1), or None."""
         if not layer.any():
-            return base
-        rows, cols = np.nonzero(layer)
+            return None
+        rows = np.flatnonzero(layer.any(axis=1))
+        cols = np.flatnonzero(layer.any(axis=0))
         m = self._inflate_cells
-        r0, r1 = max(int(rows.min()) - m, 0), min(int(rows.max()) + m + 1, self.shape[0])
-        c0, c1 = max(int(cols.min()) - m, 0), min(int(cols.max()) + m + 1, self.shape[1])
+        return (max(int(rows[0]) - m, 0), min(int(rows[-1]) + m + 1, self.shape[0]),
+                max(int(cols[0]) - m, 0), min(int(cols[-1]) + m + 1, self.shape[1]))
+
+    def _with_layer(self, base: NDArray[np.float32], layer: NDArray[np.bool_],
+                    box: tuple[int, int, int, int] | None) -> NDArray[np.float32]:
+        """``base`` lowered by the (padded) distance to the cells of ``layer``, computed over their box only."""
+        if box is None:
+            return base
+        r0, r1, c0, c1 = box
         window = self._distance(layer[r0:r1, c0:c1]) - np.float32(self.params.obstacle_padding_m)
         out = base.copy()
         np.minimum(out[r0:r1, c0:c1], window, out=out[r0:r1, c0:c1])
         return out
 
     def _refresh(self) -> None:
+        """Recompute distances and costs after a layer changed, only inside the layers' bounding box: outside
+        it nothing differs from the static layer (a 10 Hz update stays cheap on a 1.7 M-cell warehouse)."""
         if self._cache_version == self.version:
             return
-        hard = self._with_layer(self._static_distance, self.obstacles)
-        dist = self._with_layer(hard, self.predicted) if self.predicted.any() else hard
-        cost = inflation_costs(dist, self.params)
-        if self.static_unknown.any():
-            cost[self.static_unknown & (cost < INSCRIBED)] = NO_INFORMATION
+        if self._static_cost is None:
+            self._static_cost = self._costs(self._static_distance, self.static_unknown)
+            self._static_cost.setflags(write=False)
+        hard = self._with_layer(self._static_distance, self.obstacles, self._window(self.obstacles))
+        layer = self.obstacles | self.predicted
+        box = self._window(layer)
+        dist = self._with_layer(hard, self.predicted, self._window(self.predicted)) if self.predicted.any() else hard
+        cost = self._static_cost
+        if box is not None:
+            r0, r1, c0, c1 = box
+            cost = cost.copy()
+            cost[r0:r1, c0:c1] = self._costs(dist[r0:r1, c0:c1], self.static_unknown[r0:r1, c0:c1])
         self._hard = hard
         self._dist = dist
         self._cost = cost
         self._cache_version = self.version
+
+    def _costs(self, dist: NDArray[np.float32], unknown: NDArray[np.bool_]) -> NDArray[np.uint8]:
+        cost = inflation_costs(dist, self.params)
+        cost[unknown & (cost < INSCRIBED)] = NO_INFORMATION
+        return cost
 
     @property
     def cost(self) -> NDArray[np.uint8]:

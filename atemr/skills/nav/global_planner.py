@@ -141,6 +141,7 @@ class GlobalPlanner:
     def __init__(self, costmap: Costmap, params: PlannerParams | None = None) -> None:
         self.costmap = costmap
         self.params = params or PlannerParams()
+        self._cached: tuple[NDArray[np.uint8], NDArray[np.bool_], NDArray[np.float64]] | None = None
 
     def _passable(self) -> NDArray[np.bool_]:
         return self.costmap.traversable(allow_unknown=self.params.allow_unknown)
@@ -186,7 +187,7 @@ class GlobalPlanner:
             h = octile_m(grid_rc[0], grid_rc[1], g, cm.resolution_m) * p.neutral_cost
             h_start = float(h[s])
         cost_grid, passable = self._grids(s)
-        data = edge_weights(cost_grid, passable, cm.resolution_m, p, h)
+        data = self._weights(cost_grid, passable, h)
         graph = csr_matrix((data.reshape(-1), indices, indptr), shape=(n, n))
         # First bound: a quarter of the heuristic above it (a thin ellipse round the straight line), then tripled
         # until the goal is inside: the total work stays within a small factor of the last search's.
@@ -218,6 +219,43 @@ class GlobalPlanner:
         seg = np.diff(pts, axis=0)
         length = float(np.hypot(seg[:, 0], seg[:, 1]).sum())
         return GlobalPath(pts, flat, length, total, expanded)
+
+    def _weights(self, cost: NDArray[np.uint8], passable: NDArray[np.bool_], potential: FloatArray | None
+                 ) -> NDArray[np.float64]:
+        """The (N, 8) edge weights (reduced by ``potential`` for A*). The plain weights are cached and, when the
+        costmap changed, patched only around the cells that changed (the obstacle layer moves a few cells per
+        scan), so a plan on a big map does not rebuild millions of weights."""
+        cm = self.costmap
+        rows, cols = cost.shape
+        if self._cached is None or self._cached[0].shape != cost.shape:
+            self._cached = (cost.copy(), passable.copy(), edge_weights(cost, passable, cm.resolution_m, self.params))
+        old_cost, old_ok, base = self._cached
+        changed = (cost != old_cost) | (passable != old_ok)
+        if changed.any():
+            rr = np.flatnonzero(changed.any(axis=1))
+            cc = np.flatnonzero(changed.any(axis=0))
+            # Edges of cells next to a change change too (entered cell, corner rule): patch the box grown by 1,
+            # computed on the box grown by 2 so every patched cell sees its true neighbours.
+            t0, t1 = max(int(rr[0]) - 1, 0), min(int(rr[-1]) + 2, rows)
+            u0, u1 = max(int(cc[0]) - 1, 0), min(int(cc[-1]) + 2, cols)
+            s0, s1 = max(t0 - 1, 0), min(t1 + 1, rows)
+            v0, v1 = max(u0 - 1, 0), min(u1 + 1, cols)
+            sub = edge_weights(cost[s0:s1, v0:v1], passable[s0:s1, v0:v1], cm.resolution_m, self.params)
+            sub = sub.reshape(s1 - s0, v1 - v0, 8)[t0 - s0:t1 - s0, u0 - v0:u1 - v0]
+            base.reshape(rows, cols, 8)[t0:t1, u0:u1] = sub
+            old_cost[t0:t1, u0:u1] = cost[t0:t1, u0:u1]
+            old_ok[t0:t1, u0:u1] = passable[t0:t1, u0:u1]
+        if potential is None:
+            return np.maximum(base, 1e-12)
+        # Reduced weights w − h(u) + h(v): eight shifted views of the potential, no gathers.
+        h_pad = np.pad(potential, 1)
+        out = np.empty((rows, cols, 8), dtype=np.float64)
+        grid = base.reshape(rows, cols, 8)
+        for k, (dr, dc) in enumerate(_MOVES):
+            np.add(grid[:, :, k], _shifted(h_pad, dr, dc), out=out[:, :, k])
+            out[:, :, k] -= potential
+        np.maximum(out, 1e-12, out=out)
+        return out.reshape(rows * cols, 8)
 
     def _enterable(self, cell: tuple[int, int]) -> bool:
         c = int(self.costmap.cost[cell])

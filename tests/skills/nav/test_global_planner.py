@@ -152,3 +152,23 @@ def test_smoothed_path_is_shorter_and_never_enters_the_inscribed_zone(make_map):
     dense = resample(smooth.points, 0.01)
     assert (cm.cost_at(dense[:, 0], dense[:, 1]) < INSCRIBED).all()
     assert np.allclose(smooth.points[0], (0.5, 0.5)) and np.allclose(smooth.points[-1], (7.5, 5.5))
+
+
+def test_cached_weights_patched_after_a_scan_equal_a_full_rebuild(make_map):
+    from atemr.msgs import LaserScan, Pose2D
+    from atemr.skills.nav.global_planner import edge_weights
+
+    rng = np.random.default_rng(5)
+    cm = Costmap(make_map(np.zeros((80, 100), dtype=np.int8), RES))
+    planner = GlobalPlanner(cm)
+    assert planner.plan((0.5, 0.5), (4.5, 3.5)) is not None
+    for k in range(3):
+        ranges = rng.uniform(0.5, 2.0, 90)
+        cm.update_from_scan(LaserScan(float(k), ranges, -math.pi, 2 * math.pi / 90, 0.15, 8.0), Pose2D(2.5, 2.0, 0.0))
+        fresh = GlobalPlanner(cm).plan((0.5, 0.5), (4.5, 3.5))
+        cached = planner.plan((0.5, 0.5), (4.5, 3.5))
+        assert (fresh is None) == (cached is None)
+        if fresh is not None and cached is not None:
+            assert cached.cost == pytest.approx(fresh.cost, rel=1e-12)
+        full = edge_weights(cm.cost, cm.traversable(), RES, planner.params)
+        assert np.array_equal(planner._weights(cm.cost, cm.traversable(), None), np.maximum(full, 1e-12))
