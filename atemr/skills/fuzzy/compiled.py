@@ -1,7 +1,8 @@
 """Engines compiled once into flat numpy arrays, so one evaluation is a short, fixed list of numpy operations.
 
 `Engine` builds a `CompiledEngine` when it is created, and `Engine.process` runs it on the matrix of
-input rows (rows, inputs). Nothing is looked up, validated or derived again per call:
+inputs (inputs, rows). Every intermediate is laid out (terms/rules/..., rows), so reductions over terms run
+along contiguous rows whatever N is. Nothing is looked up, validated or derived again per call:
 
 * fuzzification: the (variable, term) pairs the rules use are the columns of one membership matrix.
   Ramp, Triangle and Trapezoid columns are computed all at once from parameters stacked per shape, with
@@ -60,8 +61,8 @@ Index = NDArray[np.intp]
 FIRING_EPSILON = 1e-6
 #: Rows evaluated together by integral defuzzifiers (bounds memory at rows × resolution floats).
 CHUNK_SAMPLES = 2_000_000
-#: Rows of one compiled evaluation are chunked so that its widest intermediate stays below this many floats.
-_CHUNK_FLOATS = 1_000_000
+#: The rule stage runs on chunks of rows whose widest intermediate stays below this many floats (1 MB).
+_CHUNK_FLOATS = 131_072
 #: A rule whose disjunctive normal form has more clauses than this is evaluated by its tree instead.
 _MAX_CLAUSES = 64
 
@@ -123,15 +124,16 @@ def _padded(rows: Sequence[Sequence[int]], pad: int | None = None) -> Index:
     return out
 
 
-def _row(values: Sequence[float] | Array) -> Array:
-    return np.asarray(values, dtype=np.float64)[None, :]
+def _col(values: Sequence[float] | Array) -> Array:
+    """A column vector: one parameter per term, broadcast along the rows."""
+    return np.asarray(values, dtype=np.float64)[:, None]
 
 
 # ---- fuzzification ----------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class _Shape:
-    """Membership columns of one term shape: the input column of each and the stacked parameters."""
+    """Memberships of the terms of one shape: the input of each and the stacked parameters."""
 
     kind: str  # "Ramp", "Triangle", "Trapezoid" or "other" (each term's own membership)
     variables: Index
@@ -140,10 +142,10 @@ class _Shape:
     heights: Array | None = None  # None: every height is 1
 
     def evaluate(self, x: Array) -> Array:
-        """Memberships (rows, columns) for the input matrix ``x`` (rows, inputs); call under errstate."""
+        """Memberships (terms, rows) for the inputs ``x`` (inputs, rows); call under errstate."""
         if self.kind == "other":
-            return np.stack([t.membership(x[:, v]) for t, v in zip(self.terms, self.variables, strict=True)], axis=1)
-        v = x[:, self.variables]
+            return np.stack([t.membership(x[v]) for t, v in zip(self.terms, self.variables, strict=True)])
+        v = x[self.variables]
         if self.kind == "Ramp":
             # Ramp's select is (x - s)/(e - s) clipped to [0, 1] for rising and falling ramps alike: the
             # falling formula (s - x)/(s - e) flips both signs, which IEEE rounding does not notice. (Exactly
@@ -187,16 +189,16 @@ def _shape(kind: str, pairs: Sequence[tuple[int, Term]]) -> _Shape:
     p = np.array([t.params for t in terms], dtype=np.float64).T
     if kind == "Ramp":
         s, e = p
-        params: tuple[Array, ...] = (_row(s), _row(e - s))
+        params: tuple[Array, ...] = (_col(s), _col(e - s))
     elif kind == "Triangle":
         a, b, c = p
-        params = (_row(a), _row(b), _row(c), _row(b - a), _row(c - b), (a == -math.inf)[None, :],
-                  (c == math.inf)[None, :])
+        params = (_col(a), _col(b), _col(c), _col(b - a), _col(c - b), (a == -math.inf)[:, None],
+                  (c == math.inf)[:, None])
     else:
         a, b, c, d = p
-        params = (_row(a), _row(b), _row(c), _row(d), _row(b - a), _row(d - c), (a == -math.inf)[None, :],
-                  (d == math.inf)[None, :])
-    return _Shape(kind, variables, terms, params, None if np.all(heights == 1.0) else _row(heights))
+        params = (_col(a), _col(b), _col(c), _col(d), _col(b - a), _col(d - c), (a == -math.inf)[:, None],
+                  (d == math.inf)[:, None])
+    return _Shape(kind, variables, terms, params, None if np.all(heights == 1.0) else _col(heights))
 
 
 # ---- antecedents ------------------------------------------------------------------------------------
@@ -263,8 +265,8 @@ class _Values:
     linear: tuple[tuple[int, Linear], ...]
 
     def evaluate(self, w: Array, x: Array) -> Array:
-        """z (rows, items) from w (rows, items) and the inputs x; call under errstate (Tsukamoto values
-        where w is 0 are inf or NaN, and the caller masks them)."""
+        """z (items, rows) from w (items, rows) and the inputs x (inputs, rows); call under errstate
+        (Tsukamoto values where w is 0 are inf or NaN, and the caller masks them)."""
         z: Array | None = None
         if self.ramp is not None:  # Ramp.tsukamoto: s + (e - s)·y / h
             mask, s, width, h = self.ramp
@@ -279,9 +281,11 @@ class _Values:
         if z is None or self.tsukamoto or self.linear:
             z = np.zeros_like(w) if z is None else np.array(z)
             for j, term in self.tsukamoto:
-                z[:, j] = term.tsukamoto(w[:, j])
-            for j, lin in self.linear:
-                z[:, j] = lin.evaluate(x)
+                z[j] = term.tsukamoto(w[j])
+            if self.linear:
+                matrix = np.ascontiguousarray(x.T)  # (rows, inputs), as Linear.evaluate takes it
+                for j, lin in self.linear:
+                    z[j] = lin.evaluate(matrix)
         return z
 
 
@@ -309,9 +313,9 @@ def _values(items: Sequence[_Item], tsukamoto: Sequence[bool]) -> _Values:
             constant[j] = True
             value[j] = t.height * t.params[0]
     return _Values(
-        (ramp[None, :], _row(rs), _row(rw), None if np.all(rh == 1.0) else _row(rh)) if ramp.any() else None,
-        (concave[None, :], _row(hie), _row(e2), _row(ci)) if concave.any() else None,
-        (constant[None, :], _row(value)) if constant.any() else None,
+        (ramp[:, None], _col(rs), _col(rw), None if np.all(rh == 1.0) else _col(rh)) if ramp.any() else None,
+        (concave[:, None], _col(hie), _col(e2), _col(ci)) if concave.any() else None,
+        (constant[:, None], _col(value)) if constant.any() else None,
         tuple(others),
         tuple(linear),
     )
@@ -319,16 +323,19 @@ def _values(items: Sequence[_Item], tsukamoto: Sequence[bool]) -> _Values:
 
 @dataclass(frozen=True)
 class _Segments:
-    """Consecutive column ranges of the items of each output, to sum per output."""
+    """Consecutive ranges of the items of each output, to sum per output along an axis."""
 
     bounds: tuple[tuple[int, int], ...]
 
-    def sums(self, v: Array) -> Array:
-        """(rows, outputs, ...) sums over axis 1 of ``v`` (rows, items, ...), in the order ``v[:, a:b].sum(axis=1)``
-        adds (so the same numbers as the rule-by-rule path, whatever the number of rows)."""
+    def sums(self, v: Array, axis: int) -> Array:
+        """Sums per output along ``axis`` (0 or 1) of ``v``: the same additions in the same order as
+        ``v[a:b].sum(axis=0)`` (or ``v[:, a:b].sum(axis=1)``) for each output, whatever the number of rows."""
         lengths = {b - a for a, b in self.bounds}
-        if len(lengths) == 1:  # equal lengths: one reshape, same order of additions
-            return v.reshape(v.shape[0], len(self.bounds), lengths.pop(), *v.shape[2:]).sum(axis=2)
+        if len(lengths) == 1:  # equal lengths: one reshape
+            shape = (*v.shape[:axis], len(self.bounds), lengths.pop(), *v.shape[axis + 1:])
+            return v.reshape(shape).sum(axis=axis + 1)
+        if axis == 0:
+            return np.stack([v[a:b].sum(axis=0) for a, b in self.bounds])
         return np.stack([v[:, a:b].sum(axis=1) for a, b in self.bounds], axis=1)
 
 
@@ -347,20 +354,21 @@ class _Other:
     tsukamoto: bool = False
 
     def evaluate(self, w_all: Array, present: Mask, x: Array) -> Array:
-        n = len(w_all)
-        w = w_all[:, self.first: self.first + self.count]
+        """The crisp values (rows,) from the grouped degrees and presence of all items (items, rows)."""
+        n = w_all.shape[1]
+        w = w_all[self.first: self.first + self.count]
         d = self.output.defuzzifier
         if isinstance(d, IntegralDefuzzifier):
             assert self.grid is not None
-            items = [(m, w[:, k], imp) for k, (m, imp) in enumerate(self.spec)]
+            items = [(m, w[k], imp) for k, (m, imp) in enumerate(self.spec)]
             return integrate(d, self.grid, items, n, self.agg, separable=self.separable)
         assert isinstance(d, WeightedDefuzzifier) and self.values is not None
-        p = present[:, self.first: self.first + self.count]
+        p = present[self.first: self.first + self.count]
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             z = self.values.evaluate(w, x)
             if self.tsukamoto:
                 z = np.where(p, z, 0.0)
-        return d.combine(w, np.ascontiguousarray(z), p)
+        return d.combine(np.ascontiguousarray(w.T), np.ascontiguousarray(z.T), np.ascontiguousarray(p.T))
 
 
 class CompiledEngine:
@@ -373,8 +381,8 @@ class CompiledEngine:
         var_index = {v.name: i for i, v in enumerate(inputs)}
         self.in_range: tuple[Array, Array] | None = None  # clip bounds, ±inf for inputs not locked
         if any(v.lock_range for v in inputs):
-            self.in_range = (_row([v.minimum if v.lock_range else -math.inf for v in inputs]),
-                             _row([v.maximum if v.lock_range else math.inf for v in inputs]))
+            self.in_range = (_col([v.minimum if v.lock_range else -math.inf for v in inputs]),
+                             _col([v.maximum if v.lock_range else math.inf for v in inputs]))
 
         # -- antecedents: normal forms of the min/max rules, trees for the others
         rules = [(b, r) for b in engine.rule_blocks for r in b.rules]
@@ -422,7 +430,7 @@ class CompiledEngine:
             self.rule_index = _padded([list(range(starts[k], starts[k + 1])) for k in range(len(dnf))])
         self.dnf_columns = np.array([r for r, _ in dnf], dtype=np.intp)
         weights = np.array([rules[r][1].weight for r, _ in dnf])
-        self.weights = _row(weights) if np.any(weights != 1.0) else None
+        self.weights = _col(weights) if np.any(weights != 1.0) else None
 
         # -- consequents: source columns are the rule degrees, then the hedged consequents by hedge chain
         hedged_props: dict[tuple[str, ...], list[tuple[int, int]]] = {}
@@ -507,7 +515,7 @@ class CompiledEngine:
 
         # separable Larsen Centroids: [area, moment] of output o = Σ over its items of degree × [area, moment]
         # of the item's term, summed in item order as `separable_totals` does
-        self.lin_table = np.zeros((1, self.lin_items, 2))
+        self.lin_table = np.zeros((self.lin_items, 2, 1))
         bounds = list(itertools.pairwise([*self.starts.tolist(), self.lin_items + self.weighted_items]))
         self.lin_segments = _Segments(tuple(bounds[: len(lin)]))
         j = 0
@@ -515,7 +523,7 @@ class CompiledEngine:
             x, mu = grids[outputs[oi].name]
             weights_x = np.stack([np.ones_like(x), x], axis=1)
             for it in out_items[oi]:
-                self.lin_table[0, j] = mu[it.term.name] @ weights_x
+                self.lin_table[j, :, 0] = mu[it.term.name] @ weights_x
                 j += 1
         # WeightedAverage/WeightedSum outputs: every item's value, segment starts, which outputs average
         w_items = self.items[self.lin_items: self.lin_items + self.weighted_items]
@@ -524,7 +532,7 @@ class CompiledEngine:
         self.w_segments = _Segments(tuple((a - self.lin_items, b - self.lin_items)
                                           for a, b in bounds[len(lin): len(lin) + len(weighted)]))
         average = [type(outputs[oi].defuzzifier) is WeightedAverage for oi in weighted]
-        self.w_average: bool | Mask = all(average) if all(average) or not any(average) else _row(average) > 0
+        self.w_average: bool | Mask = all(average) if all(average) or not any(average) else _col(average) > 0
         # the rest: the generic code on the items' degree columns
         self.others: list[_Other] = []
         j = self.lin_items + self.weighted_items
@@ -545,135 +553,144 @@ class CompiledEngine:
             j += len(its)
 
         ordered = [outputs[oi] for oi in order]
-        self.defaults = _row([o.default for o in ordered])
+        self.defaults = _col([o.default for o in ordered])
         self.out_range: tuple[Array, Array] | None = None
         if any(o.lock_range for o in ordered):
-            self.out_range = (_row([o.minimum if o.lock_range else -math.inf for o in ordered]),
-                              _row([o.maximum if o.lock_range else math.inf for o in ordered]))
+            self.out_range = (_col([o.minimum if o.lock_range else -math.inf for o in ordered]),
+                              _col([o.maximum if o.lock_range else math.inf for o in ordered]))
         widths = [len(inputs), self.n_literals, self.n_sources + 1, n_items + len(outputs), 2 * len(lin)]
         widths += [index.size for index in (self.clause_index, self.rule_index, self.max_index, self.sum_index,
                                             self.present_index) if index is not None]
-        self.chunk_rows = max(256, _CHUNK_FLOATS // max(widths))
+        self.chunk_rows = max(64, _CHUNK_FLOATS // max(widths))
 
     # ---- evaluation ---------------------------------------------------------------------------------
 
     def evaluate(self, x: Array) -> Array:
-        """Crisp outputs (rows, outputs in `position` order) for the input matrix ``x`` (rows, inputs)."""
-        n = x.shape[0]
-        if n <= self.chunk_rows:
-            return self._evaluate(x)
-        return np.concatenate([self._evaluate(x[s: s + self.chunk_rows]) for s in range(0, n, self.chunk_rows)])
-
-    def _evaluate(self, x: Array) -> Array:
-        n = x.shape[0]
+        """Crisp outputs (outputs in `position` order, rows) for the inputs ``x`` (inputs, rows)."""
+        n = x.shape[1]
         if self.in_range is not None:
             x = np.minimum(np.maximum(x, self.in_range[0]), self.in_range[1])
-        mu = self._memberships(x)
-        deg = self._degrees(mu)
+        if n <= self.chunk_rows:
+            w, present = self._rules(x)
+        else:  # the rule stage in chunks that stay in cache; the items are few, defuzzify them all at once
+            parts = [self._rules(x[:, s: s + self.chunk_rows]) for s in range(0, n, self.chunk_rows)]
+            w = np.concatenate([part[0] for part in parts], axis=1)
+            present = np.concatenate([part[1] for part in parts], axis=1)
+        return self._defuzzify(w, present, x)
+
+    def _rules(self, x: Array) -> tuple[Array, Mask]:
+        """Grouped degree and presence of every item (items, rows) for the (clipped) inputs."""
+        deg = self._degrees(self._memberships(x))
         fired = deg >= FIRING_EPSILON
-        deg = np.where(fired, deg, 0.0)
-        w, present = self._grouped(deg, fired)
+        return self._grouped(np.where(fired, deg, 0.0), fired)
+
+    def _defuzzify(self, w: Array, present: Mask, x: Array) -> Array:
+        n = x.shape[1]
         crisp: list[Array] = []
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            if self.n_lin:
-                totals = self.lin_segments.sums(w[:, : self.lin_items, None] * self.lin_table)
-                crisp.append(totals[:, :, 1] / totals[:, :, 0])
+            if self.n_lin:  # [area, moment] per output, summed over its items in order
+                totals = self.lin_segments.sums(w[: self.lin_items, None, :] * self.lin_table, axis=0)
+                crisp.append(totals[:, 1] / totals[:, 0])
             if self.values is not None:
                 a, b = self.lin_items, self.lin_items + self.weighted_items
-                ww, p = w[:, a:b], present[:, a:b]
-                num = self.w_segments.sums(np.where(p, ww * self.values.evaluate(ww, x), 0.0))
+                ww, p = w[a:b], present[a:b]
+                # as WeightedAverage/WeightedSum.combine: rows of (w·z where present) summed per output
+                terms = np.ascontiguousarray(np.where(p, ww * self.values.evaluate(ww, x), 0.0).T)
+                num = self.w_segments.sums(terms, axis=1).T
                 if self.w_average is False:
                     crisp.append(num)
                 else:
-                    ratio = num / self.w_segments.sums(np.where(p, ww, 0.0))
+                    ratio = num / self.w_segments.sums(np.ascontiguousarray(np.where(p, ww, 0.0).T), axis=1).T
                     crisp.append(ratio if self.w_average is True else np.where(self.w_average, ratio, num))
-        crisp.extend(other.evaluate(w, present, x)[:, None] for other in self.others)
+        crisp.extend(other.evaluate(w, present, x)[None, :] for other in self.others)
         if self.n_empty:
-            crisp.append(np.full((n, self.n_empty), np.nan))
-        result = crisp[0] if len(crisp) == 1 else np.concatenate(crisp, axis=1)
-        fired_any = np.logical_or.reduceat(present, self.starts, axis=1) if self.starts.size else np.zeros((n, 0), bool)
+            crisp.append(np.full((self.n_empty, n), np.nan))
+        result = crisp[0] if len(crisp) == 1 else np.concatenate(crisp)
+        fired_any = np.logical_or.reduceat(present, self.starts) if self.starts.size else np.zeros((0, n), bool)
         if self.n_empty:
-            fired_any = np.concatenate([fired_any, np.zeros((n, self.n_empty), dtype=bool)], axis=1)
+            fired_any = np.concatenate([fired_any, np.zeros((self.n_empty, n), dtype=bool)])
         result = np.where(fired_any, result, self.defaults)
         if self.out_range is not None:
             result = np.minimum(np.maximum(result, self.out_range[0]), self.out_range[1])
         return result
 
     def _memberships(self, x: Array) -> Array:
-        """Literal columns: the base memberships, then the hedged ones."""
+        """Literal rows: the base memberships, then the hedged ones."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # as in Term.membership
             blocks = [s.evaluate(x) for s in self.shapes]
         if not blocks:
-            return np.zeros((len(x), 0))
-        mu = blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
+            return np.zeros((0, x.shape[1]))
+        mu = blocks[0] if len(blocks) == 1 else np.concatenate(blocks)
         if not self.hedged:
             return mu
         parts = [mu]
-        for cols, hedges in self.hedged:
-            h = mu[:, cols]
+        for rows, hedges in self.hedged:
+            h = mu[rows]
             for hedge in hedges:
                 h = hedge(h)
             parts.append(h)
-        return np.concatenate(parts, axis=1)
+        return np.concatenate(parts)
 
     def _degrees(self, lits: Array) -> Array:
-        """Activation degree (weight × antecedent) of every rule (rows, rules)."""
-        deg = np.zeros((len(lits), 0))
+        """Activation degree (weight × antecedent) of every rule (rules, rows)."""
+        n = lits.shape[1]
+        deg = np.zeros((0, n))
         if self.clause_index is not None:
-            deg = lits[:, self.clause_index].min(axis=2)
+            deg = lits[self.clause_index].min(axis=1)
             if self.rule_index is not None:
-                deg = deg[:, self.rule_index].max(axis=2)
+                deg = deg[self.rule_index].max(axis=1)
             if self.weights is not None:
                 deg = self.weights * deg
         if not self.tree_rules:
             return deg
-        full = np.empty((len(lits), self.n_rules))
-        full[:, self.dnf_columns] = deg
+        full = np.empty((self.n_rules, n))
+        full[self.dnf_columns] = deg
         membership = self._base_lookup(lits)
         for r, rule, conj, disj in self.tree_rules:
-            full[:, r] = rule.degree(membership, conj, disj)
+            full[r] = rule.degree(membership, conj, disj)
         return full
 
     def _base_lookup(self, lits: Array) -> Callable[[str, str], Array]:
         base = self.base_col
 
         def membership(variable: str, term: str) -> Array:
-            return lits[:, base[(variable, term)]]
+            return lits[base[(variable, term)]]
 
         return membership
 
     def _grouped(self, deg: Array, fired: Mask) -> tuple[Array, Mask]:
-        """Grouped degree of every item and whether it is present (one of its rules fired)."""
-        n = len(deg)
+        """Grouped degree of every item and whether it is present (one of its rules fired): (items, rows)."""
+        n = deg.shape[1]
         src = deg
         if self.consequent_hedges:
             parts = [deg]
             for rs, hedges in self.consequent_hedges:
-                d, f = deg[:, rs], fired[:, rs]
+                d, f = deg[rs], fired[rs]
                 for hedge in hedges:
                     d = np.where(f, hedge(d), 0.0)
                 parts.append(d)
-            src = np.concatenate(parts, axis=1)
+            src = np.concatenate(parts)
         if self.sum_index is not None:
-            src = np.concatenate([src, np.zeros((n, 1))], axis=1)
+            src = np.concatenate([src, np.zeros((1, n))])
         if self.all_max:
             assert self.max_index is not None
-            w = src[:, self.max_index].max(axis=2)
+            w = src[self.max_index].max(axis=1)
         else:
-            w = np.empty((n, len(self.items)))
+            w = np.empty((len(self.items), n))
             if self.max_index is not None:
-                w[:, self.max_ids] = src[:, self.max_index].max(axis=2)
+                w[self.max_ids] = src[self.max_index].max(axis=1)
             if self.sum_index is not None:
-                w[:, self.sum_ids] = src[:, self.sum_index].sum(axis=2)
+                # as the rule-by-rule path folds them: ((d1 + d2) + d3) ..., padded with + 0
+                w[self.sum_ids] = src[self.sum_index].sum(axis=1)
             for j, item in self.folds:
                 assert item.fold is not None
-                acc = src[:, item.sources[0]]
+                acc = src[item.sources[0]]
                 for s in item.sources[1:]:
-                    acc = item.fold(acc, src[:, s])
-                w[:, j] = acc
+                    acc = item.fold(acc, src[s])
+                w[j] = acc
         if self.present_from_degree:
             return w, np.greater_equal(w, FIRING_EPSILON)
         if self.present_index is None:
-            return w, np.zeros((n, 0), dtype=bool)
-        present: Mask = np.any(fired[:, self.present_index], axis=2)
+            return w, np.zeros((0, n), dtype=bool)
+        present: Mask = np.any(fired[self.present_index], axis=1)
         return w, present

@@ -146,11 +146,11 @@ class Engine:
             raise self._names_error(inputs)
         values = [inputs[name] for name in plan.input_names]
         if all(isinstance(v, (float, int)) for v in values):  # one row of plain numbers: the control tick
-            matrix = np.array([values], dtype=np.float64)
+            matrix = np.array(values, dtype=np.float64).reshape(-1, 1)
             shape: tuple[int, ...] = ()
         else:
             matrix, shape = self._matrix(values)
-        result = plan.evaluate(matrix).T.reshape((len(self.outputs), *shape))
+        result = plan.evaluate(matrix).reshape((len(self.outputs), *shape))
         return {name: result[p, ...] for name, p in plan.outputs}
 
     def _names_error(self, inputs: Mapping[str, ArrayLike]) -> FuzzyInputError:
@@ -164,7 +164,7 @@ class Engine:
         return FuzzyInputError(f"engine '{self.name}': {'; '.join(parts)}; inputs are {', '.join(self.input_names)}")
 
     def _matrix(self, values: list[ArrayLike]) -> tuple[Array, tuple[int, ...]]:
-        """The (rows, inputs) matrix of the inputs broadcast together, and their broadcast shape."""
+        """The (inputs, rows) matrix of the inputs broadcast together, and their broadcast shape."""
         arrays = []
         for var, value in zip(self.inputs, values, strict=True):
             try:
@@ -177,18 +177,17 @@ class Engine:
             shapes = ", ".join(f"{v.name}{a.shape}" for v, a in zip(self.inputs, arrays, strict=True))
             raise FuzzyInputError(f"engine '{self.name}': input shapes do not broadcast: {shapes}") from None
         if not shaped:
-            return np.zeros((1, 0)), ()
-        shape = shaped[0].shape
-        return np.stack([a.reshape(-1) for a in shaped], axis=1), shape
+            return np.zeros((0, 1)), ()
+        return np.stack([a.reshape(-1) for a in shaped]), shaped[0].shape
 
     def process_columns(self, columns: Mapping[str, Array]) -> dict[str, Array]:
         """Core of `process`: every input a 1-D float array of the same length N; no checks."""
         plan = self._plan
         if plan.input_names:
-            matrix = np.stack([np.asarray(columns[name], dtype=np.float64) for name in plan.input_names], axis=1)
+            matrix = np.stack([np.asarray(columns[name], dtype=np.float64) for name in plan.input_names])
         else:
-            matrix = np.zeros((1, 0))
-        result = plan.evaluate(matrix).T
+            matrix = np.zeros((0, 1))
+        result = plan.evaluate(matrix)
         return {name: result[p] for name, p in plan.outputs}
 
     def process_columns_generic(self, columns: Mapping[str, Array]) -> dict[str, Array]:

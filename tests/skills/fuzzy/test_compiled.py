@@ -233,9 +233,9 @@ def test_membership_kernels_are_bit_identical_to_the_terms() -> None:
             x[:40, v] = np.repeat([p for p in term.params if math.isfinite(p)], 40)[:40]
         x[-3:] = [np.nan, np.inf, -np.inf]
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            got = shape.evaluate(x)
+            got = shape.evaluate(x.T)
         for j, (term, v) in enumerate(zip(shape.terms, shape.variables, strict=True)):
-            np.testing.assert_array_equal(got[:, j], term.membership(x[:, v]), err_msg=f"{kind} {term}")
+            np.testing.assert_array_equal(got[j], term.membership(x[:, v]), err_msg=f"{kind} {term}")
 
 
 @pytest.mark.parametrize("cls", [Ramp, Triangle, Trapezoid])
@@ -258,9 +258,9 @@ def test_stacked_shapes_match_random_terms(cls: type) -> None:
     shape = _shape(cls.__name__, [(0, t) for t in terms])
     x = np.concatenate([rng.uniform(-1.5, 1.5, 500), [p for t in terms for p in t.params], [np.nan, np.inf, -np.inf]])
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        got = shape.evaluate(x[:, None])
+        got = shape.evaluate(x[None, :])
     for j, term in enumerate(terms):
-        np.testing.assert_array_equal(got[:, j], term.membership(x), err_msg=str(term))
+        np.testing.assert_array_equal(got[j], term.membership(x), err_msg=str(term))
 
 
 def test_separable_larsen_centroid_equals_the_sampled_one(monkeypatch: pytest.MonkeyPatch) -> None:
