@@ -1,8 +1,11 @@
 """The fuzzy inference engine: variables, rule blocks and vectorised evaluation of N input rows at once.
 
-`Engine.process` evaluates every rule for all rows with numpy (a Python loop runs over rules and terms,
-never over rows or samples) and follows fuzzylite's documented semantics, so the engines of the original
-robot (written for fuzzylite) and fuzzylite's own examples give fuzzylite's numbers:
+`Engine.process` evaluates every rule for all rows with numpy, never looping over rows or samples: it runs
+the plan the engine compiled into flat arrays when it was built (`atemr.skills.fuzzy.compiled`, a few
+dozen numpy operations per call whatever the number of rules, so one row costs tens of microseconds);
+`Engine.process_columns_generic` is the same evaluation written rule by rule, the reference the plan is
+tested against. Both follow fuzzylite's documented semantics, so the engines of the original robot
+(written for fuzzylite) and fuzzylite's own examples give fuzzylite's numbers:
 
 * a rule fires for a row when its activation degree (weight × antecedent) is above zero by more than
   fuzzylite's tolerance 1e-6; a non-firing rule contributes nothing;
@@ -192,7 +195,7 @@ class Engine:
 
     def process_columns_generic(self, columns: Mapping[str, Array]) -> dict[str, Array]:
         """`process_columns` rule by rule, term by term: the reference the compiled plan is tested against
-        (same results to rounding), slower for few rows; nothing else calls it."""
+        (same numbers) and `benchmarks/bench_fuzzy.py` times; about ten times slower for one row."""
         values: dict[str, Array] = {}
         for var in self.inputs:
             x = columns[var.name]
