@@ -1,0 +1,299 @@
+"""The dashboard's gateway over a real simulated robot: commands accepted or refused as the robot decides,
+the snapshot, camera, video, maps, settings persisted across a rebuild, the simulation panel."""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from atemr.clock import SimClock
+from atemr.config import load_config
+from atemr.io.can.bus import unique_channel
+from atemr.msgs import Pose2D, Twist
+from atemr.robot import Robot, build_robot
+from atemr.robot.gateway import RobotGatewayImpl
+from atemr.trees.ports import ComponentHealth
+
+#: Every key of the snapshot (`atemr.ui.gateway` docstring).
+SNAPSHOT_KEYS = {
+    "agent_state", "mode", "simulation", "active_map", "map_version", "pose", "scan", "global_path", "local_path",
+    "goal", "wheel_speeds", "emergency", "level1", "level2", "system", "limits", "awareness", "wifi_ssid",
+    "mapping", "recording", "mission", "missions", "maps", "events",
+}
+BOOTED_S = 4.0  # the secondary core boots for 3 s; the agent is IDLE soon after
+
+
+def make_robot(data_dir: Path, **overrides: Any) -> tuple[Robot, RobotGatewayImpl]:
+    config = load_config(environ={}, overrides={
+        "data_dir": str(data_dir), "can.channel": unique_channel("gateway"), "sim.seed": 3,
+        "secondary.portal_serve": False, "ui.enabled": False, "ui.port": 0, **overrides,
+    })
+    robot = build_robot(config, realtime=False, clock=SimClock())
+    return robot, RobotGatewayImpl(robot)
+
+
+@pytest.fixture
+def booted(tmp_path: Path) -> Iterator[tuple[Robot, RobotGatewayImpl]]:
+    robot, gateway = make_robot(tmp_path / "data")
+    with robot:
+        robot.run(until=BOOTED_S)
+        assert robot.parts["agent"].state == "IDLE.MANUAL"  # type: ignore[attr-defined]
+        yield robot, gateway
+    gateway.close()
+
+
+def run(robot: Robot, seconds: float) -> None:
+    robot.run(until=robot.clock.now() + seconds)
+
+
+def agent_state(robot: Robot) -> str:
+    return str(robot.parts["agent"].state)  # type: ignore[attr-defined]
+
+
+def drive(robot: Robot, gateway: RobotGatewayImpl, twist: Twist, seconds: float) -> None:
+    """Hold the joystick as the page does (resent every 0.1 s)."""
+    end = robot.clock.now() + seconds
+    while robot.clock.now() < end - 1e-9:
+        assert gateway.joystick(twist).ok
+        run(robot, 0.1)
+
+
+def test_the_snapshot_has_every_key_filled_from_the_robot(booted):
+    robot, gateway = booted
+    state = gateway.state()
+    assert set(state) >= SNAPSHOT_KEYS, SNAPSHOT_KEYS - set(state)
+    assert state["agent_state"] == "IDLE" and state["mode"] == "MANUAL" and state["simulation"] is True
+    assert state["active_map"] == "studio" and state["maps"][0] == "studio"
+    assert "look-around" in state["missions"] and state["mission"] is None
+    truth = robot.extras["sim"].pose
+    assert math.hypot(state["pose"]["x_m"] - truth.x_m, state["pose"]["y_m"] - truth.y_m) < 0.15
+    scan = np.asarray(state["scan"])
+    assert scan.ndim == 2 and scan.shape[1] == 2 and len(scan) > 100
+    # the scan is drawn in the map frame: its points lie on the map's walls, within a few cells
+    grid = robot.extras["maps"].active
+    rows, cols = grid.world_to_cell(scan[:, 0], scan[:, 1])
+    inside = grid.contains(rows, cols)
+    assert inside.mean() > 0.95
+    assert state["level2"] == {k: True for k in ("left_motor", "right_motor", "imu", "lidar", "camera", "webserver",
+                                                 "ir_front", "ir_rear")}
+    assert state["level1"]["heartbeat"] and state["level1"]["hardware"]
+    assert state["limits"] == {"linear_mps": 1.6, "angular_radps": 2.0}
+    assert set(state["system"]) == {"t", "cpu_percent", "memory_percent", "disk_percent"}
+    assert state["wheel_speeds"] == {"left_radps": pytest.approx(0.0, abs=0.05),
+                                     "right_radps": pytest.approx(0.0, abs=0.05)}
+    assert state["emergency"] is False and state["recording"] is False and state["mapping"] is False
+    assert state["global_path"] == [] and state["local_path"] == [] and state["goal"] is None
+    assert any(e["kind"] == "heartbeat" for e in state["events"])
+    assert any(e["kind"].startswith("localization") for e in state["events"])  # drained by the gateway's pump
+
+
+def test_joystick_drives_the_robot_and_the_pose_follows(booted):
+    robot, gateway = booted
+    x0 = gateway.state()["pose"]["x_m"]
+    drive(robot, gateway, Twist(0.3, 0.0), 1.5)
+    assert gateway.state()["wheel_speeds"]["left_radps"] > 0.5
+    x1 = gateway.state()["pose"]["x_m"]
+    assert x1 > x0 + 0.2
+    assert abs(robot.extras["sim"].pose.x_m - x1) < 0.15
+    assert not gateway.joystick(Twist(math.nan, 0.0)).ok
+
+
+def test_modes_goals_and_missions_are_accepted_or_refused_as_the_agent_decides(booted):
+    robot, gateway = booted
+    assert gateway.set_goal(Pose2D(2.0, 2.0, 0.0)).reason == "switch to AUTO first"
+    assert "not valid in state IDLE.MANUAL" in gateway.cancel_goal().reason
+    assert gateway.set_mode("MANUAL").ok  # already there: nothing to do
+    assert not gateway.set_mode("TURBO").ok  # type: ignore[arg-type]
+    assert gateway.start_mission("look-around").reason == "switch to AUTO first"
+
+    assert gateway.set_mode("AUTO").ok
+    run(robot, 0.3)
+    assert agent_state(robot) == "IDLE.AUTO" and gateway.state()["mode"] == "AUTO"
+    assert "AUTO" in gateway.joystick(Twist(0.2, 0.0)).reason
+    assert "MANUAL" in gateway.begin_mapping().reason
+    assert "non-finite" in gateway.set_goal(Pose2D(math.inf, 0.0, 0.0)).reason
+    grid = robot.extras["maps"].active
+    row, col = np.argwhere(grid.data == 100)[len(np.argwhere(grid.data == 100)) // 2]
+    wx, wy = grid.cell_to_world(row, col)
+    wall = gateway.set_goal(Pose2D(float(wx), float(wy), 0.0))  # in a wall: refused, with or without navigation
+    assert not wall.ok and wall.reason
+    assert "no mission named 'nope'" in gateway.start_mission("nope").reason
+
+    assert gateway.start_mission("look-around").ok
+    run(robot, 1.0)
+    assert agent_state(robot) == "EXEC"
+    mission = gateway.state()["mission"]
+    assert mission["name"] == "look-around" and mission["state"] == "running" and 0 < mission["progress"] < 1
+    assert gateway.stop_mission().ok
+    run(robot, 0.3)
+    assert agent_state(robot) == "IDLE.AUTO"
+    assert gateway.set_mode("MANUAL").ok
+    run(robot, 0.3)
+    assert agent_state(robot) == "IDLE.MANUAL"
+
+
+def test_a_refusal_by_a_guard_is_reported_as_an_event(booted):
+    robot, gateway = booted
+    robot.extras["health"].add("lidar", lambda now: ComponentHealth(False, "test: lidar unplugged"))
+    assert gateway.set_mode("AUTO").ok  # may be taken in IDLE.MANUAL: queued; the guard decides
+    run(robot, 0.3)
+    assert agent_state(robot) in ("IDLE.MANUAL", "ERROR")
+    refused = [e for e in robot.recent_events(50) if e["kind"] == "refused"]
+    assert any("set_auto" in e["text"] and "lidar" in e["text"] for e in refused), refused
+
+
+def test_mapping_begin_end_save_and_select(booted):
+    robot, gateway = booted
+    version = gateway.state()["map_version"]
+    first = gateway.map_image()
+    assert first is not None and first.width_px == 200 and first.height_px == 190
+    assert gateway.map_image() is first  # rendered once per version
+    assert "no mapping session" in gateway.end_mapping().reason
+    assert gateway.begin_mapping().ok
+    run(robot, 0.3)
+    assert gateway.state()["agent_state"] == "MAPPING" and gateway.state()["mapping"]
+    drive(robot, gateway, Twist(0.0, 0.8), 4.0)
+    assert gateway.state()["map_version"] > version
+    assert gateway.map_image() is not first
+    assert gateway.end_mapping().ok
+    assert "built-in" in gateway.save_map("studio").reason
+    assert not gateway.save_map("../etc/passwd").ok
+    assert "no map named 'nope'" in gateway.select_map("nope").reason
+    assert "IDLE only" in gateway.select_map("studio").reason
+    assert gateway.save_map("lounge").ok
+    run(robot, 0.3)
+    state = gateway.state()
+    assert state["agent_state"] == "IDLE" and state["active_map"] == "lounge" and "lounge" in state["maps"]
+    assert "already exists" in gateway.save_map("lounge").reason
+    assert gateway.select_map("studio").ok
+    run(robot, 0.3)
+    assert gateway.state()["active_map"] == "studio"
+    assert robot.extras["map_store"].active_name() == "studio"  # persisted
+
+
+def test_initial_pose_is_set_on_the_robot_thread(booted):
+    robot, gateway = booted
+    assert "outside the map" in gateway.set_initial_pose(Pose2D(50.0, 50.0, 0.0)).reason
+    assert "non-finite" in gateway.set_initial_pose(Pose2D(math.nan, 0.0, 0.0)).reason
+    truth = robot.extras["sim"].pose
+    assert gateway.set_initial_pose(truth).ok
+    run(robot, 1.0)
+    pose = gateway.state()["pose"]
+    assert pose is not None and math.hypot(pose["x_m"] - truth.x_m, pose["y_m"] - truth.y_m) < 0.2
+
+
+def test_camera_jpeg_capture_and_video(booted):
+    robot, gateway = booted
+    data = gateway.camera_jpeg()
+    assert data is not None and Image.open(io.BytesIO(data)).size == (640, 480)
+    assert gateway.camera_jpeg() is data  # encoded once per frame, whoever asks
+    assert gateway.capture_image().ok
+    images = list((robot.config.data_dir / "media" / "images").glob("*.jpg"))
+    assert len(images) == 1
+    with Image.open(images[0]) as image:
+        assert image.size == (640, 480)
+
+    assert "no video" in gateway.record_video(False).reason
+    assert gateway.record_video(True).ok
+    assert "already recording" in gateway.record_video(True).reason
+    assert gateway.state()["recording"] is True
+    run(robot, 1.0)
+    assert gateway.record_video(False).ok
+    videos = list((robot.config.data_dir / "media" / "videos").glob("*.mjpeg"))
+    assert len(videos) == 1
+    frames = videos[0].read_bytes().split(b"\xff\xd9\xff\xd8")  # end of one JPEG, start of the next
+    camera_hz = robot.extras["sim"].params.camera_hz
+    assert abs(len(frames) - camera_hz) <= 1
+    assert Image.open(io.BytesIO(videos[0].read_bytes())).size == (640, 480)  # the first frame decodes
+    assert gateway.state()["recording"] is False
+
+
+def test_limits_and_awareness_are_applied_and_survive_a_rebuild(tmp_path):
+    robot, gateway = make_robot(tmp_path / "data")
+    with robot:
+        assert gateway.set_limits(0.8, 1.5).ok
+        refused = gateway.set_limits(5.0, 1.0)
+        assert not refused.ok and "max_linear_mps" in refused.reason and "1.8" in refused.reason
+        assert not gateway.set_limits(math.nan, 1.0).ok
+        assert gateway.state()["limits"] == {"linear_mps": 0.8, "angular_radps": 1.5}
+        assert gateway.set_awareness(True).ok and gateway.state()["awareness"] is True
+        assert not gateway.set_awareness("yes").ok  # type: ignore[arg-type]
+    gateway.close()
+    robot, gateway = make_robot(tmp_path / "data")
+    with robot:
+        assert gateway.state()["limits"] == {"linear_mps": 0.8, "angular_radps": 1.5}
+        assert robot.extras["pipeline"].limits.max_linear_mps == 0.8
+        assert gateway.state()["awareness"] is True
+    gateway.close()
+
+
+def test_wifi_joins_through_the_link_and_reports_failure(booted):
+    robot, gateway = booted
+    assert gateway.set_wifi("lab", "password1").ok
+    assert gateway.state()["wifi_ssid"] == "lab"
+    assert "8-63" in gateway.set_wifi("lab", "short").reason
+    assert "1-32" in gateway.set_wifi("", "password1").reason
+    robot.parts["secondary_link"].network.fail_with = "wrong password"  # type: ignore[attr-defined]
+    failed = gateway.set_wifi("other", "password2")
+    assert not failed.ok and "wrong password" in failed.reason
+    assert gateway.state()["wifi_ssid"] == "lab"
+
+
+def test_simulation_panel_kidnap_obstacle_button_and_screen(booted):
+    robot, gateway = booted
+    sim = robot.extras["sim"]
+    assert "outside the simulated world" in gateway.sim_kidnap(Pose2D(-50.0, 0.0, 0.0)).reason
+    grid = sim.world.map
+    row, col = np.argwhere(grid.data == 100)[0]
+    wx, wy = grid.cell_to_world(row, col)
+    assert "overlaps" in gateway.sim_kidnap(Pose2D(float(wx), float(wy), 0.0)).reason
+    before = sim.pose
+    # somewhere free about 1 m away, with room for a box 1 m further along x
+    steps = (-1.5, -1.0, -0.5, 0.5, 1.0, 1.5)
+    target = next(Pose2D(before.x_m + dx, before.y_m + dy, 1.0) for dx in steps for dy in steps
+                  if sim.clearance_at(before.x_m + dx, before.y_m + dy).clearance_m > 0
+                  and sim.clearance_at(before.x_m + dx + 1.0, before.y_m + dy).clearance_m > 0)
+    assert gateway.sim_kidnap(target).ok
+    assert sim.pose == before  # applied at the next physics tick, on the robot's thread
+    run(robot, 0.1)
+    assert sim.pose.distance_to(target) < 0.05
+    assert sim.clearance_at(target.x_m + 1.0, target.y_m).clearance_m > 0
+    assert gateway.sim_drop_obstacle(target.x_m + 1.0, target.y_m).ok
+    run(robot, 0.1)
+    assert sim.clearance_at(target.x_m + 1.0, target.y_m).clearance_m < 0  # the box is there
+    assert not gateway.sim_drop_obstacle(math.nan, 0.0).ok
+
+    assert "0-10" in gateway.sim_button(0.0).reason
+    png = gateway.secondary_screen_png()
+    assert png is not None and Image.open(io.BytesIO(png)).size == (256, 128)
+    assert gateway.sim_button(0.2).ok
+
+
+def test_add_dashboard_serves_and_reports_the_webserver_healthy(tmp_path):
+    from atemr.robot.dashboard import add_dashboard
+
+    config = load_config(environ={}, overrides={
+        "data_dir": str(tmp_path / "data"), "can.channel": unique_channel("dash"), "secondary.portal_serve": False,
+        "ui.enabled": False, "ui.port": 0,
+    })
+    robot = build_robot(config, realtime=False, clock=SimClock())
+    server = add_dashboard(robot, hash_method="scrypt:1024:8:1")
+    assert robot.extras["health"].collect()["webserver"].ok is False  # not serving yet
+    with robot:
+        assert server.running and server.port > 0
+        assert robot.extras["health"].collect()["webserver"].ok
+        robot.run(until=BOOTED_S)
+        assert agent_state(robot) == "IDLE.MANUAL"
+        assert server.pushes > 0
+        client = server.app.test_client()
+        assert client.get("/auth/first-start").status_code == 200
+    assert not server.running
+    assert robot.extras["health"].collect()["webserver"].ok is False
+    robot.extras["gateway"].close()
