@@ -1,4 +1,9 @@
-"""``atemr mission validate FILE...``: check missions and say whether this build can run them.
+"""``atemr mission validate FILE...`` and ``atemr mission run``.
+
+``validate`` checks missions and says whether this build can run them. ``run`` runs one mission (a file,
+or ``--goal X,Y,YAW`` repeated) in a fresh headless simulation of the whole robot, exits when it ends, and
+prints the result (``--json``: outcome, each step's status, time, final pose, position and heading error,
+and the agent's state trace); the exit code is 0 only when the mission was completed.
 
 A mission is valid when its document is right (kinds, parameters, poses, timeouts). Whether it can run
 here is a separate answer: a step whose behaviour this build lacks (a plugin kind, or ``GoToPose`` in a
@@ -9,17 +14,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
 from atemr.cli.command import commands
+from atemr.config import load_config
 from atemr.errors import ConfigError
-from atemr.trees.missions import load_mission
+from atemr.msgs import Pose2D
+from atemr.trees.missions import load_mission, mission_from_goals
 
 
 class MissionCommand:
-    help = "validate mission files (trees/missions/*.yaml)"
+    help = "validate mission files (trees/missions/*.yaml) or run one in a fresh simulation"
 
     def configure(self, parser: argparse.ArgumentParser) -> None:
         sub = parser.add_subparsers(dest="mission_action", metavar="ACTION", required=True)
@@ -28,8 +36,24 @@ class MissionCommand:
         validate.add_argument("--json", action="store_true", help="print one JSON report for all files")
         validate.add_argument("--strict", action="store_true",
                               help="exit 1 when a valid mission cannot run in this build (missing behaviours)")
+        run = sub.add_parser("run", help="run a mission in a fresh headless simulation and report how it went")
+        run.add_argument("file", type=Path, nargs="?", metavar="FILE", help="mission file (or give --goal)")
+        run.add_argument("--goal", action="append", type=pose_argument, default=[], metavar="X,Y,YAW",
+                         help="visit this pose (map frame, metres and radians); repeat to visit several in order")
+        run.add_argument("--start", type=pose_argument, metavar="X,Y,YAW", help="place the robot here first")
+        run.add_argument("--world", help="simulated world: a shipped world's name or a world/map YAML")
+        run.add_argument("--seed", type=int, help="seed of the simulation's random sources")
+        run.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
+        run.add_argument("--data-dir", type=Path, help="where captured images go (default: from config)")
+        run.add_argument("--timeout", type=float, default=600.0, help="robot seconds before the mission is cancelled")
+        run.add_argument("--headless", action="store_true",
+                         help="required: run in a fresh simulation without the dashboard (attaching to a running "
+                              "robot is not available yet)")
+        run.add_argument("--json", action="store_true", help="print the full result as JSON")
 
     def run(self, args: argparse.Namespace) -> int:
+        if args.mission_action == "run":
+            return run_command(args)
         reports: list[dict[str, Any]] = []
         worst = 0
         for path in args.files:
@@ -61,3 +85,76 @@ class MissionCommand:
 
 
 commands.add("mission", MissionCommand())
+
+
+def pose_argument(text: str) -> Pose2D:
+    """``"X,Y,YAW"`` (metres, metres, radians) → `Pose2D`; argparse shows the error."""
+    parts = text.split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected X,Y,YAW as three finite numbers, got {text!r}")
+    return Pose2D(*values)
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """``atemr mission run``: build the simulated robot, place it, run the mission, report."""
+    from atemr.fsm.agent import Agent
+    from atemr.fsm.mission_run import run_mission
+    from atemr.robot import build_robot
+
+    if not args.headless:
+        raise ConfigError("attaching to a running robot is not available yet: add --headless to run the mission "
+                          "in a fresh simulation", path="atemr mission run")
+    if (args.file is None) == (not args.goal):
+        raise ConfigError("give a mission FILE or one or more --goal X,Y,YAW (not both)", path="atemr mission run")
+    mission = load_mission(args.file) if args.file is not None else mission_from_goals(args.goal)
+    config = load_config(args.config, overrides={
+        "simulation": True, "ui.enabled": False, "sim.world": args.world, "sim.seed": args.seed,
+        "data_dir": args.data_dir,
+    })
+    robot = build_robot(config, realtime=False)
+    with robot:
+        if args.start is not None:
+            place(robot, args.start)
+        agent = robot.parts.get("agent")
+        if not isinstance(agent, Agent):
+            raise ConfigError("this robot has no agent wired", path="atemr mission run")
+        result = run_mission(agent, robot.scheduler.step, mission, timeout_s=args.timeout)
+    result["world"] = config.sim.world
+    result["seed"] = config.sim.seed
+    if args.json:
+        print(json.dumps(result, indent=2, default=str))
+    else:
+        print_summary(result)
+    return 0 if result["outcome"] == "reached" else 1
+
+
+def place(robot: Any, pose: Pose2D) -> None:
+    """Teleport the simulated robot to ``pose`` and tell localization it is there (the operator's click)."""
+    sim, localization = robot.extras.get("sim"), robot.extras.get("localization")
+    if sim is None or localization is None:
+        raise ConfigError("--start needs the simulated robot with localization", path="--start")
+    try:
+        sim.kidnap(pose)
+    except ConfigError as exc:
+        raise ConfigError(f"cannot start there: {exc.reason}", path="--start") from None
+    localization.set_initial_pose(robot.clock.now(), pose)
+
+
+def print_summary(result: dict[str, Any]) -> None:
+    """A few readable lines: outcome, each step, where the robot ended."""
+    print(f"mission '{result['mission']}': {result['outcome']}" + (f" ({result['reason']})" if result["reason"]
+                                                                     else ""))
+    for step in result["steps"]:
+        took = "" if step["duration_s"] is None else f" in {step['duration_s']:.1f} s"
+        errors = ""
+        if step["position_error_m"] is not None:
+            errors = f", {step['position_error_m']:.2f} m / {math.degrees(step['heading_error_rad']):.1f} deg off"
+        print(f"  {step['index']}: {step['name']}: {step['status']}{took}{errors}")
+    pose = result["final_pose"]
+    if pose is not None:
+        print(f"  final pose ({pose['x_m']:.2f}, {pose['y_m']:.2f}, {pose['yaw_rad']:.2f}); "
+              f"state {result['state']}")

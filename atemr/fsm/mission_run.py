@@ -26,6 +26,12 @@ def _until(agent: Agent, step: Callable[[], float], done: Callable[[], bool], de
     return True
 
 
+def _wait(agent: Agent, step: Callable[[], float], seconds: float) -> None:
+    until = agent.context.now + seconds
+    while agent.context.now < until and not agent.halted:
+        step()
+
+
 def _command(agent: Agent, step: Callable[[], float], trigger: str, deadline: float, **kwargs: Any) -> str | None:
     """Submit and wait for the answer; None when accepted, else the reason."""
     command_id = agent.submit(trigger, origin="mission run", **kwargs)
@@ -45,10 +51,16 @@ def run_mission(agent: Agent, step: Callable[[], float], mission: Mission, *, ti
                               "reason": None, "steps": [], "started_s": start}
     reports = len(agent.task_reports)
     reason = None
-    if not _until(agent, step, lambda: top_level(agent.state) == "IDLE", start + startup_timeout_s):
+    deadline = start + startup_timeout_s
+    if not _until(agent, step, lambda: top_level(agent.state) == "IDLE", deadline):
         reason = f"the agent did not reach IDLE within {startup_timeout_s:g} s (state {agent.state})"
-    elif agent.state != "IDLE.AUTO":
+    while reason is None and agent.state != "IDLE.AUTO":
+        # AUTO is refused until every level-1 status is OK (sensors still coming up): ask again, as an
+        # operator would, until the start-up time is over.
         reason = _command(agent, step, "set_auto", agent.context.now + 5.0)
+        if reason is not None and agent.context.now < deadline and top_level(agent.state) == "IDLE":
+            _wait(agent, step, 0.5)
+            reason = None
     if reason is None:
         reason = _command(agent, step, "start_mission", agent.context.now + 5.0, mission=mission)
     if reason is not None:

@@ -1,0 +1,63 @@
+"""``atemr mission run``: a mission in a fresh headless simulation of the whole robot, to its end."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from atemr.cli.main import main
+
+LOOK_AROUND = Path(__file__).resolve().parents[2] / "trees" / "missions" / "look-around.yaml"
+
+
+def run(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, dict]:
+    code = main(["--log-level", "ERROR", "mission", "run", *args])
+    out = capsys.readouterr().out
+    return code, json.loads(out) if out.strip().startswith("{") else {"text": out}
+
+
+QUARTER_TURN = """
+mission:
+  name: quarter-turn
+  steps:
+    - capture_image: {label: before}
+    - rotate: {angle_rad: 1.5708}
+      timeout_s: 10
+    - capture_image: {label: after}
+"""
+
+
+def test_a_mission_file_in_the_simulated_robot(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    mission = tmp_path / "quarter-turn.yaml"
+    mission.write_text(QUARTER_TURN)
+    code, result = run(capsys, str(mission), "--headless", "--world", "studio", "--seed", "1", "--json",
+                       "--data-dir", str(tmp_path))
+    assert code == 0 and result["outcome"] == "reached", result.get("reason")
+    assert [s["status"] for s in result["steps"]] == ["reached"] * 3
+    assert (result["world"], result["seed"]) == ("studio", 1)
+    turned = result["steps"][2]["final_pose"]["yaw_rad"] - result["steps"][0]["final_pose"]["yaw_rad"]
+    assert abs(turned - 1.5708) < 0.2
+    images = sorted(p.name for p in (tmp_path / "media" / "images").iterdir())
+    assert len(images) == 2 and images[0].endswith("before.jpg")
+    assert [r["dest"] for r in result["trace"]][-3:] == ["IDLE.AUTO", "EXEC", "IDLE.AUTO"]
+
+
+def test_goals_from_a_start_pose(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    code, result = run(capsys, "--goal", "3.8,3.2,0", "--start", "3.0,3.2,0", "--headless", "--json",
+                       "--data-dir", str(tmp_path))
+    assert code == 0 and result["outcome"] == "reached", result.get("reason")
+    step = result["steps"][0]
+    assert step["kind"] == "go_to" and step["position_error_m"] <= 0.25 and step["heading_error_rad"] <= 0.13
+    assert abs(result["final_pose"]["x_m"] - 3.8) <= 0.25
+
+
+def test_bad_invocations(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["mission", "run", str(LOOK_AROUND)]) == 2
+    assert "add --headless" in capsys.readouterr().err
+    assert main(["mission", "run", str(LOOK_AROUND), "--goal", "1,1,0", "--headless"]) == 2
+    assert "not both" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["mission", "run", "--goal", "1,nan,0", "--headless"])
+    assert "three finite numbers" in capsys.readouterr().err
