@@ -81,16 +81,6 @@ def test_robot_engine_twin_matches_scikit_fuzzy_on_both_paths(monkeypatch: pytes
         np.testing.assert_allclose(general[name], reference[name], rtol=0, atol=1e-9)
 
 
-def test_separable_centroid_equals_the_sampled_one(monkeypatch: pytest.MonkeyPatch) -> None:
-    idle = load_builtin_engine("idle")
-    x = random_columns(idle, 2000, 0.0, 1.2, seed=3)
-    fast = idle.process(x)
-    monkeypatch.setattr("atemr.skills.fuzzy.engine.is_separable", lambda m, names: False)
-    sampled = idle.process(x)
-    for name in idle.output_names:
-        np.testing.assert_allclose(fast[name], sampled[name], rtol=0, atol=1e-12)
-
-
 def test_bridge_refuses_what_scikit_fuzzy_cannot_do() -> None:
     with pytest.raises(ConfigError, match="DiscreteCentroid"):
         to_skfuzzy(load_builtin_engine("idle"))
