@@ -186,12 +186,13 @@ class RobotGatewayImpl:
         return self._listing_of("missions", folder, lambda: sorted(p.stem for p in folder.glob("*.yaml")))
 
     def _navigation(self) -> tuple[Any, Pose2D | None]:
-        """The navigator's latest status (with its paths) and goal, when navigation is wired."""
+        """The navigator's latest status (with its paths) and goal, when navigation is wired
+        (``robot.extras["navigation"]``: `atemr.robot.navigation.NavigationPortImpl`)."""
         nav = self.robot.extras.get("navigation")
         if nav is None:
             return None, None
-        status = getattr(nav, "last_status", nav)
-        goal = getattr(getattr(nav, "navigator", nav), "goal", None)
+        status = getattr(nav, "latest", None)
+        goal = getattr(nav, "goal", None)
         return status, goal if isinstance(goal, Pose2D) else None
 
     def _mission(self, snapshot: dict[str, Any]) -> dict[str, Any] | None:

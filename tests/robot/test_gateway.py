@@ -297,3 +297,28 @@ def test_add_dashboard_serves_and_reports_the_webserver_healthy(tmp_path):
     assert not server.running
     assert robot.extras["health"].collect()["webserver"].ok is False
     robot.extras["gateway"].close()
+
+
+def test_auto_goal_shows_the_paths_and_is_reached(booted):
+    robot, gateway = booted
+    if "navigation" not in robot.extras:
+        pytest.skip("navigation is not wired into this robot yet")
+    assert gateway.set_mode("AUTO").ok
+    run(robot, 0.3)
+    start = robot.extras["sim"].pose
+    goal = Pose2D(start.x_m + 1.0, start.y_m + 0.5, 0.0)
+    assert gateway.set_goal(goal).ok
+    run(robot, 1.0)
+    state = gateway.state()
+    assert state["agent_state"] == "EXEC"
+    assert state["goal"] == {"x_m": goal.x_m, "y_m": goal.y_m, "yaw_rad": 0.0}
+    path = np.asarray(state["global_path"])
+    assert len(path) > 2 and np.hypot(*(path[-1] - [goal.x_m, goal.y_m])) < 0.2
+    assert len(state["local_path"]) > 0
+    for _ in range(30):
+        run(robot, 1.0)
+        if agent_state(robot) != "EXEC":
+            break
+    assert agent_state(robot) == "IDLE.AUTO"
+    assert robot.extras["sim"].pose.distance_to(goal) < 0.3
+    assert gateway.state()["goal"] is None and gateway.state()["global_path"] == []
