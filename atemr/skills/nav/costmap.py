@@ -187,6 +187,14 @@ class Costmap:
         return self._cost
 
     @property
+    def static_cost(self) -> NDArray[np.uint8]:
+        """Cost from the map alone (what goal checks judge: a person standing on the goal is not a reason to
+        refuse it; the planner then stops as near as it can within the tolerance)."""
+        self._refresh()
+        assert self._static_cost is not None
+        return self._static_cost
+
+    @property
     def distance_m(self) -> NDArray[np.float32]:
         """Distance from each cell centre to the nearest lethal cell centre, metres (inf: none)."""
         self._refresh()

@@ -3,7 +3,8 @@ reads in the agent's Error state, so each reason names the goal and the place.
 
 Checks, in order: finite numbers; AUTO mode; robot localized; inside the map; not in an obstacle (lethal)
 nor so close to one that the robot's footprint would touch it (inscribed); not in unknown space (unless
-the costmap is told to plan through it). Whether a *path* exists is the planner's answer, not a check
+the costmap is told to plan through it). Obstacles are the map's: a person standing on the goal right now
+is no reason to refuse it. Whether a *path* exists is the planner's answer, not a check
 here: a goal may be valid and unreachable right now (a closed door), which is a navigation failure.
 """
 
@@ -60,7 +61,7 @@ def check_goal(goal: Pose2D, costmap: Costmap, *, localized: bool = True, mode: 
         return GoalCheck(False, "outside the map",
                          f"{_where(goal)} is outside the map '{m.name}' "
                          f"(x {ox:.2f}..{ox + w:.2f} m, y {oy:.2f}..{oy + h:.2f} m)")
-    cost = int(costmap.cost[int(row), int(col)])
+    cost = int(costmap.static_cost[int(row), int(col)])
     if (m.unknown[int(row), int(col)] or cost == NO_INFORMATION) and not allow_unknown:
         return GoalCheck(False, "in unknown space", f"{_where(goal)} lies in unmapped space of map '{m.name}'")
     if cost == LETHAL:

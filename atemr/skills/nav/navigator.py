@@ -1,9 +1,11 @@
 """The Navigator: one stateful object the agent's go-to-pose leaf drives every tick (move_base, in small).
 
 ``start(goal, now, ...)`` checks the goal (`goal_check`) and plans; then each ``update(now, pose, scan,
-localized)`` folds the scan into the costmap, replans now and then (and at once when the path ahead is
-blocked), asks the local planner for a twist, watches progress, runs recoveries in order when stuck or
-without a path, and finally turns on the spot to the goal's heading. It returns a `NavStatus`: RUNNING with
+localized)`` folds the scan into the costmap (and the moving people and pets the tracker sees, swept
+ahead into the predicted layer), replans now and then (and at once when the path ahead is blocked), asks
+the local planner for a twist, watches progress, waits (stepping out of the way of whoever comes close)
+when there is no path or no safe move, runs recoveries in order when that lasts, and finally turns on the
+spot to the goal's heading. It returns a `NavStatus`: RUNNING with
 the twist to command (the motion pipeline's navigation input), the distance left, an ETA, the global path
 and the local trajectory for the dashboard; SUCCEEDED; or FAILED with the reason (no path, stuck,
 localization lost, timeout). Time comes only from ``now``; nothing here reads a clock or does I/O.

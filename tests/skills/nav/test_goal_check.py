@@ -58,3 +58,10 @@ def test_navigator_start_refuses_with_navigation_error_and_stays_idle(make_map, 
     status = nav.update(0.1, Pose2D(1.0, 1.0, 0.0))
     assert status.state == "IDLE" and status.twist.is_zero
     assert np.isnan(status.distance_left_m)
+
+
+def test_a_person_standing_on_the_goal_is_no_reason_to_refuse_it(costmap):
+    costmap.obstacles[20, 20] = True  # the obstacle layer sees someone at (1.025, 1.025)
+    costmap.version += 1
+    assert costmap.cost_at(1.025, 1.025) == 254
+    assert check_goal(Pose2D(1.025, 1.025, 0.0), costmap).ok
