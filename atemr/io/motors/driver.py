@@ -156,8 +156,10 @@ class DriveMotors(ABC):
             return
         if self._started_t is None:
             self._started_t = now
+        step = "receive"  # a dead receive side must not be reported as a send failure
         try:
             self._receive(now)
+            step = "send"
             self._watchdog(now)
             if self.fault is None:
                 problem = self._health(now)
@@ -165,7 +167,7 @@ class DriveMotors(ABC):
                     self._raise_fault(problem, now)
             self._exchange(self.commanded, now)
         except can.CanError as exc:
-            self._raise_fault(BusError(f"CAN send failed: {exc}", component=self.name, critical=True), now)
+            self._raise_fault(BusError(f"CAN {step} failed: {exc}", component=self.name, critical=True), now)
 
     def _watchdog(self, now: float) -> None:
         age = math.inf if self._command_t is None else now - self._command_t
