@@ -201,14 +201,14 @@ class LocalPlanner:
         near = path[min(int(np.searchsorted(s, s[i_near] + 0.35)), len(path) - 1)]
         heading_err = float(wrap(math.atan2(near[1] - pose.y_m, near[0] - pose.x_m) - pose.yaw_rad))
         clearance_here = float(cm.distance_at(pose.x_m, pose.y_m))
-        if abs(heading_err) > p.rotate_threshold_rad and np.hypot(*(near - here)) > 0.05:
+        escaping = clearance_here < r_in  # something is (or will be) too close: get away first, turn later
+        if not escaping and abs(heading_err) > p.rotate_threshold_rad and np.hypot(*(near - here)) > 0.05:
             twist = self.rotate(heading_err, velocity, dt)
             traj = np.repeat(here[None, :], 2, axis=0)
             return LocalPlan(twist, traj, True, 1, 1)
 
         # Slow down for the goal: able to stop there (√(2·a·d)), and creeping over the last decimetres.
         v_cap = min(p.max_linear_mps, math.sqrt(2 * p.linear_accel_mps2 * d_goal), max(0.08, 1.2 * d_goal))
-        escaping = clearance_here < r_in
         vs, ws = self.targets(velocity, v_cap, reverse=escaping)
         xs, ys, th = self._rollout(pose, velocity, vs, ws, p.sim_time_s)
         clear = cm.distance_at(xs, ys)
