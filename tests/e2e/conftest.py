@@ -1,9 +1,16 @@
 """Browser tests: Debian's chromium driven by Playwright against a real dashboard server on a free port.
 
-The server runs in a thread (`DashboardServer`), ticked with the robot it talks to by a `Scheduler` on a
-`RealTimeSimClock` in a second thread, as `atemr/robot.py` would. The robot is `KinematicGateway`, a test
-double: it integrates joystick commands into a pose, walks to goals and records every command. Tests
-skip with the reason when chromium or Playwright is missing; `./test` installs chromium when it can.
+Two kinds of site:
+
+* `RobotSite` (``robot_site``/``ready_robot_site``): the whole simulated robot (`build_robot` +
+  `add_dashboard`, the real `RobotGatewayImpl`) run by its scheduler in a background thread on
+  `BootThenRealTime`: the robot boots unpaced (as fast as the CPU allows) and then runs paced at ``speed``.
+  For behaviour that needs the robot: driving, AUTO goals, mapping, limits, captures.
+* `Site` (``site``/``ready_site``): the dashboard against `KinematicGateway`, a test double that integrates
+  joystick commands into a pose and records every command. For the dashboard's own mechanics (first
+  start, users, the joystick resend rhythm, the phone layout, the agent view).
+
+Tests skip with the reason when chromium or Playwright is missing; `./test` installs chromium when it can.
 """
 
 from __future__ import annotations
@@ -20,8 +27,9 @@ from typing import Any
 import pytest
 from PIL import Image, ImageDraw
 
-from atemr.clock import RealTimeSimClock
-from atemr.config import Config, UiConfig
+from atemr.clock import RealTimeSimClock, SimClock, WallClock
+from atemr.config import Config, UiConfig, load_config
+from atemr.io.can.bus import unique_channel
 from atemr.msgs import Pose2D, Twist
 from atemr.scheduler import Scheduler
 from atemr.ui.gateway import CommandResult, MapImage
@@ -260,6 +268,82 @@ class Site:
         self.scheduler.stop()
         self.thread.join(timeout=5)
         self.scheduler.shutdown()
+
+
+class BootThenRealTime(SimClock):
+    """Simulated time that runs unpaced up to ``boot_s`` (the robot boots as fast as the CPU allows),
+    then paced against the wall clock at ``speed`` simulated seconds per real second."""
+
+    def __init__(self, boot_s: float, speed: float = 1.0) -> None:
+        super().__init__(0.0)
+        self.boot_s = boot_s
+        self.speed = speed
+        self._wall = WallClock()
+        self._origin: tuple[float, float] | None = None  # (wall, simulated) when pacing began
+
+    def sleep_until(self, t: float) -> None:
+        if t <= self._t:
+            return
+        if t > self.boot_s:
+            if self._origin is None:
+                self._origin = (self._wall.now(), self._t)
+            self._wall.sleep_until(self._origin[0] + (t - self._origin[1]) / self.speed)
+        self._t = float(t)
+
+
+#: Simulated seconds the robot needs to reach IDLE (the secondary core boots for 3 s).
+BOOT_S = 4.0
+
+
+class RobotSite:
+    """The whole simulated robot with its dashboard, run in a background thread."""
+
+    def __init__(self, data_dir: Path, speed: float = 1.0) -> None:
+        from atemr.robot import build_robot
+        from atemr.robot.dashboard import add_dashboard
+
+        self.data_dir = data_dir
+        config = load_config(environ={}, overrides={
+            "data_dir": str(data_dir), "can.channel": unique_channel("e2e"), "sim.seed": 5,
+            "secondary.portal_serve": False, "ui.enabled": False, "ui.port": 0,
+        })
+        self.clock = BootThenRealTime(BOOT_S, speed)
+        self.robot = build_robot(config, realtime=True, clock=self.clock)
+        self.server = add_dashboard(self.robot, hash_method=FAST_SCRYPT)
+        self.gateway = self.robot.extras["gateway"]
+        self.sim = self.robot.extras["sim"]
+        self.thread = threading.Thread(target=self.robot.run, name="e2e-robot", daemon=True)
+
+    @property
+    def url(self) -> str:
+        return self.server.url
+
+    @property
+    def users(self) -> Any:
+        return self.server.app.extensions["atemr.users"]
+
+    @property
+    def agent_state(self) -> str:
+        return str(self.robot.parts["agent"].state)  # type: ignore[attr-defined]
+
+    def start(self) -> None:
+        self.robot.start()
+        self.thread.start()
+
+    def stop(self) -> None:
+        self.robot.stop()
+        self.thread.join(timeout=10)
+        self.robot.shutdown()
+        self.gateway.close()
+
+
+@pytest.fixture
+def robot_site(tmp_path: Path) -> Iterator[RobotSite]:
+    site = RobotSite(tmp_path / "data", speed=1.0)
+    site.users.set_password("admin", ADMIN_PW)
+    site.start()
+    yield site
+    site.stop()
 
 
 def _skip_reason() -> str | None:

@@ -3,10 +3,13 @@ media, and a screenshot of every page (test-output/e2e/)."""
 
 from __future__ import annotations
 
+import io
+import math
 import re
 from pathlib import Path
 
 import pytest
+from PIL import Image
 
 pytestmark = pytest.mark.e2e
 
@@ -48,28 +51,56 @@ def test_first_start_sets_the_admin_password_then_login_remembers_the_user(site,
     assert page.input_value("#username-input") == "admin"
 
 
-def test_control_page_shows_live_state_and_the_keyboard_joystick_drives(ready_site, page, shots, helpers):
-    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+def screen_point(page, x_m: float, y_m: float) -> tuple[float, float]:
+    """Where the map-frame point (x, y) is on the page (through the map view's own transform)."""
+    sx, sy, cw, ch = page.evaluate(f"[...ATEMR.map.toScreen({x_m}, {y_m}), ATEMR.map.canvas.width, "
+                                   "ATEMR.map.canvas.height]")
+    box = page.locator("#map").bounding_box()
+    return box["x"] + sx * box["width"] / cw, box["y"] + sy * box["height"] / ch
+
+
+def test_control_page_shows_the_robot_and_the_keyboard_drives_it(robot_site, page, shots, helpers):
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
     wait_for(page, "document.getElementById('camera').src.startsWith('data:image/jpeg')")
-    wait_for(page, "document.querySelectorAll('#level1 .led.ok').length === 4")
+    wait_for(page, "ATEMR.map.image !== null && ATEMR.state.pose !== null && ATEMR.state.scan.length > 100")
+    assert page.evaluate("ATEMR.state.active_map") == "studio"
+    assert page.evaluate("ATEMR.state.level2.lidar && ATEMR.state.level2.webserver && ATEMR.state.level1.heartbeat")
     x0 = page.evaluate("ATEMR.state.pose.x_m")
+    truth0 = robot_site.sim.pose
     page.focus("#joystick")
     page.keyboard.down("ArrowUp")
-    wait_for(page, f"ATEMR.state.pose.x_m > {x0} + 0.2")
+    wait_for(page, f"ATEMR.state.pose.x_m > {x0} + 0.2 && ATEMR.map.state.pose.x_m > {x0} + 0.2")
+    page.keyboard.up("ArrowUp")
+    wait_for(page, "Math.abs(ATEMR.state.wheel_speeds.left_radps) < 0.05")  # released: the robot stops
+    assert robot_site.sim.pose.x_m > truth0.x_m + 0.2  # the simulated robot really moved
+    yaw0 = page.evaluate("ATEMR.state.pose.yaw_rad")
+    page.keyboard.down("a")
+    wait_for(page, f"ATEMR.state.pose.yaw_rad > {yaw0} + 0.2")
+    page.keyboard.up("a")
+    wait_for(page, "ATEMR.state.system !== null && ATEMR.state.system.cpu_percent >= 0")
+    page.screenshot(path=str(shots / "control.png"), full_page=True)
+
+
+def test_the_joystick_pad_resends_while_held_and_stops_on_release(ready_site, page, shots, helpers):
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.wait_for_url(re.compile(r"/control$"))
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.querySelectorAll('#level1 .led.ok').length === 4")
+    # the keyboard resends while a key is held and sends an explicit stop on release
+    page.focus("#joystick")
+    page.keyboard.down("ArrowUp")
+    wait_for(page, "ATEMR.state.wheel_speeds.left_radps > 0")
+    page.wait_for_timeout(400)
     page.keyboard.up("ArrowUp")
     forward = [c for c in ready_site.robot.calls if c[0] == "joystick" and c[1][0].linear_mps > 0]
     assert len(forward) >= 3  # resent while held
     wait_for(page, "ATEMR.state.wheel_speeds.left_radps === 0")
     last = [c for c in ready_site.robot.calls if c[0] == "joystick"][-1]
     assert last[1][0].is_zero  # released: an explicit stop
-    page.keyboard.down("a")
-    wait_for(page, "ATEMR.state.pose.yaw_rad > 0.2")
-    page.keyboard.up("a")
     wait_for(page, "document.querySelectorAll('#sysgraph').length === 1 && ATEMR.state.system.cpu_percent === 20")
-    page.screenshot(path=str(shots / "control.png"), full_page=True)
 
     # the same with the mouse (pointer events also carry touch): drag the knob forward and hold
     before = ready_site.robot.count("joystick")
@@ -92,35 +123,51 @@ def test_control_page_shows_live_state_and_the_keyboard_joystick_drives(ready_si
     assert page.locator("#camera").is_hidden()
 
 
-def test_auto_mode_and_a_goal_by_click_and_drag(ready_site, page, shots, helpers):
-    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site, page, shots, helpers):
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map.image !== null")
     page.click("#map-ctl")  # SEND CMD
     page.click("#map-cmd")  # refused in MANUAL
     assert "switch to AUTO first" in page.inner_text("#command-result")
+    # AUTO is refused until every level-1 status is OK (the IR sensors come up after the secondary core boots)
+    wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)")
     page.click("#mode-toggle")
     wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
+    assert robot_site.agent_state == "IDLE.AUTO"
     page.click("#map-cmd")
     assert page.inner_text("#map-cmd") == "SEND GOAL"
-    box = page.locator("#map").bounding_box()
-    page.mouse.move(box["x"] + box["width"] * 0.3, box["y"] + box["height"] * 0.5)
+    start = robot_site.sim.pose
+    gx, gy = start.x_m + 1.0, start.y_m + 0.5
+    x, y = screen_point(page, gx, gy)
+    page.mouse.move(x, y)
     page.mouse.down()
-    page.mouse.move(box["x"] + box["width"] * 0.35, box["y"] + box["height"] * 0.5, steps=4)
+    page.mouse.move(x + 40, y, steps=4)  # dragged to the right: heading along +x
     page.mouse.up()
     wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
-    goal = [c for c in ready_site.robot.calls if c[0] == "set_goal"][-1][1][0]
-    assert abs(goal.yaw_rad) < 0.3  # dragged to the right: heading along +x
+    wait_for(page, "ATEMR.state.goal !== null && ATEMR.state.global_path.length > 2")
+    goal = page.evaluate("ATEMR.state.goal")
+    assert abs(goal["x_m"] - gx) < 0.1 and abs(goal["y_m"] - gy) < 0.1 and abs(goal["yaw_rad"]) < 0.3
     page.screenshot(path=str(shots / "control-auto-goal.png"), full_page=True)
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=20000)
+    assert robot_site.sim.pose.distance_to(start) > 0.8  # it drove there
+    assert math.hypot(robot_site.sim.pose.x_m - gx, robot_site.sim.pose.y_m - gy) < 0.3
 
 
-def test_mapping_begin_end_and_save(ready_site, page, shots, helpers):
-    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
-    page.goto(f"{ready_site.url}/mapping")
+def test_mapping_begin_end_and_save_on_the_robot(robot_site, page, shots, helpers):
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{robot_site.url}/mapping")
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    version = page.evaluate("ATEMR.state.map_version")
     page.click("#mapping-toggle")
     wait_for(page, "document.getElementById('mapping-toggle').textContent === 'END MAP'")
-    assert page.inner_text("#agent-state") == "MAPPING"
+    wait_for(page, "document.getElementById('agent-state').textContent === 'MAPPING'")
+    page.focus("#joystick")
+    page.keyboard.down("a")  # turn on the spot: the lidar sweeps the room (a redraw every 5 scans)
+    wait_for(page, f"ATEMR.state.map_version > {version} + 7 && ATEMR.map.meta.version > {version} + 7",
+             timeout=15000)
+    page.keyboard.up("a")
     page.screenshot(path=str(shots / "mapping.png"), full_page=True)
     page.click("#mapping-toggle")
     page.wait_for_selector("#save-dialog[open]")
@@ -128,22 +175,24 @@ def test_mapping_begin_end_and_save(ready_site, page, shots, helpers):
     page.fill("#save-name", "kitchen")
     page.click("#save-map")
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
-    assert ("save_map", ("kitchen",)) in ready_site.robot.calls
     wait_for(page, "document.getElementById('map-select').value === 'kitchen'")
-    page.select_option("#map-select", "other")
+    assert (robot_site.data_dir / "maps" / "kitchen.yaml").is_file()
+    assert robot_site.robot.extras["maps"].active_name == "kitchen"
+    page.select_option("#map-select", "studio")
     wait_for(page, "document.getElementById('command-result').textContent === 'map_select: ok'")
-    assert ("select_map", ("other",)) in ready_site.robot.calls
+    wait_for(page, "ATEMR.state.active_map === 'studio'")
 
 
-def test_change_a_speed_limit(ready_site, page, shots, helpers):
-    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
-    page.goto(f"{ready_site.url}/settings")
-    assert page.input_value("#linear-limit") == "0.5"
+def test_change_a_speed_limit_on_the_robot(robot_site, page, shots, helpers):
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{robot_site.url}/settings")
+    assert page.input_value("#linear-limit") == "1.6"
     page.fill("#linear-limit", "0.8")
     page.click("#limits-update")
     page.wait_for_selector("text=Speed limits: done")
-    assert ("set_limits", (0.8, 1.0)) in ready_site.robot.calls
     assert page.input_value("#linear-limit") == "0.8"
+    assert robot_site.robot.extras["pipeline"].limits.max_linear_mps == 0.8
+    assert robot_site.robot.extras["settings"].load()["motion"]["max_linear_mps"] == 0.8  # persisted
     page.screenshot(path=str(shots / "settings.png"), full_page=True)
 
 
@@ -182,22 +231,32 @@ def test_new_user_waits_for_an_admin_to_grant_access(ready_site, browser, page, 
     admin.context.close()
 
 
-def test_download_and_delete_a_capture(ready_site, page, shots, helpers):
-    images = ready_site.data_dir / "media" / "images"
-    images.mkdir(parents=True)
-    (images / "capture-1.jpg").write_bytes(ready_site.robot.jpeg)
-    (images / "capture-2.jpg").write_bytes(ready_site.robot.jpeg)
-    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
-    page.goto(f"{ready_site.url}/media")
+def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    page.wait_for_url(re.compile(r"/control$"))
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('camera').src.startsWith('data:image/jpeg')")
+    images = robot_site.data_dir / "media" / "images"
+    for _ in range(2):
+        page.click("#capture")
+        wait_for(page, "document.getElementById('command-result').textContent === 'capture_image: ok'")
+        page.evaluate("document.getElementById('command-result').textContent = ''")
+    files = sorted(images.glob("*.jpg"))
+    assert len(files) == 2
+    page.goto(f"{robot_site.url}/media")
     page.screenshot(path=str(shots / "media.png"), full_page=True)
+    first = files[0].name
     with page.expect_download() as info:
-        page.click('li[data-name="capture-1.jpg"] a.download')
+        page.click(f'li[data-name="{first}"] a.download')
     download = info.value
-    assert download.suggested_filename == "capture-1.jpg"
-    assert Path(download.path()).read_bytes() == ready_site.robot.jpeg
-    page.click('li[data-name="capture-1.jpg"] button.delete-one')
-    page.wait_for_selector("text=Deleted capture-1.jpg")
-    assert not (images / "capture-1.jpg").exists() and (images / "capture-2.jpg").exists()
+    assert download.suggested_filename == first
+    data = Path(download.path()).read_bytes()
+    assert data == files[0].read_bytes()
+    with Image.open(io.BytesIO(data)) as image:
+        assert image.size == (640, 480)
+    page.click(f'li[data-name="{first}"] button.delete-one')
+    page.wait_for_selector(f"text=Deleted {first}")
+    assert not files[0].exists() and files[1].exists()
 
 
 def test_phone_sized_screen(ready_site, browser, shots, helpers):

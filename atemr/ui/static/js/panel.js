@@ -41,22 +41,6 @@
   $("level2-toggle").addEventListener("click", () => { $("level2").hidden = !$("level2").hidden; });
   $("graph-toggle").addEventListener("click", () => { $("sysgraph").hidden = !$("sysgraph").hidden; });
 
-  A.onState((s) => {
-    modeBtn.textContent = s.mode || "MANUAL";
-    modeBtn.classList.toggle("on", s.mode === "AUTO");
-    $("state-agent").textContent = s.agent_state || "—";
-    $("state-map").textContent = s.active_map || "—";
-    leds($("level1"), s.level1);
-    leds($("level2"), s.level2);
-    const w = s.wheel_speeds || {};
-    $("wheel-left").textContent = A.fmt(w.left_radps);
-    $("wheel-right").textContent = A.fmt(w.right_radps);
-    const em = $("emergency-led");
-    em.className = `led ${s.emergency ? "bad blink" : "ok"}`;
-    em.textContent = s.emergency ? "EMERGENCY" : "BRAKES OFF";
-    graph.add(s.system);
-    events(s.events);
-  });
 
   // -- the latest events, newest first -------------------------------------------------------------
   let lastEvents = "";
@@ -197,4 +181,23 @@
       });
     },
   };
+
+  // Registered last: `onState` calls back at once when a state has already arrived, and everything it
+  // uses (graph, events) must be initialised by then.
+  A.onState((s) => {
+    modeBtn.textContent = s.mode || "MANUAL";
+    modeBtn.classList.toggle("on", s.mode === "AUTO");
+    $("state-agent").textContent = s.agent_state || "—";
+    $("state-map").textContent = s.active_map || "—";
+    leds($("level1"), s.level1);
+    leds($("level2"), s.level2);
+    const w = s.wheel_speeds || {};
+    $("wheel-left").textContent = A.fmt(w.left_radps);
+    $("wheel-right").textContent = A.fmt(w.right_radps);
+    const em = $("emergency-led");
+    em.className = `led ${s.emergency ? "bad blink" : "ok"}`;
+    em.textContent = s.emergency ? "EMERGENCY" : "BRAKES OFF";
+    graph.add(s.system);
+    events(s.events);
+  });
 })();
