@@ -89,22 +89,6 @@ def wrap(angle: FloatArray | float) -> FloatArray:
     return np.asarray(np.arctan2(np.sin(a), np.cos(a)), dtype=np.float64)
 
 
-def rollout(pose: Pose2D, v: FloatArray, w: FloatArray, times: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Poses (x, y, yaw), each (P, K), of constant-velocity arcs (v[p], w[p]) at ``times`` (exact arcs)."""
-    v = v[:, None]
-    w = w[:, None]
-    t = times[None, :]
-    th0 = pose.yaw_rad
-    th = th0 + w * t
-    straight = np.abs(w) < 1e-6
-    w_safe = np.where(straight, 1.0, w)
-    x_arc = pose.x_m + v / w_safe * (np.sin(th) - math.sin(th0))
-    y_arc = pose.y_m - v / w_safe * (np.cos(th) - math.cos(th0))
-    x_line = pose.x_m + v * t * math.cos(th0)
-    y_line = pose.y_m + v * t * math.sin(th0)
-    return np.where(straight, x_line, x_arc), np.where(straight, y_line, y_arc), th
-
-
 def ramped_rollout(pose: Pose2D, velocity: Twist, v_target: FloatArray, w_target: FloatArray, *, step_s: float,
                    steps: int, linear_accel: float, angular_accel: float
                    ) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -6,8 +6,7 @@ import pytest
 from atemr.errors import NavigationError
 from atemr.msgs import Pose2D, Twist
 from atemr.skills.nav.costmap import Costmap
-from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, rollout
-from atemr.skills.nav.recovery import RecoveryBehaviour, RecoveryParams
+from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, ramped_rollout
 
 RES = 0.05
 
@@ -22,14 +21,19 @@ def straight_path(x0, x1, y):
     return np.column_stack([xs, np.full_like(xs, y)])
 
 
-def test_rollout_is_the_exact_arc():
-    times = np.array([0.5, 1.0])
-    x, y, th = rollout(Pose2D(1.0, 2.0, 0.0), np.array([0.5, 0.5]), np.array([0.0, math.pi / 2]), times)
-    assert x[0].tolist() == pytest.approx([1.25, 1.5])
-    assert y[0].tolist() == pytest.approx([2.0, 2.0])
-    radius = 0.5 / (math.pi / 2)
-    assert x[1, 1] == pytest.approx(1.0 + radius) and y[1, 1] == pytest.approx(2.0 + radius)
-    assert th[1, 1] == pytest.approx(math.pi / 2)
+def test_ramped_rollout_holds_the_arc_and_ramps_within_the_limits():
+    # Already at the target: the exact arc (quarter circle of radius v / w after pi / 2 / w seconds).
+    v, w = 0.5, math.pi / 2
+    x, y, th = ramped_rollout(Pose2D(1.0, 2.0, 0.0), Twist(v, w), np.array([v]), np.array([w]), step_s=0.01,
+                              steps=100, linear_accel=1.0, angular_accel=1.0)
+    radius = v / w
+    assert x[0, -1] == pytest.approx(1.0 + radius, abs=1e-4) and y[0, -1] == pytest.approx(2.0 + radius, abs=1e-4)
+    assert th[0, -1] == pytest.approx(math.pi / 2)
+    # From rest towards 0.5 m/s at 1 m/s^2: 0.5 t^2 for the first 0.5 s, then 0.5 m/s.
+    x, y, _ = ramped_rollout(Pose2D(), Twist(), np.array([0.5]), np.array([0.0]), step_s=0.1, steps=10,
+                             linear_accel=1.0, angular_accel=1.0)
+    assert x[0, 4] == pytest.approx(0.125, abs=1e-9) and x[0, 9] == pytest.approx(0.125 + 0.25, abs=1e-9)
+    assert np.allclose(y, 0.0)
 
 
 def test_follows_a_straight_path_within_the_limits(open_room):
@@ -102,44 +106,3 @@ def test_bad_params_are_navigation_errors():
         LocalPlannerParams(max_linear_mps=0.0)
     with pytest.raises(NavigationError, match="samples"):
         LocalPlannerParams(angular_samples=1)
-    with pytest.raises(NavigationError, match="unknown behaviour"):
-        RecoveryParams(sequence=("dance",))  # type: ignore[arg-type]
-
-
-def test_rotate_recovery_turns_once_round(open_room):
-    params = RecoveryParams()
-    rec = RecoveryBehaviour("rotate in place", params, 0.0, Pose2D(2.0, 2.0, 0.0))
-    yaw, t, done = 0.0, 0.0, False
-    while not done:
-        twist, done = rec.step(t, Pose2D(2.0, 2.0, math.atan2(math.sin(yaw), math.cos(yaw))), open_room)
-        assert twist.linear_mps == 0.0
-        yaw += twist.angular_radps * 0.1
-        t += 0.1
-    assert 2 * math.pi - 0.3 <= yaw <= 2 * math.pi + 0.1
-
-
-def test_back_off_stops_at_its_distance_or_at_an_obstacle_behind(make_map, make_room, open_room):
-    params = RecoveryParams()
-    pose = Pose2D(3.0, 2.0, 0.0)
-    rec = RecoveryBehaviour("back off", params, 0.0, pose)
-    t, done = 0.0, False
-    while not done:
-        twist, done = rec.step(t, pose, open_room)
-        pose = Pose2D(pose.x_m + twist.linear_mps * 0.1, pose.y_m, 0.0)
-        t += 0.1
-    assert 3.0 - pose.x_m == pytest.approx(params.backoff_distance_m, abs=0.02)
-    # A wall right behind: it does not move at all.
-    data = make_room(80, 120)
-    data[:, 34] = 100  # wall at x = 1.7 m; the robot at 2.05 m is 0.35 m from it
-    cm = Costmap(make_map(data, RES))
-    rec = RecoveryBehaviour("back off", params, 0.0, Pose2D(2.05, 2.0, 0.0))
-    twist, done = rec.step(0.0, Pose2D(2.05, 2.0, 0.0), cm)
-    assert done and twist.is_zero
-
-
-def test_clear_costmap_recovery_empties_the_obstacle_layer(open_room):
-    open_room.obstacles[40, 60] = True
-    open_room.version += 1
-    rec = RecoveryBehaviour("clear costmap", RecoveryParams(), 0.0, Pose2D(1.0, 1.0, 0.0))
-    twist, done = rec.step(0.0, Pose2D(1.0, 1.0, 0.0), open_room)
-    assert done and twist.is_zero and not open_room.obstacles.any()
