@@ -50,7 +50,8 @@ def test_runs_are_deterministic(tmp_path):
     poses = []
     for _ in range(2):
         config = load_config(environ={}, overrides={"data_dir": str(tmp_path), "can.channel": unique_channel("det"),
-                                                    "sim.seed": 7, "secondary.portal_serve": False, "ui.enabled": False})
+                                                    "sim.seed": 7, "secondary.portal_serve": False,
+                                                    "ui.enabled": False})
         robot = build_robot(config, realtime=False, clock=SimClock())
         with robot:
             inputs = robot.extras["inputs"]

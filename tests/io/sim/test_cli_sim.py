@@ -2,8 +2,6 @@
 
 import json
 
-import pytest
-
 from atemr.cli.main import main
 
 
@@ -48,7 +46,8 @@ def test_bad_world_is_a_one_line_error(capsys, tmp_path):
 
 def test_real_time_run_is_paced(capsys):
     # 0.2 simulated seconds at 4x real time: about 50 ms of wall time
-    assert main(["sim", "--stack", "bare", "--duration", "0.2", "--speed", "4", "--camera-hz", "0", "--json"]) == 0
+    args = ["sim", "--stack", "bare", "--duration", "0.2", "--speed", "4", "--camera-hz", "0", "--json"]
+    assert main(args) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["wall_seconds"] >= 0.045
     assert out["real_time_factor"] <= 4.5
@@ -59,7 +58,8 @@ def test_the_whole_robot_drives_with_the_operator_joystick(capsys):
     forward it through the mux, the driver and the motor emulators over virtual CAN."""
     bare = run_json(capsys, "--stack", "bare", "--duration", "9", "--seed", "1", "--camera-hz", "0",
                     "--twist", "0.3", "0.0")
-    robot = run_json(capsys, "--stack", "robot", "--duration", "9", "--seed", "1", "--camera-hz", "0", "--twist", "0.3", "0.0")
+    robot = run_json(capsys, "--stack", "robot", "--duration", "9", "--seed", "1", "--camera-hz", "0",
+                     "--twist", "0.3", "0.0")
     assert robot["stack"] == "robot" and bare["stack"] == "bare"
     assert robot["agent_state"] == "IDLE.MANUAL"
     assert [t["dest"] for t in robot["agent_trace"] if t["accepted"]][:2] == ["STARTUP", "IDLE.MANUAL"]
