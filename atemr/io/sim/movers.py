@@ -15,6 +15,8 @@ import numpy as np
 from atemr.io.sim.scene import Scene
 from atemr.io.sim.world import MoverSpec
 
+#: How close a moving person or pet comes to the robot before it stops and waits, in metres.
+PERSONAL_SPACE_M = 0.15
 
 @dataclass
 class Mover:
@@ -74,13 +76,17 @@ class Movers:
         return (x0 + x1) / 2, (y0 + y1) / 2
 
     def step(self, dt_s: float, robot_xy: tuple[float, float], robot_radius_m: float) -> None:
-        """Move every obstacle by ``dt_s`` seconds, waiting where the robot is in the way."""
+        """Move every obstacle by ``dt_s`` seconds, waiting where the robot is in the way.
+
+        People and pets keep `PERSONAL_SPACE_M` from the robot: they do not walk into it, so a collision
+        the simulator reports is one the robot caused.
+        """
         for m in self.items:
             nx, ny = self._next(m, dt_s)
             gap = math.hypot(nx - robot_xy[0], ny - robot_xy[1]) - robot_radius_m - m.spec.radius_m
             now_gap = math.hypot(m.x_m - robot_xy[0], m.y_m - robot_xy[1]) - robot_radius_m - m.spec.radius_m
-            if gap < 0.0 and gap < now_gap:
-                continue  # wait for the robot to get out of the way
+            if gap < PERSONAL_SPACE_M and gap < now_gap:
+                continue  # wait for the robot to get out of the way, as a person (or pet) would
             m.x_m, m.y_m = nx, ny
         self._centres = None
 
