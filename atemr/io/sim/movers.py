@@ -18,6 +18,7 @@ from atemr.io.sim.world import MoverSpec
 #: How close a moving person or pet comes to the robot before it stops and waits, in metres.
 PERSONAL_SPACE_M = 0.15
 
+
 @dataclass
 class Mover:
     """One moving obstacle's state."""
