@@ -30,7 +30,7 @@ from atemr.robot.core import Robot, Ticker
 from atemr.robot.health import FRESH_S, HealthBoard, fresh
 from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
-from atemr.robot.navigation import NavigationPortImpl
+from atemr.robot.navigation import RobotNavigation
 from atemr.robot.port import RobotPortImpl
 from atemr.robot.settings_store import SettingsStore
 from atemr.scheduler import Component, Scheduler
@@ -138,7 +138,7 @@ def _add_agent(robot: Robot) -> None:
     def measured() -> Twist | None:
         return None if control.last is None else control.last.twist
 
-    navigation = NavigationPortImpl(
+    navigation = RobotNavigation(
         robot.extras["maps"], robot.extras["localization"],
         scan=(lambda: sim.lidar_source.latest) if sim is not None else (lambda: None), velocity=measured,
     )
