@@ -35,7 +35,7 @@ from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.io.map_store import MapStore
 from atemr.io.secondary_link import SecondaryLink
 from atemr.msgs import Pose2D, Twist
-from atemr.robot.core import Robot, Ticker
+from atemr.robot.core import Robot
 from atemr.robot.health import HealthBoard
 from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
@@ -75,6 +75,21 @@ def _pose_ok(pose: Pose2D, what: str) -> str | None:
     return None
 
 
+class _Pump:
+    """The gateway's scheduler component: its queued actions run here, on the robot's thread."""
+
+    name = "dashboard_gateway"
+
+    def __init__(self, gateway: RobotGatewayImpl) -> None:
+        self.gateway = gateway
+
+    def tick(self, now: float) -> None:
+        self.gateway._pump(now)
+
+    def shutdown(self) -> None:
+        self.gateway.close()
+
+
 class RobotGatewayImpl:
     """`atemr.ui.gateway.RobotGateway` over a `Robot` built by `atemr.robot.build_robot` (module docstring)."""
 
@@ -102,7 +117,7 @@ class RobotGatewayImpl:
         self._listing: dict[str, tuple[int, list[str]]] = {}
         self._wifi = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-wifi")
         self._wifi_ssid: str | None = None
-        robot.add(Ticker("dashboard_gateway", self._pump), pump_rate_hz)
+        robot.add(_Pump(self), pump_rate_hz)
         self.recorder: VideoRecorder | None = None
         if self.sim is not None and self.sim.params.camera_hz > 0:
             self.recorder = VideoRecorder(self.config.data_dir / "media" / "videos", self._camera_frame,
@@ -187,7 +202,7 @@ class RobotGatewayImpl:
 
     def _navigation(self) -> tuple[Any, Pose2D | None]:
         """The navigator's latest status (with its paths) and goal, when navigation is wired
-        (``robot.extras["navigation"]``: `atemr.robot.navigation.NavigationPortImpl`)."""
+        (``robot.extras["navigation"]``: `atemr.robot.navigation.RobotNavigation`)."""
         nav = self.robot.extras.get("navigation")
         if nav is None:
             return None, None
@@ -538,7 +553,7 @@ class RobotGatewayImpl:
         return self._sim_action("kidnap", lambda: sim.kidnap(pose))
 
     def close(self) -> None:
-        """Stop the WiFi worker (the robot shuts the scheduled parts down)."""
+        """Stop the WiFi worker (done by the robot's shutdown; idempotent)."""
         self._wifi.shutdown(wait=False)
 
 
