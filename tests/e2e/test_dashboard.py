@@ -231,6 +231,31 @@ def test_new_user_waits_for_an_admin_to_grant_access(ready_site, browser, page, 
     admin.context.close()
 
 
+def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot_site, page, shots, helpers):
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    page.wait_for_url(re.compile(r"/control$"))
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map.image !== null")
+    wait_for(page, "document.getElementById('secondary-screen').naturalWidth === 256")
+    start = robot_site.sim.pose
+    target = next((start.x_m + dx, start.y_m) for dx in (0.6, -0.6, 1.0, -1.0)
+                  if robot_site.sim.clearance_at(start.x_m + dx, start.y_m).clearance_m > 0)
+    page.click("#sim-kidnap")
+    x, y = screen_point(page, *target)
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x, y - 40, steps=3)  # dragged up: heading along +y
+    page.mouse.up()
+    wait_for(page, "document.getElementById('command-result').textContent === 'sim_kidnap: ok'")
+    for _ in range(40):  # applied at the next physics tick, on the robot's thread
+        pose = robot_site.sim.pose
+        if pose != start:
+            break
+        page.wait_for_timeout(50)
+    assert math.hypot(pose.x_m - target[0], pose.y_m - target[1]) < 0.1
+    assert abs(pose.yaw_rad - math.pi / 2) < 0.3
+    page.screenshot(path=str(shots / "control-kidnap.png"), full_page=True)
+
+
 def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))

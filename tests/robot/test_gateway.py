@@ -20,6 +20,7 @@ from atemr.msgs import Pose2D, Twist
 from atemr.robot import Robot, build_robot
 from atemr.robot.gateway import RobotGatewayImpl
 from atemr.trees.ports import ComponentHealth
+from atemr.ui.gateway import RobotGateway
 
 #: Every key of the snapshot (`atemr.ui.gateway` docstring).
 SNAPSHOT_KEYS = {
@@ -67,6 +68,7 @@ def drive(robot: Robot, gateway: RobotGatewayImpl, twist: Twist, seconds: float)
 
 def test_the_snapshot_has_every_key_filled_from_the_robot(booted):
     robot, gateway = booted
+    assert isinstance(gateway, RobotGateway)
     state = gateway.state()
     assert set(state) >= SNAPSHOT_KEYS, SNAPSHOT_KEYS - set(state)
     assert state["agent_state"] == "IDLE" and state["mode"] == "MANUAL" and state["simulation"] is True
