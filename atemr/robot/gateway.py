@@ -402,8 +402,12 @@ class RobotGatewayImpl:
         return CommandResult.accepted()
 
     def maps_changed(self) -> None:
+        """Refresh the map list; a deleted active map stays in use (in memory) until another is selected."""
         with self._lock:
             self._listing.pop("maps", None)
+        active = self.maps.active_name
+        if active is not None and not self.store.exists(active):
+            self.robot.event("map", f"the active map {active} was deleted; it stays in use until another is selected")
 
     # -- settings ----------------------------------------------------------------------------------------
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:

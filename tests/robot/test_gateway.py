@@ -174,6 +174,10 @@ def test_mapping_begin_end_save_and_select(booted):
     state = gateway.state()
     assert state["agent_state"] == "IDLE" and state["active_map"] == "lounge" and "lounge" in state["maps"]
     assert "already exists" in gateway.save_map("lounge").reason
+    robot.extras["map_store"].delete("lounge")  # the media page deleted it
+    gateway.maps_changed()
+    assert "lounge" not in gateway.state()["maps"]
+    assert "lounge was deleted" in robot.recent_events(1)[0]["text"]
     assert gateway.select_map("studio").ok
     run(robot, 0.3)
     assert gateway.state()["active_map"] == "studio"
