@@ -3,8 +3,8 @@
 The dashboard never touches the agent, the skills or the bus. It reads one JSON-able snapshot
 (`RobotGateway.state`) at 10 Hz plus a few binary products (map image, camera JPEG, the secondary
 core's screen), and every operator action is one method that returns a `CommandResult`: ok, or a
-refusal reason the page shows as it is ("refused: switch to AUTO first"). The lead engineer implements
-this protocol over the real robot (`atemr/robot.py`); tests use small fakes of their own. Methods may
+refusal reason the page shows as it is ("refused: switch to AUTO first"). `atemr.robot.gateway.RobotGatewayImpl`
+implements this protocol over the real robot; UI tests use small fakes of their own. Methods may
 be called from the web server's threads, so an implementation must be thread-safe (queue the command
 for the agent's next tick and answer from what it can check at once).
 
