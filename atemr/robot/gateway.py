@@ -206,8 +206,10 @@ class RobotGatewayImpl:
         nav = self.robot.extras.get("navigation")
         if nav is None:
             return None, None
-        status = getattr(nav, "latest", None)
+        status = getattr(nav, "latest", None) or getattr(nav, "last_status", None)
         goal = getattr(nav, "goal", None)
+        if goal is None:
+            goal = getattr(getattr(nav, "navigator", None), "goal", None)
         return status, goal if isinstance(goal, Pose2D) else None
 
     def _mission(self, snapshot: dict[str, Any]) -> dict[str, Any] | None:
