@@ -83,7 +83,11 @@ def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = 
     _add_primary(robot, inputs, health, settings)
     _add_localization(robot)
     _add_agent(robot)
-    if not config.ui.enabled:
+    if config.ui.enabled:
+        from atemr.robot.dashboard import add_dashboard  # lazy: headless runs never import Flask
+
+        add_dashboard(robot)
+    else:
         # Headless: no web server is expected, so its absence is not a fault (0x153 bit 5 stays set).
         health.add("webserver", lambda now: ComponentHealth(True, "dashboard disabled (headless run)"))
     robot.add(SystemMonitor(config.data_dir), RATES["system_monitor"])

@@ -86,18 +86,35 @@ class MapService:
 
     def end(self, save_as: str | None, now: float) -> str | None:
         """Finish the session: save the map as ``save_as`` (it becomes active, localized where the robot
-        is) or discard it (None). Returns the stored name."""
+        is) or discard it (None). Returns the stored name.
+
+        Saving checks the map first (localization must be able to use it) and only then stores it; if
+        either step fails the session stays as it was, so the operator can keep mapping or try another
+        name: nothing is half-saved and nothing is lost.
+        """
         with self._lock:
-            slam, self.slam, self.collecting = self.slam, None, False
-            self.version += 1
+            slam = self.slam
             if slam is None:
                 raise NavigationError("no mapping session is running")
             if save_as is None:
+                self.slam, self.collecting = None, False
+                self.version += 1
                 self.on_event("mapping", "map discarded")
                 return None
             grid = slam.to_map(save_as)
-            stored = self.store.save(save_as, grid, activate=True)
-            self.activate(stored, grid)
+            previous = self.active
+            self.localization.set_map(grid)  # raises when the map is unusable: nothing stored yet
+            try:
+                stored = self.store.save(save_as, grid, activate=True)
+            except Exception:
+                if previous is not None:
+                    self.localization.set_map(previous)
+                raise
+            self.slam, self.collecting = None, False
+            self.active_name, self.active = stored, grid
+            self.version += 1
+            for listener in self._listeners:
+                listener(grid)
             self.localization.set_initial_pose(now, slam.current_pose)
         self.on_event("mapping", f"map saved as {stored}")
         return stored
