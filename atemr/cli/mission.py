@@ -103,7 +103,7 @@ def run_command(args: argparse.Namespace) -> int:
     """``atemr mission run``: build the simulated robot, place it, run the mission, report."""
     from atemr.fsm.agent import Agent
     from atemr.fsm.mission_run import run_mission
-    from atemr.robot import build_robot
+    from atemr.robot.headless import build_headless_robot
 
     if not args.headless:
         raise ConfigError("attaching to a running robot is not available yet: add --headless to run the mission "
@@ -115,7 +115,7 @@ def run_command(args: argparse.Namespace) -> int:
         "simulation": True, "ui.enabled": False, "sim.world": args.world, "sim.seed": args.seed,
         "data_dir": args.data_dir,
     })
-    robot = build_robot(config, realtime=False)
+    robot = build_headless_robot(config)  # no dashboard, no portal, a private CAN channel
     with robot:
         if args.start is not None:
             place(robot, args.start)
