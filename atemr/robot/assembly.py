@@ -247,6 +247,13 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
     health.add("ir_front", cliff("front"))
     health.add("ir_rear", cliff("rear"))
 
+    def connectivity(now: float) -> ComponentHealth:
+        # 0x153 agent bit 3: the robot has a network address the operator can reach it on.
+        ip = link.network.ip_address()
+        return ComponentHealth(ip is not None, f"address {ip}" if ip else "no network address")
+
+    health.add("connectivity", connectivity)
+
 
 def _on_component_error(robot: Robot, component: Component, exc: BaseException) -> None:
     """A part's tick raised: record it for the operator; the loop goes on (the part's own health shows it)."""

@@ -42,7 +42,7 @@ def test_joystick_drives_the_simulated_base_over_can_and_a_lost_joystick_stops_i
 def test_health_reports_every_hardware_component(robot):
     robot.run(until=4.0)  # the secondary core boots for 3 s, then publishes the IR sensors
     health = robot.extras["health"].collect()
-    for name in ("left_motor", "right_motor", "lidar", "imu", "ir_front", "ir_rear"):
+    for name in ("left_motor", "right_motor", "lidar", "imu", "ir_front", "ir_rear", "connectivity"):
         assert health[name].ok, (name, health[name])
 
 
