@@ -240,6 +240,8 @@ def _read_image(image_path: Path, doc: Any, file: str) -> tuple[NDArray[np.float
         raise _fail(f"image path is a directory: {image_path}", doc, "image", file) from None
     except UnidentifiedImageError:
         raise _fail(f"not an image file (PGM, PNG, ...): {image_path}", doc, "image", file) from None
+    except Image.DecompressionBombError as exc:  # Pillow refuses a huge declared size before MAX_CELLS is checked
+        raise _fail(f"image {image_path} is too large: {exc}", doc, "image", file) from None
     except (OSError, SyntaxError, ValueError) as exc:
         raise _fail(f"cannot read image {image_path}: {exc}", doc, "image", file) from None
 
