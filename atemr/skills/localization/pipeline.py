@@ -22,7 +22,7 @@ from collections import deque
 
 import numpy as np
 
-from atemr.errors import NavigationError
+from atemr.errors import NavigationError, ProtocolError
 from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import ImuSample, LaserScan, Pose2D, WheelSpeeds
 from atemr.skills.diff_drive import DiffDrive
@@ -102,7 +102,14 @@ class LocalizationPipeline:
             self._remember()
 
     def on_scan(self, scan: LaserScan) -> None:
-        """Keep the newest scan for the next tick (an older unhandled one is superseded)."""
+        """Keep the newest scan for the next tick (an older unhandled one is superseded).
+
+        A scan whose ranges are not one-dimensional is refused (`ProtocolError`), as the motion pipeline
+        refuses it, and the pending scan is kept.
+        """
+        shape = np.shape(scan.ranges_m)
+        if len(shape) != 1:
+            raise ProtocolError(f"scan at t={scan.t}: ranges_m must be one-dimensional, got shape {shape}")
         self._pending = scan
 
     # -- tick --------------------------------------------------------------------------------------
