@@ -30,7 +30,7 @@ from atemr.robot import build_robot
 
 #: The living-room round of trees/missions/living-room-patrol.yaml, then home.
 PATROL = [Pose2D(4.0, 2.0, 1.5708), Pose2D(4.0, 3.4, 3.1416), Pose2D(2.4, 3.4, -1.5708), Pose2D(2.6, 2.6, 0.0)]
-SOAK_S = 120.0
+SOAK_S = 180.0
 HOUR_S = 3600.0
 GOAL_TIMEOUT_S = 90.0
 #: Growth allowed between the end of the first round and any later round's end (event logs, traces and
