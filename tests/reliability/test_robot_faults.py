@@ -153,6 +153,32 @@ def test_heartbeat_loss_stops_the_motors_and_enters_error_then_recovers(harness:
     assert h.moving(), "the operator drives again once the heartbeat is back"
 
 
+def test_dropped_heartbeat_frames_alone_stop_the_motors_after_two_seconds(harness: Harness) -> None:
+    """Only 0x157 is lost (the board still sends its IR frames): the heartbeat watchdog is what stops the base."""
+    h = harness
+    link = h.robot.parts["secondary_link"]
+    recv = link.bus.recv
+
+    def without_heartbeat(timeout: float | None = None) -> can.Message | None:
+        while (frame := recv(timeout=timeout)) is not None and frame.arbitration_id == 0x157:
+            pass
+        return frame
+
+    link.bus.recv = without_heartbeat
+    fault_t = h.robot.clock.now()
+    took = stop_time(h, fault_t, 3.0)
+    # 2 s after the last valid exchange (up to one heartbeat period before the drop), then the safety stop
+    # bypasses the ramp: nothing else stopped the base earlier
+    assert 1.0 <= took <= 2.3, took
+    h.drive(fault_t + 3.0)
+    entered = first_error(h, fault_t)
+    assert "heartbeat" in entered.reason and "secondary_core" in entered.reason, entered.reason
+    link.bus.recv = recv
+    back_t = h.robot.clock.now()
+    h.drive(back_t + 3.0)
+    assert h.agent.state == "IDLE.MANUAL" and h.moving(), (h.agent.state, h.speeds())
+
+
 @pytest.mark.xfail(strict=True, reason=(
     "with the heartbeat still lost the agent flaps ERROR -> IDLE.MANUAL -> ERROR every tick: ClassifyError "
     "recovers a non-critical error at once and WatchHeartbeat fires 'fault' again, instead of staying in ERROR "
