@@ -255,11 +255,6 @@ def test_a_schedule_is_repeatable() -> None:
     assert (first.closest_m, first.faults, first.last_acted) == (second.closest_m, second.faults, second.last_acted)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "the motors keep their last speed while the link is cut: RmdMotorModel/RmdMotorEmulator have no CAN "
-    "communication timeout (the RMD's own 'communication interruption protection' is not modelled or configured), "
-    "and the driver's MOTOR_STOP is lost with the link, so the base drives on a command older than 0.5 s until "
-    "the link returns (DESIGN §10: the motors stop when no fresh command has arrived for 0.5 s)"))
 def test_a_motor_cut_off_from_its_driver_stops_within_half_a_second() -> None:
     sch = Schedule(FaultPlan(outages=((0.8, 1.6),), seed=1), 0.0, (0.8, 1.6), 3.0)
     _, out = run_schedule(1, sch)

@@ -276,9 +276,6 @@ def test_a_failing_can_interface_enters_error_naming_the_motors(harness: Harness
         assert h.stopped()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "a bus-off on the primary leaves the motors at their last speed: the stop cannot be sent and the motor "
-    "(emulator/model) has no command timeout of its own (same cause as the CAN outage schedules)"))
 def test_a_bus_off_primary_still_stops_the_motors(harness: Harness) -> None:
     h = harness
     fault_t = h.robot.clock.now()

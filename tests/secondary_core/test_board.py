@@ -328,7 +328,10 @@ def test_soft_emergency_brakes_the_emulated_motors(bench: LinkBench) -> None:
     from atemr.io.motors.emulator import RmdMotorEmulator
     from atemr.io.motors.model import MotorMode
 
-    motors = [RmdMotorEmulator(can.Bus(interface="virtual", channel=bench.channel), i) for i in (1, 2)]
+    # the test sets the models' speed directly in place of the primary's driver, so the motors' own CAN
+    # communication timeout is off: only the secondary core's brake can stop them here
+    motors = [RmdMotorEmulator(can.Bus(interface="virtual", channel=bench.channel), i, comm_timeout_s=0.0)
+              for i in (1, 2)]
     try:
         for motor in motors:
             bench.scheduler.add(motor, 100.0)

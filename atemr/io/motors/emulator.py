@@ -4,16 +4,23 @@ A scheduler component: every `tick` advances its `RmdMotorModel` to ``now`` and 
 with ``recv(timeout=0)`` (polled, no threads, so a simulation is repeatable), applies each request
 addressed to its ID and sends the reply. When the model is unplugged it reads and ignores everything,
 as a motor without power would. Frames it cannot decode are ignored, as the real firmware does.
+
+CAN communication-timeout protection (the RMD's "communication interruption protection", configured in the
+motor): when no speed command (0xA2) has arrived for ``comm_timeout_s`` (0.5 s by default, 0 = off) the
+motor stops by itself (`RmdMotorModel.comm_timeout`: brake to zero, command forgotten, ``comm_timed_out``
+set) until the next speed command, so a motor cut off from its driver never drives on a stale command
+(DESIGN §10). Only speed commands count: status reads and MOTOR_STOP/RUN do not keep a motor driving.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from typing import Self
 
 import can
 
-from atemr.errors import ProtocolError
+from atemr.errors import HardwareError, ProtocolError
 from atemr.io.motors.driver import check_motor_ids
 from atemr.io.motors.model import RmdMotorModel
 from atemr.io.motors.rmd_codec import (
@@ -31,6 +38,8 @@ log = logging.getLogger(__name__)
 
 #: Frames handled per tick at most, so a flooded bus cannot stall the scheduler.
 MAX_FRAMES_PER_TICK = 256
+#: Default CAN communication timeout of the motor, s (DESIGN §10: no fresh command for 0.5 s → stop).
+COMM_TIMEOUT_S = 0.5
 
 
 class RmdMotorEmulator:
@@ -40,10 +49,12 @@ class RmdMotorEmulator:
     what the driver reads over CAN is what the simulated robot does. Exactly one owner may step a model:
     the emulator does (``steps_model=True``, standalone and in tests) unless the simulator already
     steps it, in which case pass ``steps_model=False`` and the emulator only answers.
+    ``comm_timeout_s``: no speed command for this long → the motor stops by itself (0 = protection off).
     """
 
     def __init__(self, bus: can.BusABC, motor_id: int, model: RmdMotorModel | None = None, *,
-                 name: str | None = None, close_bus: bool = True, steps_model: bool = True) -> None:
+                 name: str | None = None, close_bus: bool = True, steps_model: bool = True,
+                 comm_timeout_s: float = COMM_TIMEOUT_S) -> None:
         self.bus = bus
         self.motor_id = motor_id
         self.can_id = motor_can_id(motor_id)
@@ -52,9 +63,15 @@ class RmdMotorEmulator:
         self.name = name or f"rmd_motor_{motor_id}"
         self.close_bus = close_bus
         self.steps_model = steps_model
+        if not (math.isfinite(comm_timeout_s) and comm_timeout_s >= 0):
+            raise HardwareError(f"comm_timeout_s must be a finite number >= 0 (0 = off), got {comm_timeout_s!r}",
+                                component=self.name)
+        self.comm_timeout_s = comm_timeout_s
+        self.comm_timeouts = 0
         self.requests = 0
         self.ignored = 0
         self._last_t: float | None = None
+        self._last_speed_t: float | None = None
         self._closed = False
 
     def start(self) -> None:
@@ -64,6 +81,11 @@ class RmdMotorEmulator:
         """Advance the physics to ``now`` and answer every pending request."""
         if self.steps_model and self._last_t is not None and now > self._last_t:
             self.model.step(now - self._last_t)
+        # a frame found now arrived after the previous tick: the protection counts from then, the earliest it can
+        # have arrived, so a motor never drives longer than comm_timeout_s on one command whatever the tick rate
+        # (a gap longer than the timeout itself, an emulator not ticked for a while, counts from now)
+        prev = self._last_t
+        arrived = prev if prev is not None and now - prev < self.comm_timeout_s else now
         self._last_t = now if self._last_t is None else max(self._last_t, now)
         for _ in range(MAX_FRAMES_PER_TICK):
             msg = self.bus.recv(timeout=0)
@@ -80,7 +102,22 @@ class RmdMotorEmulator:
                 log.debug("%s ignores a frame: %s", self.name, exc)
                 continue
             self.requests += 1
+            if request.command is RmdCommand.SPEED_CONTROL:
+                self._last_speed_t = arrived
             self.bus.send(self.answer(request).encode())
+        self._comm_watchdog(now)
+
+    def _comm_watchdog(self, now: float) -> None:
+        if self.comm_timeout_s <= 0:
+            return
+        if self._last_speed_t is None:
+            self._last_speed_t = now  # powered up: the protection counts from the first tick
+        if now - self._last_speed_t >= self.comm_timeout_s - 1e-9 and not self.model.comm_timed_out:
+            self.comm_timeouts += 1
+            if self.model.target_radps != 0.0:
+                log.warning("%s: no speed command for %.2f s: stopping (communication timeout)",
+                            self.name, now - self._last_speed_t)
+            self.model.comm_timeout()
 
     def answer(self, request: RmdRequest) -> RmdReply:
         """Apply ``request`` to the model and return the reply the real motor sends."""

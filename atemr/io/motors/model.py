@@ -12,7 +12,10 @@ and temperature are accurate to first order in the step:
 * error flags (over-temperature, under-voltage) come from the temperature and supply voltage, from
   injected faults, and latch until cleared (0x9B) once their cause is gone; while any flag is set the
   motor's output is off, as the real driver protects itself;
-* "unplugged" cuts the motor's power: no output, and the emulator stops answering.
+* "unplugged" cuts the motor's power: no output, and the emulator stops answering;
+* `comm_timeout` is the RMD's CAN communication-interruption protection tripping (the emulator trips it when
+  no speed command has arrived for its ``comm_timeout_s``): the motor brakes to zero, forgets its command and
+  reports ``comm_timed_out`` until the next speed command.
 
 Deterministic: no randomness at all. Speeds are of the motor shaft in rad/s (the L-7015 is direct drive,
 so this is the wheel's speed).
@@ -85,6 +88,8 @@ class RmdMotorModel:
         self._temperature_c = self.params.ambient_c
         self._injected = MotorErrorFlags(0)
         self._latched = MotorErrorFlags(0)
+        #: The communication-timeout protection has stopped the motor; a fresh speed command clears it.
+        self.comm_timed_out = False
 
     # -- the simulator's protocol ---------------------------------------------------------------
     @property
@@ -123,6 +128,7 @@ class RmdMotorModel:
         limit = self.params.max_speed_radps
         self._command_radps = max(-limit, min(limit, float(speed_radps)))
         self.mode = MotorMode.RUNNING
+        self.comm_timed_out = False
 
     def stop(self) -> None:
         """Motor stop (0x81): brake to zero, keep the command for `run`."""
@@ -142,6 +148,14 @@ class RmdMotorModel:
         """Motor off (0x80): output disabled, command cleared; the shaft coasts."""
         self.mode = MotorMode.OFF
         self._command_radps = 0.0
+
+    def comm_timeout(self) -> None:
+        """The CAN communication-timeout protection trips: brake to zero and forget the command, so neither a
+        late MOTOR_RUN nor anything else resumes a stale speed; only a fresh speed command (0xA2) drives again."""
+        self.comm_timed_out = True
+        self._command_radps = 0.0
+        if self.mode is MotorMode.RUNNING:
+            self.mode = MotorMode.STOPPED
 
     def clear_errors(self) -> MotorErrorFlags:
         """Clear error flags (0x9B): latched flags whose cause is gone are cleared; returns what remains."""
@@ -167,6 +181,7 @@ class RmdMotorModel:
         self.plugged = True
         self.mode = MotorMode.RUNNING
         self._command_radps = 0.0
+        self.comm_timed_out = False
 
     # -- readings -------------------------------------------------------------------------------
     @property

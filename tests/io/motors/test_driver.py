@@ -245,7 +245,7 @@ def test_emulator_can_leave_the_physics_to_the_simulator() -> None:
         emu = RmdMotorEmulator(can.Bus(interface="virtual", channel="motors-sim-owned"), 1, model, steps_model=False)
         host.send(RmdRequest(1, RmdCommand.SPEED_CONTROL, 2.0).encode())
         emu.tick(0.0)
-        emu.tick(1.0)
+        emu.tick(0.4)  # within the 0.5 s communication timeout
         assert model.command_radps == pytest.approx(2.0, abs=1e-3) and model.speed_radps == 0.0  # not stepped
         model.step(1.0)  # the simulator's step
         host.send(RmdRequest(1, RmdCommand.READ_STATUS_2).encode())

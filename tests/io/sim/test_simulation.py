@@ -88,13 +88,15 @@ def test_motor_emulator_models_drive_the_base_over_can():
     for emulator in emulators:
         sched.add(emulator, 100.0)
     with can.Bus(interface="virtual", channel=channel) as driver:
-        for motor_id, shaft in ((1, 5.0), (2, -5.0)):  # both wheels forward at 5 rad/s
-            driver.send(RmdRequest(motor_id, RmdCommand.SPEED_CONTROL, speed_radps=shaft).encode())
-        sched.run(duration=1.0)
-        replies = [driver.recv(timeout=0) for _ in range(2)]
+        for _ in range(10):  # a driver repeats its command (the motors stop after 0.5 s without one)
+            for motor_id, shaft in ((1, 5.0), (2, -5.0)):  # both wheels forward at 5 rad/s
+                driver.send(RmdRequest(motor_id, RmdCommand.SPEED_CONTROL, speed_radps=shaft).encode())
+            sched.run(duration=0.1)
+        replies = [driver.recv(timeout=0) for _ in range(20)]
     sched.shutdown()
     for e in emulators:
         e.shutdown()
+    assert all(r is not None for r in replies)
     assert {r.arbitration_id for r in replies} == {motor_can_id(1), motor_can_id(2)}
     # ~0.9 s at 5 rad/s x 0.085 m after the 80 ms rise, with slip
     assert 0.3 < sim.pose.x_m - sim.world.start.x_m < 0.43
