@@ -22,6 +22,9 @@ Decisions beyond the single skills (DESIGN §4, §10):
 * A scan is up to one lidar period old (0.1 s at 10 Hz): at 0.35 m/s the base has moved 3.5 cm since,
   more than the 3 cm between KAY's footprint and the stop distance. So the front and rear clearances
   are reduced by the distance the base has driven (by its own commands) since the scan was taken.
+* And the base does not stop the tick zero is commanded: the ramp judges the stop zone where the base
+  would come to rest (clearance minus speed × ``MotionLimits.brake_latency_s``: the next control tick,
+  the driver's period and the motors' lag), so it stops at or beyond the stop distance.
 * A scan older than ``scan_max_age_s`` is no scan: the ramp drives blind at slow-zone limits and the
   reactive engine is silent.
 """

@@ -4,7 +4,15 @@ Per tick, in this order:
 
 1. Zones. From the nearest obstacle *in the direction the base moves or is asked to move*: closer than
    ``stop_distance_m`` (0.28 m) → emergency: output zero at once, bypassing the ramp, until that
-   clearance has stayed beyond the stop distance for ``resume_after_s`` (2 s). Closer than
+   clearance has stayed beyond the stop distance for ``resume_after_s`` (2 s). The stop zone is judged
+   where the base would come to rest if it did not stop now: the next decision is one control period
+   away, and zero commanded then still takes one driver period to reach the motors and their lag (first
+   order: the base coasts speed × time constant) to stop the wheels. Together that is the base's speed
+   times ``brake_latency_s`` (0.12 s: two 20 ms periods plus the RMD's 0.08 s time constant). So the
+   emergency starts as soon as the clearance minus that distance falls below the stop distance, and the
+   base stops at or beyond 0.28 m instead of inside its 0.25 m footprint; an emergency started early
+   holds until the obstacle is farther than the stop distance plus the braking distance it started
+   with, so the base does not creep on towards it every ``resume_after_s``. Closer than
    ``slow_distance_m`` (0.56 m) → the target is limited to ``slow_linear_mps`` (0.35 m/s) and
    ``slow_angular_radps`` (1.6 rad/s). `Clearance` gives three directions (from the hex pattern):
    front (ahead within ±60°), rear, side. Going forward the stop zone watches the front, reversing the
@@ -64,6 +72,12 @@ class MotionLimits:
     )
     idle_after_s: float = field(
         default=8.0, metadata={"min": 0.1, "max": 3600.0, "help": "no state-changing command this long: idle"}
+    )
+    brake_latency_s: float = field(
+        default=0.12,
+        metadata={"min": 0.0, "max": 1.0,
+                  "help": "speed x this = travel before the base can stop (next control tick + driver period + "
+                          "motor time constant): the stop zone triggers that much early"},
     )
 
     def validate(self) -> None:
@@ -159,6 +173,8 @@ class SpeedRamp:
         self._last_now: float | None = None
         self._emergency = False
         self._clear_since: float | None = None
+        #: The braking distance the emergency was started with: while it lasts, the stop zone is that much deeper.
+        self._hold_m = 0.0
         self._idle = False
         self.idle_detector = IdleDetector()
 
@@ -184,6 +200,11 @@ class SpeedRamp:
         """Validate and apply new limits atomically; on `ConfigError` the old limits stay in force."""
         self._limits = checked_limits(changes, self._limits)
         return self._limits
+
+    def braking_distance_m(self, direction: int = 1) -> float:
+        """How far the base still travels in ``direction`` (+1 forward, -1 reverse) after a zero command now:
+        its current speed that way times ``brake_latency_s`` (0 when it moves the other way or stands)."""
+        return max(direction * self._v, 0.0) * self._limits.brake_latency_s
 
     def halt(self) -> None:
         """Drop the current velocity to zero at once (a veto downstream: cliff stop, watchdog)."""
@@ -214,15 +235,23 @@ class SpeedRamp:
         directions = _signs(self._v, tv)
         if clearance is None:
             guard = lim.slow_distance_m  # blind: slow, never an emergency on no data
-            stop_guard = math.inf
+            stop_guard = at_rest = math.inf
         else:
             by_dir = {1: clearance.front_m, -1: clearance.rear_m}
             stop_guard = min((by_dir[d] for d in directions), default=math.inf)
+            # the clearance left once the base has come to rest from its current speed
+            at_rest = min((by_dir[d] - self.braking_distance_m(d) for d in directions), default=math.inf)
             around = min(clearance.front_m, clearance.rear_m)
             guard = min(stop_guard, clearance.side_m) if directions else min(around, clearance.side_m)
 
-        if stop_guard < lim.stop_distance_m:
+        if at_rest < lim.stop_distance_m:
+            braking = max(self.braking_distance_m(d) for d in directions)
+            self._hold_m = max(self._hold_m, braking) if self._emergency else braking
             self._emergency = True
+            self._clear_since = None
+        elif self._emergency and stop_guard < lim.stop_distance_m + self._hold_m:
+            # started early by the braking distance, the base may rest just outside the stop zone: the obstacle
+            # has not left until it is that much farther, so the base does not creep towards it every 2 s
             self._clear_since = None
         elif self._emergency:
             if self._clear_since is None:
@@ -230,6 +259,7 @@ class SpeedRamp:
             if now - self._clear_since >= lim.resume_after_s - _TIME_EPS:
                 self._emergency = False
                 self._clear_since = None
+                self._hold_m = 0.0
         if self._emergency:
             self.halt()
             return RampOutput(ZERO_TWIST, True, False, idle, stop_guard)

@@ -265,11 +265,6 @@ def test_a_motor_cut_off_from_its_driver_stops_within_half_a_second() -> None:
     assert out.stale == [], out.stale[:3]
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "the stop zone leaves no room to brake: stop_distance_m 0.28 is 3 cm beyond the 0.25 m footprint, which the "
-    "pipeline spends on scan age alone; at 0.3 m/s (under the 0.35 m/s slow-zone limit) the motor's lag "
-    "(tau 0.08 s, 2.4 cm) and one 20 ms control/driver period add another ~3 cm, so the base stops ~0.243 m "
-    "from the wall, inside its footprint, on a clean link"))
 def test_the_stop_zone_leaves_room_to_brake_on_a_clean_link() -> None:
     sch = Schedule(FaultPlan(), 0.0, None, 0.6)
     _, out = run_schedule(0, sch)

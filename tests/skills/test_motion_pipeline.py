@@ -7,6 +7,7 @@ drop zones under the three IR sensors. Time is a plain float advanced 20 ms per 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -159,7 +160,8 @@ class Loop:
 @pytest.mark.parametrize("scan_every", [1, 5])
 def test_slows_near_a_wall_and_stops_at_the_stop_distance(scan_every):
     world = World(walls_x=[3.0])
-    loop = Loop(world, scan_every=scan_every)
+    # this world's wheels are perfect (no lag: the base stops the tick zero is commanded), so no braking distance
+    loop = Loop(world, MotionPipeline({"brake_latency_s": 0.0}), scan_every=scan_every)
     loop.run(8.0, joy=Twist(0.8, 0.0))
     # the lidar sees the wall from 0.10 m ahead of the axle: the stop distance is measured from the base origin;
     # with a 10 Hz lidar the scan's clearance is aged by the distance driven since it was taken
@@ -176,6 +178,53 @@ def test_slows_near_a_wall_and_stops_at_the_stop_distance(scan_every):
         if gap < 0.56:
             assert r.slow or r.emergency
     assert max(r.twist.linear_mps for _, _, r in loop.log) == pytest.approx(0.8)
+
+
+class LaggingWorld(World):
+    """Wheels like the RMD motors behind the driver: a command reaches them one control period later, then
+    they follow it with first-order lag (time constant ``tau``)."""
+
+    tau: float = 0.08
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self._pending = WheelSpeeds()
+        self._wheels = WheelSpeeds()
+
+    def step(self, result: ControlResult) -> None:
+        decay = math.exp(-DT / self.tau)
+        target, self._pending = self._pending, result.wheels
+        self._wheels = WheelSpeeds(target.left_radps + (self._wheels.left_radps - target.left_radps) * decay,
+                                   target.right_radps + (self._wheels.right_radps - target.right_radps) * decay)
+        lagged = dataclasses.replace(result, wheels=self._wheels)
+        super().step(lagged)
+
+
+@pytest.mark.parametrize("scan_every", [1, 5])
+@pytest.mark.parametrize("speed", [0.2, 0.3, 0.35])
+def test_the_stop_zone_leaves_room_for_the_motors_to_brake(scan_every, speed):
+    # with lagging motors and the default brake latency the base comes to rest at or beyond the stop distance
+    world = LaggingWorld(walls_x=[1.5])
+    loop = Loop(world, scan_every=scan_every)
+    loop.run(8.0, joy=Twist(speed, 0.0))
+    distance = centre_distance_to_wall(world)
+    assert loop.log[-1][2].emergency and not world.collided
+    assert 0.28 - 1e-9 <= distance <= 0.28 + speed * (MotionLimits().brake_latency_s + DT) + 0.01, distance
+    # the same motors without the anticipation drift into the stop zone towards the footprint
+    world = LaggingWorld(walls_x=[1.5])
+    loop = Loop(world, MotionPipeline({"brake_latency_s": 0.0}), scan_every=scan_every)
+    loop.run(8.0, joy=Twist(speed, 0.0))
+    assert centre_distance_to_wall(world) < 0.28 - speed * 0.05
+
+
+def test_a_lagging_base_stopped_early_stays_stopped_while_the_wall_is_there():
+    world = LaggingWorld(walls_x=[2.0])
+    loop = Loop(world)
+    loop.run(8.0, joy=Twist(0.35, 0.0))
+    stopped_at = world.pose.x_m
+    loop.run(6.0, joy=Twist(0.35, 0.0))  # the operator keeps pushing: no creeping on every 2 s
+    assert world.pose.x_m == pytest.approx(stopped_at, abs=1e-6)
+    assert all(r.emergency for _, _, r in loop.log[-300:])
 
 
 def test_stop_zone_resumes_two_seconds_after_the_obstacle_leaves():

@@ -184,9 +184,94 @@ def test_property_accel_speed_and_zone_limits(steps, accel, alpha, vmax):
             assert abs(w - prev.angular_radps) <= alpha * (0.0 if first else dt) + 1e-9
             cap = lim.slow_linear_mps if out.slow else lim.max_linear_mps
             assert abs(v) <= max(abs(prev.linear_mps), min(cap, lim.max_linear_mps)) + 1e-9
-            # never moving towards something inside the stop zone
+            # never moving towards something inside the stop zone, nor towards one the base could not stop short of
             if v > 0:
                 assert front >= lim.stop_distance_m
+                assert front - max(prev.linear_mps, 0.0) * lim.brake_latency_s >= lim.stop_distance_m
             if v < 0:
                 assert rear >= lim.stop_distance_m
+                assert rear - max(-prev.linear_mps, 0.0) * lim.brake_latency_s >= lim.stop_distance_m
         prev = out.twist
+
+
+# ---- the stop zone anticipates the braking distance (motor lag + one control period) ---------------------
+
+
+def cruising(v=0.3, **limits):
+    """A ramp that has been driving steadily at ``v`` (m/s) in the open for 2 s."""
+    ramp = SpeedRamp(limits)
+    run(ramp, Twist(v, 0.0), 2.0)
+    assert ramp.velocity.linear_mps == pytest.approx(v)
+    return ramp
+
+
+def test_braking_distance_is_speed_times_brake_latency_in_the_direction_of_travel():
+    assert MotionLimits().brake_latency_s == 0.12
+    ramp = cruising(0.3)
+    assert ramp.braking_distance_m(1) == pytest.approx(0.036)
+    assert ramp.braking_distance_m(-1) == 0.0
+    ramp = cruising(-0.2)
+    assert ramp.braking_distance_m(-1) == pytest.approx(0.024)
+    assert ramp.braking_distance_m(1) == 0.0
+    assert SpeedRamp().braking_distance_m(1) == 0.0  # at rest
+
+
+def test_the_stop_zone_triggers_where_the_base_would_come_to_rest():
+    # 0.3 m/s covers 3.6 cm before it can stop: 0.305 m now is 0.269 m at rest, inside the 0.28 m stop zone
+    ramp = cruising(0.3)
+    out = ramp.step(2.04, Twist(0.3, 0.0), Clearance(front_m=0.305))
+    assert out.emergency and out.twist.is_zero and ramp.velocity.is_zero
+    assert out.guard_m == pytest.approx(0.305)  # the telemetry shows the clearance itself
+    # 0.32 m now is 0.284 m at rest: slow zone, no emergency
+    ramp = cruising(0.3)
+    out = ramp.step(2.04, Twist(0.3, 0.0), Clearance(front_m=0.32))
+    assert not out.emergency and out.slow and out.twist.linear_mps == pytest.approx(0.3)
+
+
+def test_the_anticipation_grows_with_speed_and_watches_the_direction_of_travel():
+    ramp = cruising(1.0)  # 12 cm before it can stop
+    assert ramp.step(2.04, Twist(1.0, 0.0), Clearance(front_m=0.39)).emergency
+    # reversing: the rear clearance is anticipated, the front one is not
+    ramp = cruising(-0.3)
+    assert not ramp.step(2.04, Twist(-0.3, 0.0), Clearance(front_m=0.29, rear_m=0.32)).emergency
+    ramp = cruising(-0.3)
+    assert ramp.step(2.04, Twist(-0.3, 0.0), Clearance(front_m=math.inf, rear_m=0.305)).emergency
+
+
+def test_a_base_at_rest_may_start_next_to_the_stop_zone():
+    ramp = SpeedRamp()
+    out = ramp.step(0.0, Twist(0.3, 0.0), Clearance(front_m=0.285))
+    assert not out.emergency
+    out = ramp.step(0.02, Twist(0.3, 0.0), Clearance(front_m=0.285))
+    assert not out.emergency and out.twist.linear_mps == pytest.approx(0.02)
+
+
+def test_zero_brake_latency_is_the_plain_stop_distance():
+    ramp = cruising(0.3, brake_latency_s=0.0)
+    assert not ramp.step(2.04, Twist(0.3, 0.0), Clearance(front_m=0.285)).emergency
+    assert ramp.step(2.06, Twist(0.3, 0.0), Clearance(front_m=0.279)).emergency
+
+
+def test_an_early_stop_holds_until_the_obstacle_is_beyond_the_braking_distance():
+    # stopped early at 0.30 m (outside the 0.28 m zone): the base must not creep on towards the obstacle every 2 s
+    ramp = cruising(0.3)
+    near = Clearance(front_m=0.30)
+    assert ramp.step(2.04, Twist(0.3, 0.0), near).emergency
+    for k in range(1, 300):  # 6 s with the operator still pushing forward
+        assert ramp.step(2.04 + k * DT, Twist(0.3, 0.0), near).emergency
+    # the obstacle moves beyond 0.28 + 0.036 m: resume 2 s later, then the zone is the plain one again
+    t = 2.04 + 300 * DT
+    away = Clearance(front_m=0.32)
+    assert ramp.step(t, Twist(0.3, 0.0), away).emergency
+    assert ramp.step(t + 1.98, Twist(0.3, 0.0), away).emergency
+    out = ramp.step(t + 2.0, Twist(0.3, 0.0), away)
+    assert not out.emergency and out.twist.linear_mps == pytest.approx(0.02)
+
+
+def test_brake_latency_is_a_checked_run_time_limit():
+    ramp = SpeedRamp()
+    assert ramp.set_limits({"brake_latency_s": "0.2"}).brake_latency_s == 0.2
+    for bad in ({"brake_latency_s": -0.1}, {"brake_latency_s": 1.5}, {"brake_latency_s": math.inf}):
+        with pytest.raises(ConfigError, match="brake_latency_s"):
+            ramp.set_limits(bad)
+        assert ramp.limits.brake_latency_s == 0.2
