@@ -20,7 +20,10 @@ def robot(tmp_path):
         yield robot
 
 
-def drive(robot, until, twist=Twist(0.2, 0.3)):
+CURVE = Twist(0.2, 0.3)
+
+
+def drive(robot, until, twist=CURVE):
     inputs = robot.extras["inputs"]
     t = robot.clock.now()
     while t < until:
