@@ -28,13 +28,35 @@ def fresh(t: float | None, now: float, max_age_s: float, what: str) -> Component
 
 @dataclass
 class HealthBoard:
-    """Named health probes, each a function of ``now``; `collect` evaluates them all."""
+    """Named health probes, each a function of ``now``; `collect` evaluates them all.
+
+    ``recoveries`` clear what a part latched once its cause is gone (the motor driver's fault); the agent's
+    Error state runs them through `clear_faults` (`RobotPort.clear_faults`) while it waits.
+    """
 
     now: Callable[[], float]
     probes: dict[str, Callable[[float], ComponentHealth]] = field(default_factory=dict)
+    recoveries: dict[str, Callable[[], str | None]] = field(default_factory=dict)
 
     def add(self, name: str, probe: Callable[[float], ComponentHealth]) -> None:
         self.probes[name] = probe
+
+    def add_recovery(self, name: str, clear: Callable[[], str | None]) -> None:
+        """``clear()`` clears what ``name`` latched if its cause is gone: None when nothing stays latched, else why."""
+        self.recoveries[name] = clear
+
+    def clear_faults(self) -> str | None:
+        """Run every recovery; None when nothing stays latched, else each one's reason (a recovery that raises
+        reports that as its reason)."""
+        reasons = []
+        for name, clear in self.recoveries.items():
+            try:
+                why = clear()
+            except Exception as exc:
+                why = f"clearing failed: {exc}"
+            if why:
+                reasons.append(f"{name}: {why}")
+        return "; ".join(reasons) or None
 
     def collect(self) -> dict[str, ComponentHealth]:
         now = self.now()

@@ -89,3 +89,6 @@ class RobotPortImpl:
 
     def end_mapping(self, save_as: str | None) -> None:
         self.maps.end(save_as, self._now())
+
+    def clear_faults(self) -> str | None:
+        return self.health_board.clear_faults()

@@ -43,6 +43,9 @@ class RecordingPort:
     maps: list[str | None] = field(default_factory=list)
     relocalizations: list[float] = field(default_factory=list)
     mapping: bool = False
+    #: What `clear_faults` answers (None: cleared); every call is counted in ``fault_clears``.
+    faults_latched: str | None = None
+    fault_clears: int = 0
 
     def command_velocity(self, source: VelocitySource, twist: Twist, now: float) -> None:
         self.commands.append((source, twist, now))
@@ -89,6 +92,10 @@ class RecordingPort:
     def end_mapping(self, save_as: str | None) -> None:
         self.mapping = False
         self.maps.append(save_as)
+
+    def clear_faults(self) -> str | None:
+        self.fault_clears += 1
+        return self.faults_latched
 
     @property
     def last_twist(self) -> Twist | None:

@@ -89,6 +89,12 @@ class RobotPort(Protocol):
         """Stop SLAM and save the map as ``save_as`` (it becomes active) or discard it (None)."""
         ...
 
+    def clear_faults(self) -> str | None:
+        """Clear the recoverable hardware faults whose cause is gone (on the robot: reset the motor driver's
+        latched fault once both motors answer again with no error flag). None when nothing is latched any
+        more; otherwise why not yet (the Error state calls this while it waits for the cause to clear)."""
+        ...
+
 
 @runtime_checkable
 class LinkPort(Protocol):

@@ -117,19 +117,30 @@ def test_an_invalid_goal_goes_through_error_back_to_idle(rig: Rig) -> None:
 def test_set_auto_is_refused_while_a_motor_is_unhealthy(rig: Rig) -> None:
     idle(rig)
     rig.port.components["left_motor"] = ComponentHealth(False, "error flag: over-temperature")
-    rig.run(0.2)  # the Monitor reports the fault; the non-critical error returns to IDLE
+    # the command is handled before the Monitor has seen the fault: the level-1 guard refuses it
     result = rig.command("set_auto")
     assert not result.accepted and "left_motor" in result.reason  # type: ignore[attr-defined]
+    rig.run(0.2)  # the Monitor reports the fault; the agent holds ERROR while the motor stays unhealthy
+    result = rig.command("set_auto")
+    assert not result.accepted and "not valid in state ERROR" in result.reason  # type: ignore[attr-defined]
 
 
 def test_a_motor_fault_stops_the_robot_and_passes_through_error(rig: Rig) -> None:
     idle(rig)
     stops = rig.port.stops
     rig.port.components["right_motor"] = ComponentHealth(False, "silent")
+    rig.port.faults_latched = "right motor (id 2) not answering"
     rig.run(0.3)
     fault = next(r for r in rig.agent.trace if r.trigger == "fault")
     assert fault.dest == "ERROR" and "right_motor: silent" in fault.reason
     assert rig.port.stops > stops
+    # non-critical, but its cause lasts: ERROR holds (asking the robot to clear the latched fault) until it is gone
+    rig.run(1.0)
+    assert rig.agent.state == "ERROR" and rig.port.fault_clears >= 10
+    assert not any(r.trigger in ("recover", "escalate") for r in rig.agent.trace)
+    rig.port.faults_latched = None
+    rig.port.components["right_motor"] = ComponentHealth(True)
+    rig.run(0.2)
     assert rig.agent.state == "IDLE.MANUAL"
     assert sum(r.trigger == "fault" for r in rig.agent.trace) == 1, "a component still bad does not loop"
 
@@ -405,7 +416,10 @@ def test_a_fault_during_exec_ends_the_task(rig: Rig) -> None:
     rig.run(0.5)
     rig.port.components["left_motor"] = ComponentHealth(False, "over-temperature")
     rig.run(0.3)
-    assert rig.agent.context.task is None and rig.agent.state == "IDLE.MANUAL"
+    assert rig.agent.context.task is None and rig.agent.state == "ERROR"  # until the motor is healthy again
+    rig.port.components["left_motor"] = ComponentHealth(True)
+    rig.run(0.2)
+    assert rig.agent.state == "IDLE.MANUAL"
     report = rig.agent.task_reports[-1]
     assert report["outcome"] == "fault" and report["steps"][0]["status"] == "interrupted"
     fault = next(r for r in rig.agent.trace if r.trigger == "fault")

@@ -34,6 +34,7 @@ SAMPLES: dict[str, dict[str, Any]] = {
     "CheckComponent": {"component": "lidar", "timeout_s": 0.3},
     "CheckHeartbeat": {"timeout_s": 0.3},
     "ClassifyError": {},
+    "AwaitRecovery": {},
     "SetMode": {"mode": "AUTO"},
     "CaptureImage": {"label": "door"},
     "SetPowerState": {"state": "running"},
@@ -170,6 +171,39 @@ def test_classify_error_by_type_and_flag(error: AtemrError | None, expected: py_
     bench = Bench(ClassifyError("classify"))
     bench.ctx.error = error
     assert bench.tick() == expected
+
+
+def test_await_recovery_succeeds_at_once_for_an_error_without_a_lasting_cause() -> None:
+    for error in (None, AtemrError("goal outside the map"), HardwareError("no frame", component="no_such_part")):
+        bench = Bench(make("AwaitRecovery"))
+        bench.ctx.error = error
+        assert bench.tick() == Status.SUCCESS
+        assert bench.port.fault_clears == 0
+
+
+def test_await_recovery_holds_while_the_heartbeat_is_lost() -> None:
+    bench = Bench(make("AwaitRecovery"), link=RecordingLink(heartbeat=False))
+    bench.ctx.error = HardwareError("heartbeat 0x157 lost", component="secondary_core")
+    assert bench.tick(20) == Status.RUNNING
+    assert "heartbeat 0x157 still lost" in bench.leaf.feedback_message
+    bench.link.heartbeat = True
+    assert bench.tick() == Status.SUCCESS
+
+
+def test_await_recovery_clears_latched_faults_and_waits_for_the_component() -> None:
+    bench = Bench(make("AwaitRecovery"))
+    bench.ctx.error = HardwareError("silent for 0.31 s", component="left_motor")
+    bench.port.components["left_motor"] = ComponentHealth(False, "motors: left motor (id 1) silent")
+    bench.port.faults_latched = "motors: left motor (id 1) not answering"
+    assert bench.tick(5) == Status.RUNNING
+    assert bench.port.fault_clears == 5, "asks the robot to clear the latched fault every tick"
+    assert "left motor (id 1) not answering" in bench.leaf.feedback_message
+    # the fault is cleared (nothing latched any more) but the component is not healthy yet: still waiting
+    bench.port.faults_latched = None
+    assert bench.tick() == Status.RUNNING
+    assert "silent" in bench.leaf.feedback_message
+    bench.port.components["left_motor"] = ComponentHealth(True)
+    assert bench.tick() == Status.SUCCESS
 
 
 def test_set_mode_and_capture_image() -> None:

@@ -366,6 +366,12 @@ class RmdDriver(DriveMotors):
         for side in SIDES:
             self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_OFF).encode())
 
+    def request_error_clear(self) -> None:
+        """Send CLEAR_ERRORS to both motors but keep the fault latched: a motor drops only the flags whose cause
+        is gone, and its status-1 reply shows what remains (`clear_motor_errors` also resets the fault)."""
+        for side in SIDES:
+            self.bus.send(RmdRequest(self.ids[side], RmdCommand.CLEAR_ERRORS).encode())
+
     def clear_motor_errors(self) -> None:
         """Send CLEAR_ERRORS to both motors (their replies refresh the error flags), then `reset_fault`."""
         for side in SIDES:

@@ -80,6 +80,50 @@ class ClassifyError(Leaf):
         return Status.SUCCESS
 
 
+#: The error's component whose cause is the 0x157 heartbeat (`WatchHeartbeat`, `CheckHeartbeat`).
+HEARTBEAT_COMPONENT = "secondary_core"
+
+
+@behaviours.register("AwaitRecovery")
+class AwaitRecovery(Leaf):
+    """RUNNING while the cause of the error being handled lasts, SUCCESS once it is gone (Error → Idle).
+
+    The cause is the error's component: the secondary core's heartbeat (until `LinkPort.heartbeat_ok`), or a
+    component the port reports health for (until it is healthy again; meanwhile `RobotPort.clear_faults`
+    is asked every tick to clear what the hardware latched, e.g. the motor driver's fault once both motors
+    answer with no error flag). An error without a component, or with one the robot does not report (an
+    invalid goal, a failed task), has no lasting cause: SUCCESS at once. So the agent holds ERROR while a
+    motor is unplugged or the heartbeat is lost, instead of recovering and failing again every tick.
+    """
+
+    summary = "wait until the error's cause is gone (heartbeat back, component healthy, faults cleared)"
+
+    def update(self) -> py_trees.common.Status:
+        cause = self._cause(self.ctx.error)
+        if cause is None:
+            self.feedback_message = "cause gone"
+            return Status.SUCCESS
+        self.feedback_message = f"waiting: {cause}"
+        return Status.RUNNING
+
+    def _cause(self, error: AtemrError | None) -> str | None:
+        component = getattr(error, "component", None)
+        if not component:
+            return None
+        if component == HEARTBEAT_COMPONENT:
+            link = self.ctx.link
+            return None if link is None or link.heartbeat_ok() else "heartbeat 0x157 still lost"
+        health = self.ctx.port.health().get(component)
+        if health is None or health.ok:
+            return None
+        why = self.ctx.port.clear_faults()
+        if why is None:
+            health = self.ctx.port.health().get(component)
+            if health is None or health.ok:
+                return None
+        return f"{component}: {why or health.detail or 'not healthy'}"
+
+
 @dataclass(frozen=True)
 class SetModeParams:
     mode: Literal["MANUAL", "AUTO"] = field(default="MANUAL", metadata={"required": True})
