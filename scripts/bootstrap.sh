@@ -31,6 +31,11 @@ atemr_bootstrap() {
     if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
         return 0
     fi
+    # The test install includes everything the runtime needs.
+    if [ -z "$extras" ] && [ -f "$atemr_venv/.atemr-installed-test" ] &&
+        [ "$(cat "$atemr_venv/.atemr-installed-test")" = "$want" ]; then
+        return 0
+    fi
     spec="$atemr_root"
     [ -n "$extras" ] && spec="$atemr_root[$extras]"
     echo "Installing ATEMR${extras:+ with [$extras]} into $atemr_venv ..." >&2
