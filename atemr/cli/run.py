@@ -3,17 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import logging
-import signal
 from pathlib import Path
-from types import FrameType
 
 from atemr.cli.command import commands
+from atemr.cli.signals import stop_on_signals
 from atemr.config import load_config
 from atemr.logsetup import configure_logging
 from atemr.robot import build_robot
 
-log = logging.getLogger(__name__)
 
 
 class RunCommand:
@@ -50,20 +47,11 @@ class RunCommand:
         configure_logging(config.log_level)
         robot = build_robot(config, realtime=True)
 
-        def on_signal(signum: int, frame: FrameType | None) -> None:
-            log.info("%s received: stopping", signal.Signals(signum).name)
-            robot.stop()
-
-        previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
-        try:
-            with robot:
-                can = f"{config.can.interface}:{config.can.channel}"
-                mode = "simulation" if config.simulation else f"real hardware on {can}"
-                print(f"ATEMR running in {mode}; started: {', '.join(robot.parts)}. Ctrl-C stops.", flush=True)
-                robot.run(duration=args.duration)
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
+        with stop_on_signals(robot.stop), robot:
+            can = f"{config.can.interface}:{config.can.channel}"
+            mode = "simulation" if config.simulation else f"real hardware on {can}"
+            print(f"ATEMR running in {mode}; started: {', '.join(robot.parts)}. Ctrl-C stops.", flush=True)
+            robot.run(duration=args.duration)
         print("ATEMR stopped.", flush=True)
         return 0
 

@@ -14,13 +14,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
-import signal
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 from atemr.cli.command import commands
+from atemr.cli.signals import stop_on_signals
 from atemr.clock import RealTimeSimClock, SimClock, WallClock
 from atemr.config import load_config
 from atemr.errors import ConfigError
@@ -32,7 +30,6 @@ from atemr.robot.headless import agent_summary, build_headless_robot
 from atemr.robot.inputs import MotionInputs
 from atemr.scheduler import Scheduler
 
-log = logging.getLogger(__name__)
 
 
 def summary(sim: Simulation, sim_seconds: float, wall_seconds: float, seed: int) -> dict[str, Any]:
@@ -105,29 +102,24 @@ class SimCommand:
             scheduler = Scheduler(clock, realtime=not args.headless)
             sim.attach(scheduler)
 
-        def on_signal(signum: int, frame: FrameType | None) -> None:
-            log.info("%s received: stopping", signal.Signals(signum).name)
-            scheduler.stop()
-
-        previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
         wall = WallClock()
         t0_sim, t0_wall = clock.now(), wall.now()
-        try:
-            if robot is not None:
-                robot.start()
-            else:
-                scheduler.start()
-            if not args.json:
-                mode = "headless" if args.headless else f"real time x{config.sim.speed:g}"
-                print(f"simulating world '{sim.world.name}' (seed {config.sim.seed}, {mode}, {args.stack})", flush=True)
-            scheduler.run(duration=duration)
-        finally:
-            if robot is not None:
-                robot.shutdown()
-            else:
-                scheduler.shutdown()
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
+        with stop_on_signals(scheduler.stop):
+            try:
+                if robot is not None:
+                    robot.start()
+                else:
+                    scheduler.start()
+                if not args.json:
+                    mode = "headless" if args.headless else f"real time x{config.sim.speed:g}"
+                    print(f"simulating world '{sim.world.name}' (seed {config.sim.seed}, {mode}, {args.stack})",
+                          flush=True)
+                scheduler.run(duration=duration)
+            finally:
+                if robot is not None:
+                    robot.shutdown()
+                else:
+                    scheduler.shutdown()
         result = {**summary(sim, clock.now() - t0_sim, wall.now() - t0_wall, config.sim.seed), "stack": args.stack}
         if robot is not None:
             result.update(agent_summary(robot))
