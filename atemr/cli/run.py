@@ -12,7 +12,6 @@ from atemr.logsetup import configure_logging
 from atemr.robot import build_robot
 
 
-
 class RunCommand:
     help = "start the robot: in simulation by default, or on real hardware with --can-interface socketcan"
 

@@ -31,7 +31,6 @@ from atemr.robot.inputs import MotionInputs
 from atemr.scheduler import Scheduler
 
 
-
 def summary(sim: Simulation, sim_seconds: float, wall_seconds: float, seed: int) -> dict[str, Any]:
     """What a run did, as plain JSON-able values."""
     pose = sim.pose
