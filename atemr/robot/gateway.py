@@ -465,18 +465,11 @@ class RobotGatewayImpl:
 
     # -- media and missions ------------------------------------------------------------------------------
     def capture_image(self) -> CommandResult:
-        frame = self._camera_frame()
-        if frame is None:
-            return CommandResult.refused("no camera frame to capture (is the camera on?)")
-        from datetime import UTC, datetime
-
-        images = self.config.data_dir / "media" / "images"
-        stamp = datetime.fromtimestamp(WallClock().wall_time(), UTC).strftime("%Y%m%d-%H%M%S-%f")
+        # One way to capture: the same as the agent's CaptureImage leaf (RobotPort.capture_image).
         try:
-            images.mkdir(parents=True, exist_ok=True)
-            (images / f"capture-{stamp}.jpg").write_bytes(frame[1])
-        except OSError as exc:
-            return CommandResult.refused(f"cannot save the image: {exc.strerror}")
+            self.robot.extras["port"].capture_image("capture")
+        except AtemrError as exc:
+            return CommandResult.refused(str(exc))
         return CommandResult.accepted()
 
     def record_video(self, on: bool) -> CommandResult:

@@ -73,9 +73,12 @@ class RobotPortImpl:
             raise HardwareError("no camera frame to capture (is the camera on?)", component="camera")
         stamp = datetime.fromtimestamp(self.wall_time(), UTC).strftime("%Y%m%d-%H%M%S-%f")
         safe = "".join(c if c.isalnum() or c in "-_" else "-" for c in label)[:40] or "capture"
-        self.images_dir.mkdir(parents=True, exist_ok=True)
         path = self.images_dir / f"{stamp}-{safe}.jpg"
-        path.write_bytes(jpeg(frame))
+        try:
+            self.images_dir.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(jpeg(frame))
+        except OSError as exc:
+            raise HardwareError(f"cannot save the image: {exc.strerror}", component="camera") from None
         return str(path)
 
     def localized(self) -> bool | None:
