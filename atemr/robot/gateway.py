@@ -39,10 +39,12 @@ from atemr.robot.core import Robot
 from atemr.robot.health import HealthBoard
 from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
+from atemr.robot.navigation import RobotNavigation
 from atemr.robot.port import jpeg
 from atemr.robot.settings_store import SettingsStore
 from atemr.robot.video import VideoRecorder
 from atemr.skills.motion_pipeline import MotionControl, MotionPipeline
+from atemr.skills.nav.navigator import NavStatus
 from atemr.skills.ramp import checked_limits
 from atemr.ui.gateway import CommandResult, MapImage, Mode
 from atemr.ui.snapshot import points_json, pose_json, render_map, scan_points, status_levels, system_json
@@ -200,17 +202,12 @@ class RobotGatewayImpl:
         folder = self.missions_dir
         return self._listing_of("missions", folder, lambda: sorted(p.stem for p in folder.glob("*.yaml")))
 
-    def _navigation(self) -> tuple[Any, Pose2D | None]:
-        """The navigator's latest status (with its paths) and goal, when navigation is wired
-        (``robot.extras["navigation"]``: `atemr.robot.navigation.RobotNavigation`)."""
-        nav = self.robot.extras.get("navigation")
+    def _navigation(self) -> tuple[NavStatus | None, Pose2D | None]:
+        """The navigator's last status (with its paths) and goal, when navigation is wired."""
+        nav: RobotNavigation | None = self.robot.extras.get("navigation")
         if nav is None:
             return None, None
-        status = getattr(nav, "latest", None) or getattr(nav, "last_status", None)
-        goal = getattr(nav, "goal", None)
-        if goal is None:
-            goal = getattr(getattr(nav, "navigator", None), "goal", None)
-        return status, goal if isinstance(goal, Pose2D) else None
+        return nav.last_status, nav.goal
 
     def _mission(self, snapshot: dict[str, Any]) -> dict[str, Any] | None:
         report = snapshot.get("task_progress")

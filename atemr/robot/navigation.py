@@ -12,12 +12,12 @@ from collections.abc import Callable
 from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.robot.mapping import MapService
 from atemr.skills.localization.pipeline import LocalizationPipeline
-from atemr.skills.nav.navigator import Navigator, NavParams, NavStatus
+from atemr.skills.nav.navigator import Navigator, NavParams
 from atemr.trees.navigator_port import NavigatorPort
 
 
 class RobotNavigation(NavigatorPort):
-    """The robot's `NavigationPort`; ``latest`` and ``goal`` feed the dashboard's paths and goal marker."""
+    """The robot's `NavigationPort`; ``last_status`` and ``goal`` feed the dashboard's paths and goal marker."""
 
     def __init__(self, maps: MapService, localization: LocalizationPipeline,
                  scan: Callable[[], LaserScan | None], velocity: Callable[[], Twist | None],
@@ -27,11 +27,6 @@ class RobotNavigation(NavigatorPort):
         super().__init__(Navigator(maps.active, params), pose=localization.map_pose, scan=scan,
                          localized=lambda: localization.localized, velocity=velocity)
         maps.on_map_change(self.navigator.set_map)
-
-    @property
-    def latest(self) -> NavStatus | None:
-        """The navigator's last status (global path, local trajectory, phase), None before the first goal."""
-        return self.last_status
 
     @property
     def goal(self) -> Pose2D | None:

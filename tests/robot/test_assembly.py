@@ -94,7 +94,7 @@ def test_a_goal_in_auto_is_reached_through_the_whole_stack(robot):
     assert robot.extras["localization"].map_pose().distance_to(goal) <= 0.25
     assert sim.pose.distance_to(goal) <= 0.25 + 0.10
     assert not sim.collisions
-    assert robot.extras["navigation"].latest.state == "SUCCEEDED"
+    assert robot.extras["navigation"].last_status.state == "SUCCEEDED"
 
 
 def test_an_invalid_goal_goes_to_error_with_the_reason_and_back_to_idle(robot):
