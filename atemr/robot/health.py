@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from atemr.trees.ports import ComponentHealth
 
 #: How old a sensor's newest reading may be before the sensor counts as silent, in seconds.
-FRESH_S = {"lidar": 0.5, "imu": 0.2, "camera": 1.0, "ir": 0.5}
+FRESH_S = {"lidar": 0.5, "imu": 0.2, "ir": 0.5}
 
 
 def fresh(t: float | None, now: float, max_age_s: float, what: str) -> ComponentHealth:
