@@ -68,7 +68,7 @@ def soak(tmp_path: Any, duration_s: float) -> dict[str, Any]:
             robot.run(until=sent + 0.5)
             while agent.state == "EXEC" and robot.clock.now() < sent + GOAL_TIMEOUT_S:
                 robot.run(until=robot.clock.now() + 1.0)
-            latest = nav.latest
+            latest = nav.last_status
             ok = agent.state == "IDLE.AUTO" and latest is not None and latest.state == "SUCCEEDED"
             if not ok:
                 failures.append(f"goal {i} {goal} at t={sent:.0f}: agent {agent.state}, "
