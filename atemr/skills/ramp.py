@@ -14,7 +14,10 @@ Per tick, in this order:
    holds until the obstacle is farther than the stop distance plus the braking distance it started
    with, so the base does not creep on towards it every ``resume_after_s``. Closer than
    ``slow_distance_m`` (0.56 m) → the target is limited to ``slow_linear_mps`` (0.35 m/s) and
-   ``slow_angular_radps`` (1.6 rad/s). `Clearance` gives three directions (from the hex pattern):
+   ``slow_angular_radps`` (1.6 rad/s), and the slow zone is anticipated like the stop zone: towards an
+   obstacle ahead (or behind, reversing) the linear target never exceeds the speed from which the base
+   decelerates to ``slow_linear_mps`` by the zone's edge, so it enters the zone at slow speed rather than
+   starting to brake there. `Clearance` gives three directions (from the hex pattern):
    front (ahead within ±60°), rear, side. Going forward the stop zone watches the front, reversing the
    rear, and the slow zone also the sides; turning on the spot never triggers the stop zone (KAY's
    footprint is round about its axle) but is slowed by anything near. Direction matters so that an
@@ -206,6 +209,14 @@ class SpeedRamp:
         its current speed that way times ``brake_latency_s`` (0 when it moves the other way or stands)."""
         return max(direction * self._v, 0.0) * self._limits.brake_latency_s
 
+    def _slow_envelope(self, clearance_m: float) -> float:
+        """The fastest the base may go towards an obstacle ``clearance_m`` away and still be down to the slow
+        speed when it reaches the slow zone: decelerating at ``linear_accel_mps2`` from where a command sent
+        now takes effect (the base covers speed x ``brake_latency_s`` first, as for the stop zone)."""
+        lim = self._limits
+        ahead = clearance_m - lim.slow_distance_m - abs(self._v) * lim.brake_latency_s
+        return math.sqrt(lim.slow_linear_mps ** 2 + 2.0 * lim.linear_accel_mps2 * max(ahead, 0.0))
+
     def halt(self) -> None:
         """Drop the current velocity to zero at once (a veto downstream: cliff stop, watchdog)."""
         self._v = self._w = 0.0
@@ -269,6 +280,8 @@ class SpeedRamp:
         max_w = min(lim.max_angular_radps, lim.slow_angular_radps) if slow else lim.max_angular_radps
         tv = min(max(tv, -max_v), max_v)
         tw = min(max(tw, -max_w), max_w)
+        if clearance is not None and tv != 0.0:
+            tv = math.copysign(min(abs(tv), self._slow_envelope(by_dir[1 if tv > 0 else -1])), tv)
         self._v = _towards(self._v, tv, lim.linear_accel_mps2 * dt)
         self._w = _towards(self._w, tw, lim.angular_accel_radps2 * dt)
         return RampOutput(Twist(self._v, self._w), False, slow, idle, guard)

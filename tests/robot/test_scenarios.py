@@ -139,11 +139,6 @@ def drive_at_the_south_wall(drive: Drive, seconds: float) -> float:
     return start
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "the speed ramp only caps its *target* at slow_linear_mps once the scan shows an obstacle within 0.56 m and "
-    "then decelerates at linear_accel_mps2 (1 m/s²) with the motors' lag on top: driven at the dashboard's 0.5 m/s "
-    "the base enters the slow zone at 0.49 m/s and is above 0.35 m/s until about 0.46 m from the wall (the slow "
-    "zone is not anticipated by the deceleration distance as the stop zone now is by the braking distance)"))
 def test_driven_at_a_wall_the_base_is_at_slow_speed_inside_the_slow_zone(tmp_path):
     with whole_robot(tmp_path) as drive:
         start = drive_at_the_south_wall(drive, 6.0)

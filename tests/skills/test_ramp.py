@@ -275,3 +275,40 @@ def test_brake_latency_is_a_checked_run_time_limit():
         with pytest.raises(ConfigError, match="brake_latency_s"):
             ramp.set_limits(bad)
         assert ramp.limits.brake_latency_s == 0.2
+
+
+# ---- the slow zone is anticipated by the deceleration distance ------------------------------------------------
+
+
+def test_towards_an_obstacle_the_target_is_capped_so_the_base_is_slow_at_the_slow_zone_edge():
+    # cruising at 0.5 m/s, 0.65 m from a wall: 0.06 m go by before a command acts (0.5 × 0.12 s), 0.03 m remain
+    # to the slow zone's edge, and from v the base stops decelerating at 1 m/s² exactly at 0.35 m/s when
+    # v² = 0.35² + 2 × 1 × 0.03 → v = 0.4272 m/s: the target is cut to that, the ramp heads there at once
+    ramp = cruising(0.5)
+    out = ramp.step(2.04, Twist(0.5, 0.0), Clearance(front_m=0.65))
+    assert not out.slow and not out.emergency  # not in the slow zone yet: the flag is the zone's, not the envelope's
+    assert out.twist.linear_mps == pytest.approx(0.5 - 0.04)  # 40 ms at the ramp's rate, on the way to 0.4272
+    # held there, it settles where the cap at its own speed is its speed: v² + 0.24 v − 0.3025 = 0 → 0.44294 m/s
+    ramp = cruising(0.5)
+    run(ramp, Twist(0.5, 0.0), 2.0, Clearance(front_m=0.65), t0=2.04)
+    assert ramp.velocity.linear_mps == pytest.approx((-0.24 + math.sqrt(0.24**2 + 4 * 0.3025)) / 2, abs=1e-6)
+    # far from anything the cap is above the speed asked for, and driving away from a near obstacle is not capped
+    assert cruising(0.5).step(2.04, Twist(0.5, 0.0), Clearance(front_m=1.2)).twist.linear_mps == pytest.approx(0.5)
+    assert cruising(0.5).step(2.04, Twist(0.5, 0.0), Clearance(rear_m=0.6)).twist.linear_mps == pytest.approx(0.5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(v=st.floats(0.36, 1.6), accel=st.floats(0.2, 3.0), room=st.floats(0.0, 2.0))
+def test_property_driving_at_a_wall_the_base_enters_the_slow_zone_at_slow_speed(v, accel, room):
+    lim = checked_limits({"linear_accel_mps2": accel})
+    # starting where it still can: the zone edge plus the latency travel plus the deceleration distance, plus room
+    start = lim.slow_distance_m + v * lim.brake_latency_s + (v**2 - lim.slow_linear_mps**2) / (2 * accel) + room
+    ramp = SpeedRamp(lim)
+    run(ramp, Twist(v, 0.0), v / accel + 0.1)  # cruising at v in the open
+    gap, t = start, v / accel + 0.1
+    while gap >= lim.slow_distance_m:
+        t += DT
+        out = ramp.step(t, Twist(v, 0.0), Clearance(front_m=gap))
+        # the ramp's command acts after brake_latency_s: where the base is then must be slow enough
+        gap -= out.twist.linear_mps * DT
+    assert out.twist.linear_mps <= lim.slow_linear_mps + accel * DT + 1e-9
