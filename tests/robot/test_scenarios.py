@@ -281,10 +281,6 @@ def test_with_awareness_the_manual_engine_steers_a_base_driven_at_a_wall_round_i
         assert min(s.pose.y_m - SOUTH_WALL_Y for s in log) > STOP_DISTANCE
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "the MANUAL engine has no rule for an obstacle straight ahead (FL and FR both NEAR, sides FAR): rules 1-4 need "
-    "one front sector FAR, 5-6 a side NEAR, so square on to a wall W_ME stays about 0 and the base runs into the "
-    "stop zone (emergency, at rest about 0.31 m from the wall, no collision) having turned only about 8 degrees"))
 def test_with_awareness_the_manual_engine_steers_a_base_driven_square_at_a_wall_round_it(tmp_path):
     world = world_file(tmp_path, (TO_SOUTH_WALL.x_m, TO_SOUTH_WALL.y_m, TO_SOUTH_WALL.yaw_rad))
     with whole_robot(tmp_path, **{"sim.world": world}) as drive:

@@ -62,7 +62,7 @@ def test_manual_steers_round_what_is_ahead_and_limits_speed(reactive):
 
 
 def test_manual_blend_follows_eq_3_1(reactive):
-    s = sectors(FR=0.7)  # NEAR membership 0.5 → τ = 0.4
+    s = sectors(FR=0.85)  # NEAR (1.2 → 0.5) membership 0.5 → τ = 0.4
     a = reactive.manual_assist(s, Twist(0.2, -1.0))
     assert a.tau == pytest.approx(0.4)
     assert a.twist.angular_radps == pytest.approx(a.engine_radps * 0.4 + (-1.0) * 0.6)
@@ -114,13 +114,13 @@ def test_nearness_with_a_different_near_term_per_sector(engines):
 
     manual = engines[1]
     near = manual.inputs[0].term("NEAR")
-    wider = dataclasses.replace(near, params=(1.2, 0.6))
-    assert isinstance(wider, Term) and near.params == (1.0, 0.4)
+    narrower = dataclasses.replace(near, params=(1.0, 0.4))
+    assert isinstance(narrower, Term) and near.params == (1.2, 0.5)
     inputs = tuple(
-        dataclasses.replace(v, terms=tuple(wider if t.name == "NEAR" else t for t in v.terms)) if v.name == "LC" else v
+        dataclasses.replace(v, terms=tuple(narrower if t.name == "NEAR" else t for t in v.terms)) if v.name == "LC" else v
         for v in manual.inputs
     )
     r = ReactiveEngine(engines[0], dataclasses.replace(manual, inputs=inputs))
-    # LC at 0.9 m: NEAR by the wider ramp (1.2 → 0.6) is 0.5; by the shared one (1.0 → 0.4) it would be 1/6
-    assert r.nearness(sectors(LC=0.9)) == pytest.approx(0.5)
-    assert ReactiveEngine(*engines).nearness(sectors(LC=0.9)) == pytest.approx(1 / 6)
+    # LC at 0.7 m: NEAR by the narrower ramp (1.0 → 0.4) is 0.5; by the shared one (1.2 → 0.5) it would be 5/7
+    assert r.nearness(sectors(LC=0.7)) == pytest.approx(0.5)
+    assert ReactiveEngine(*engines).nearness(sectors(LC=0.7)) == pytest.approx(5 / 7)

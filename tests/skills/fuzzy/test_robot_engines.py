@@ -138,6 +138,15 @@ def test_manual_steers_round_an_obstacle_ahead(manual: Engine) -> None:
     assert run(manual, FL=0.5)["fwdSteer"] < -0.1
 
 
+def test_manual_steers_round_a_wall_square_ahead_towards_the_clear_side(manual: Engine) -> None:
+    # both front sectors near, both sides clear: no front sector is clear, so the engine must pick a side (left)
+    # rather than let the two turning rules cancel out and the base run on into the stop zone
+    assert run(manual, FL=0.6, FR=0.6)["fwdSteer"] > 0.1
+    assert run(manual, FL=0.4, FR=0.4)["fwdSteer"] > run(manual, FL=0.6, FR=0.6)["fwdSteer"]
+    # the left side blocked as well (a corner): turn right
+    assert run(manual, FL=0.6, FR=0.6, LC=0.5)["fwdSteer"] < -0.1
+
+
 def test_manual_steers_round_an_obstacle_behind(manual: Engine) -> None:
     # reversing, yaw left (CCW) bends the path to the rear-right: round a rear-left obstacle
     assert run(manual, RL=0.5)["revSteer"] > 0.1
@@ -156,15 +165,22 @@ def test_manual_leaves_the_operator_alone_when_clear(manual: Engine) -> None:
     assert run(manual) == {"fwdSteer": 0.0, "revSteer": 0.0}
 
 
+#: The MANUAL engine's crisp situations: near (0.3 m) or clear (nothing within the 1.2 m radius of interest; its
+#: NEAR term reaches out to 1.2 m, so 1.1 m is still slightly near for it).
+CRISP_MANUAL = np.array(list(itertools.product([0.3, 1.2], repeat=6)))
+
+
 def test_manual_never_steers_towards_a_near_sector_in_any_of_the_64_situations(manual: Engine) -> None:
-    out = manual.process({s: CRISP[:, i] for i, s in enumerate(SECTORS)})
-    for k, row in enumerate(CRISP):
+    out = manual.process({s: CRISP_MANUAL[:, i] for i, s in enumerate(SECTORS)})
+    for k, row in enumerate(CRISP_MANUAL):
         near = {s for s, v in zip(SECTORS, row, strict=True) if v < 0.4}
         fwd, rev = float(out["fwdSteer"][k]), float(out["revSteer"][k])
+        # driving forward: never towards a near side, nor towards a near front sector while the other is clear
+        # (with both front sectors near, a wall square ahead, every turn bends towards one: the clear side decides)
         if fwd > 1e-9:
-            assert not near & {"FL", "LC"}
+            assert "LC" not in near and not ("FL" in near and "FR" not in near)
         if fwd < -1e-9:
-            assert not near & {"FR", "RC"}
+            assert "RC" not in near and not ("FR" in near and "FL" not in near)
         if rev > 1e-9:
             assert not near & {"RR", "RC"}
         if rev < -1e-9:
