@@ -124,6 +124,21 @@ class AgentConfig:
 
 
 @dataclass(frozen=True)
+class TraceConfig:
+    """Recording the agent (transitions, node statuses, blackboard writes, pose) under ``data_dir/traces``."""
+
+    enabled: bool = field(default=True, metadata={"help": "record every run under data_dir/traces"})
+    file: Path | None = field(default=None, metadata={"help": "record to this file instead (atemr mission run "
+                                                               "--trace); its parts are never deleted"})
+    max_file_mb: float = field(default=8.0, metadata={"min": 0.01, "max": 4096.0,
+                                                      "help": "a trace file past this size continues in a new part"})
+    max_files: int = field(default=20, metadata={"min": 1, "max": 100_000,
+                                                 "help": "trace files kept in data_dir/traces (oldest deleted)"})
+    pose_hz: float = field(default=2.0, metadata={"min": 0.0, "max": 50.0,
+                                                  "help": "robot poses recorded per second (0: none)"})
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that can be configured; see README 'Configuration'."""
 
@@ -136,6 +151,7 @@ class Config:
     ui: UiConfig = field(default_factory=UiConfig)
     secondary: SecondaryConfig = field(default_factory=SecondaryConfig)
     agent: AgentConfig = field(default_factory=AgentConfig)
+    trace: TraceConfig = field(default_factory=TraceConfig)
     #: Speed limits, slow/stop zones, idle time (`atemr.skills.ramp`); start values, the settings page
     #: changes them at run time through `MotionPipeline.set_limits`.
     motion: MotionLimits = field(default_factory=MotionLimits)

@@ -50,6 +50,9 @@ class MissionCommand:
                          help="required: run in a fresh simulation without the dashboard (attaching to a running "
                               "robot is not available yet)")
         run.add_argument("--json", action="store_true", help="print the full result as JSON")
+        run.add_argument("--trace", type=Path, metavar="FILE",
+                         help="record the agent (transitions, node statuses, blackboard, pose) to FILE "
+                              "(read it with 'atemr trace show FILE' or replay it on the dashboard)")
 
     def run(self, args: argparse.Namespace) -> int:
         if args.mission_action == "run":
@@ -113,7 +116,7 @@ def run_command(args: argparse.Namespace) -> int:
     mission = load_mission(args.file) if args.file is not None else mission_from_goals(args.goal)
     config = load_config(args.config, overrides={
         "simulation": True, "ui.enabled": False, "sim.world": args.world, "sim.seed": args.seed,
-        "data_dir": args.data_dir,
+        "data_dir": args.data_dir, "trace.file": args.trace,
     })
     robot = build_headless_robot(config)  # no dashboard, no portal, a private CAN channel
     with robot:
@@ -125,6 +128,11 @@ def run_command(args: argparse.Namespace) -> int:
         result = run_mission(agent, robot.scheduler.step, mission, timeout_s=args.timeout)
     result["world"] = config.sim.world
     result["seed"] = config.sim.seed
+    writer = robot.extras.get("trace")
+    if writer is not None:
+        result["trace"] = [str(p) for p in writer.parts]
+        if writer.error:
+            result["trace_error"] = writer.error
     if args.json:
         print(json.dumps(result, indent=2, default=str))
     else:
@@ -154,6 +162,9 @@ def print_summary(result: dict[str, Any]) -> None:
         if step["position_error_m"] is not None:
             errors = f", {step['position_error_m']:.2f} m / {math.degrees(step['heading_error_rad']):.1f} deg off"
         print(f"  {step['index']}: {step['name']}: {step['status']}{took}{errors}")
+    if result.get("trace"):
+        print(f"  trace: {', '.join(result['trace'])}" + (f" ({result['trace_error']})" if result.get("trace_error")
+                                                          else ""))
     pose = result["final_pose"]
     if pose is not None:
         print(f"  final pose ({pose['x_m']:.2f}, {pose['y_m']:.2f}, {pose['yaw_rad']:.2f}); "

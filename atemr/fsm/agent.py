@@ -37,6 +37,7 @@ from atemr.fsm.codes import state_code, top_level
 from atemr.fsm.machine import Lifecycle, TransitionRecord
 from atemr.fsm.spec import AgentSpec, StateSpec, load_agent
 from atemr.trees.behaviours import Leaf
+from atemr.trees.blackboard_watch import BlackboardWatch, BlackboardWrite
 from atemr.trees.builder import build, setup_tree
 from atemr.trees.context import AGENT_NS, AgentContext, Event
 from atemr.trees.missions import Mission
@@ -102,6 +103,11 @@ class Agent:
         self.results: deque[CommandResult] = deque(maxlen=history)
         self.errors: deque[str] = deque(maxlen=history)
         self.listeners: list[Callable[[TransitionRecord], None]] = []
+        #: Hooks for observers (the trace recorder): a tree just ticked (state or Monitor tree), and a tick
+        #: ended with these blackboard writes. Called on the agent's thread; a failing one is reported.
+        self.tree_listeners: list[Callable[[py_trees.behaviour.Behaviour], None]] = []
+        self.tick_listeners: list[Callable[[float, list[BlackboardWrite]], None]] = []
+        self.blackboard_watch = BlackboardWatch()
         self.ticks = 0
         self._inbox: queue.SimpleQueue[tuple[int, str, dict[str, Any], str]] = queue.SimpleQueue()
         self._ids = itertools.count(1)
@@ -225,6 +231,8 @@ class Agent:
                 self._fire_events()
             self._write_blackboard()
             self.ticks += 1
+            writes = self.blackboard_watch.drain(now)
+            self._notify(self.tick_listeners, "tick", now, writes)
             if self.context.halted and not self._halt_reported:
                 self._halt_reported = True
                 log.info("agent halted: power-off acknowledged")
@@ -308,12 +316,15 @@ class Agent:
                 self.task_reports.append(self._progress.report())
                 self._progress = None
             self._enter_state()
-        for listener in self.listeners:
-            try:
-                listener(record)
-            except Exception as exc:  # a broken listener must not stop the agent
-                self.errors.append(f"transition listener failed: {exc!r}")
+        self._notify(self.listeners, "transition", record)
         return record
+
+    def _notify(self, listeners: list[Callable[..., None]], what: str, *args: Any) -> None:
+        for listener in listeners:
+            try:
+                listener(*args)
+            except Exception as exc:  # a broken listener must not stop the agent
+                self.errors.append(f"{what} listener failed: {exc!r}")
 
     def _stop_tree(self) -> None:
         if self._tree is None:
@@ -361,7 +372,12 @@ class Agent:
             if self.context.error is None:
                 self.context.error = exc if isinstance(exc, AtemrError) else AtemrError(text)
             root.status = Status.FAILURE
+        self._notify(self.tree_listeners, "tree", root)
         return root.status
+
+    def node_ticks(self, node: py_trees.behaviour.Behaviour) -> int:
+        """How often ``node`` of the current trees has been ticked since its tree was built."""
+        return self._counts.get(node.id, 0)
 
     def _on_outcome(self, status: Status) -> None:
         state = self._tree_state
@@ -392,7 +408,6 @@ class Agent:
     def snapshot(self, *, transitions: int = 20) -> dict[str, Any]:
         """A JSON-able picture of the agent now, for the dashboard and tests."""
         with self._lock:
-            storage = py_trees.blackboard.Blackboard.storage
             return {
                 "name": self.name,
                 "t": self.context.now,
@@ -408,8 +423,7 @@ class Agent:
                 "error": str(self.context.error) if self.context.error else None,
                 "tree": self._node_dict(self._tree) if self._tree is not None else None,
                 "monitor": self._node_dict(self._monitor) if self._monitor is not None else None,
-                "blackboard": {k: jsonable(v) for k, v in sorted(storage.items())
-                               if k.startswith((AGENT_NS + "/", "/monitor/"))},
+                "blackboard": self.blackboard_watch.view(jsonable),
                 "transitions": [r.as_dict() for r in list(self.lifecycle.trace)[-transitions:]],
                 "commands": [r.as_dict() for r in list(self.results)[-transitions:]],
                 "errors": list(self.errors)[-transitions:],

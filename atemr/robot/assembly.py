@@ -13,7 +13,9 @@ primary's parts are built, on socketcan.
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -21,9 +23,11 @@ from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
 from atemr.config import Config
 from atemr.errors import AtemrError, HardwareError
 from atemr.fsm.agent import Agent
+from atemr.fsm.recording import AgentRecorder
 from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.secondary_link import build_secondary_link
+from atemr.io.trace_file import SUFFIX, TraceWriter
 from atemr.io.system_monitor import SystemMonitor
 from atemr.msgs import Twist, WheelSpeeds
 from atemr.robot.core import Robot, Ticker
@@ -83,6 +87,7 @@ def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = 
     _add_primary(robot, inputs, health, settings)
     _add_localization(robot)
     _add_agent(robot)
+    _add_recorder(robot)
     if config.ui.enabled:
         from atemr.robot.dashboard import add_dashboard  # lazy: headless runs never import Flask
 
@@ -151,6 +156,32 @@ def _add_agent(robot: Robot) -> None:
                               navigation=navigation, on_halt=robot.stop)
     robot.extras.update(port=port, navigation=navigation)
     robot.add(agent, cfg.agent.rate_hz)
+
+
+def trace_path(config: Config, wall_time: float) -> Path:
+    """Where this run's trace goes: ``trace.file``, else ``data_dir/traces/run-<local date and time>.atrace``."""
+    if config.trace.file is not None:
+        return config.trace.file
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(wall_time))
+    return config.data_dir / "traces" / f"run-{stamp}{SUFFIX}"
+
+
+def _add_recorder(robot: Robot) -> None:
+    """Record the agent (`AgentRecorder` → `TraceWriter`) when ``trace.enabled`` or ``trace.file`` is set."""
+    cfg = robot.config
+    if not cfg.trace.enabled and cfg.trace.file is None:
+        return
+    agent: Agent = robot.parts["agent"]  # type: ignore[assignment]
+    sim = robot.extras.get("sim")
+    meta = {"world": cfg.sim.world if sim is not None else None, "seed": cfg.sim.seed if sim is not None else None,
+            "map": robot.extras["maps"].active_name, "simulation": cfg.simulation}
+    writer = TraceWriter(trace_path(cfg, WallClock().wall_time()), max_bytes=int(cfg.trace.max_file_mb * 1024 * 1024),
+                         max_files=None if cfg.trace.file is not None else cfg.trace.max_files)
+    recorder = AgentRecorder(agent, writer.write, pose_hz=cfg.trace.pose_hz, meta=meta)
+    writer.preamble = recorder.preamble
+    recorder.attach()
+    robot.extras["trace"] = writer
+    robot.add(writer, 1.0)
 
 
 def _add_simulation(robot: Robot, health: HealthBoard) -> None:
@@ -281,4 +312,4 @@ def _on_component_error(robot: Robot, component: Component, exc: BaseException) 
     robot.event("component error", f"{component.name}: {exc}")
 
 
-__all__ = ["RATES", "build_robot", "make_clock"]
+__all__ = ["RATES", "build_robot", "make_clock", "trace_path"]

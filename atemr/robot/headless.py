@@ -21,13 +21,15 @@ _RUNS = itertools.count()
 
 
 def headless_config(config: Config) -> Config:
-    """``config`` for a headless run: dashboard and portal off, a private virtual CAN channel."""
+    """``config`` for a headless run: dashboard and portal off, a private virtual CAN channel, and a trace only
+    when ``trace.file`` names one (``--trace``): headless runs do not fill ``data_dir/traces``."""
     if not config.simulation:
         raise ValueError("a headless run is a simulation")
     return dataclasses.replace(
         config,
         ui=dataclasses.replace(config.ui, enabled=False),
         secondary=dataclasses.replace(config.secondary, portal_serve=False),
+        trace=dataclasses.replace(config.trace, enabled=False),
         can=dataclasses.replace(config.can, interface="virtual",
                                 channel=f"{config.can.channel}-headless-{os.getpid()}-{next(_RUNS)}"),
     )

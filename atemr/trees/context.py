@@ -73,7 +73,9 @@ def context_from_setup(node: py_trees.behaviour.Behaviour, kwargs: dict[str, Any
 
 
 def clear_blackboard() -> None:
-    """Forget every key and client under the agent's namespaces (py_trees storage is class-level)."""
+    """Forget every key and client under the agent's namespaces and the activity stream (py_trees keeps
+    both at class level; `atemr.trees.blackboard_watch` enables the stream again when it next drains)."""
+    py_trees.blackboard.Blackboard.disable_activity_stream()
     storage = py_trees.blackboard.Blackboard.storage
     for key in [k for k in storage if k.startswith(NAMESPACES)]:
         del storage[key]

@@ -308,7 +308,8 @@ def test_snapshot_is_json_and_counts_ticks(rig: Rig) -> None:
     joystick = snap["tree"]["children"][1]
     assert joystick["type"] == "DriveJoystick" and joystick["ticks"] >= 10
     assert snap["monitor"]["ticks"] == rig.agent.ticks
-    assert snap["blackboard"]["/agent/state"] == "IDLE.MANUAL"
+    state = snap["blackboard"]["/agent/state"]
+    assert state["value"] == "IDLE.MANUAL" and state["by"] == "agent/agent" and state["t"] == rig.agent.context.now
     assert "/monitor/status" in snap["blackboard"]
     assert snap["transitions"][-1]["dest"] == "IDLE.MANUAL" and "set_auto" in snap["valid_triggers"]
     assert "SHUTDOWN.POWEROFF" in snap["machine"]["states"]
