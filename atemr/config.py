@@ -130,7 +130,7 @@ class TraceConfig:
     enabled: bool = field(default=True, metadata={"help": "record every run under data_dir/traces"})
     file: Path | None = field(default=None, metadata={"help": "record to this file instead (atemr mission run "
                                                                "--trace); its parts are never deleted"})
-    max_file_mb: float = field(default=8.0, metadata={"min": 0.01, "max": 4096.0,
+    max_file_mb: float = field(default=8.0, metadata={"min": 0.004, "max": 4096.0,
                                                       "help": "a trace file past this size continues in a new part"})
     max_files: int = field(default=20, metadata={"min": 1, "max": 100_000,
                                                  "help": "trace files kept in data_dir/traces (oldest deleted)"})

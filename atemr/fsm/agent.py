@@ -107,7 +107,7 @@ class Agent:
         #: ended with these blackboard writes. Called on the agent's thread; a failing one is reported.
         self.tree_listeners: list[Callable[[py_trees.behaviour.Behaviour], None]] = []
         self.tick_listeners: list[Callable[[float, list[BlackboardWrite]], None]] = []
-        self.blackboard_watch = BlackboardWatch()
+        self.blackboard_watch = BlackboardWatch(jsonable)
         self.ticks = 0
         self._inbox: queue.SimpleQueue[tuple[int, str, dict[str, Any], str]] = queue.SimpleQueue()
         self._ids = itertools.count(1)
@@ -423,7 +423,7 @@ class Agent:
                 "error": str(self.context.error) if self.context.error else None,
                 "tree": self._node_dict(self._tree) if self._tree is not None else None,
                 "monitor": self._node_dict(self._monitor) if self._monitor is not None else None,
-                "blackboard": self.blackboard_watch.view(jsonable),
+                "blackboard": self.blackboard_watch.view(),
                 "transitions": [r.as_dict() for r in list(self.lifecycle.trace)[-transitions:]],
                 "commands": [r.as_dict() for r in list(self.results)[-transitions:]],
                 "errors": list(self.errors)[-transitions:],

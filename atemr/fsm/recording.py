@@ -70,16 +70,12 @@ class AgentRecorder:
 
     def __init__(self, agent: Agent, sink: Callable[[Record], None], *, pose_hz: float = 2.0,
                  meta: dict[str, Any] | None = None) -> None:
-        from atemr.fsm.agent import jsonable
-
         self.agent = agent
         self.sink = sink
         self.pose_period = 1.0 / pose_hz if pose_hz > 0 else float("inf")
         self.meta = dict(meta or {})
-        self._jsonable = jsonable
         self._slots: dict[str, _Seen] = {}
         self._ids = 0
-        self._values: dict[str, str] = {}
         self._last_pose_t = float("-inf")
         self._pose: Record | None = None
         self.attached = False
@@ -113,8 +109,8 @@ class AgentRecorder:
                                          for t in spec.transitions]}},
             {"k": "snap", "t": now, "state": agent.state, "mode": agent.context.mode,
              "transitions": [r.as_dict() for r in agent.trace[-20:]],
-             "blackboard": {k: v for k, v in agent.blackboard_watch.view(self._cut).items()
-                            if k not in UNRECORDED_KEYS}},
+             "blackboard": {k: {**v, "value": self._cut(v["value"])}
+                            for k, v in agent.blackboard_watch.view().items() if k not in UNRECORDED_KEYS}},
         ]
         for slot, seen in self._slots.items():
             out.append(self._tree_record(slot, seen, now))
@@ -142,15 +138,10 @@ class AgentRecorder:
         for write in writes:
             if write.key in UNRECORDED_KEYS:
                 continue
-            value = self._cut(write.value)
-            text = json.dumps(value, sort_keys=True, default=str)
-            if write.kind != "UNSET" and self._values.get(write.key) == text:
-                continue
-            self._values[write.key] = text
-            record: Record = {"k": "bb", "t": t3(write.t), "key": write.key, "value": value, "by": write.by}
+            record: Record = {"k": "bb", "t": t3(write.t), "key": write.key, "value": self._cut(write.value),
+                              "by": write.by}
             if write.kind == "UNSET":
                 record["unset"] = True
-                self._values.pop(write.key, None)
             self.sink(record)
         if now - self._last_pose_t >= self.pose_period:
             pose = self.agent.context.port.pose()
@@ -161,8 +152,8 @@ class AgentRecorder:
                 self.sink(self._pose)
 
     # -- internals -----------------------------------------------------------------------------------
-    def _cut(self, value: Any) -> Any:
-        value = self._jsonable(value)
+    @staticmethod
+    def _cut(value: Any) -> Any:
         text = json.dumps(value, default=str)
         return value if len(text) <= MAX_VALUE_CHARS else text[:MAX_VALUE_CHARS] + "…"
 

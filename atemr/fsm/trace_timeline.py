@@ -38,7 +38,7 @@ class _State:
     mode: str | None = None
     blackboard: dict[str, dict[str, Any]] = field(default_factory=dict)
     trees: dict[str, _Tree | None] = field(default_factory=dict)
-    pose: dict[str, float] | None = None
+    pose: dict[str, Any] | None = None
     transitions: list[Record] = field(default_factory=list)
 
 

@@ -16,6 +16,7 @@ The writer is a scheduler component: its tick flushes, its shutdown closes.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
@@ -200,9 +201,10 @@ class TraceWriter:
     def _prune(self) -> None:
         if self.max_files is None:
             return
-        files = trace_files(self.base.parent)
+        mine = [p for p in self.parts if p.exists()]
+        files = [p for p in trace_files(self.base.parent) if p not in mine] + mine  # own parts: newest last
         for old in files[: max(0, len(files) - self.max_files)]:
-            if old in self.parts[-1:]:
+            if old == self.parts[-1]:
                 continue
             try:
                 old.unlink()
@@ -220,10 +222,8 @@ class TraceWriter:
 
     def _close_file(self) -> None:
         if self._file is not None:
-            try:
+            with contextlib.suppress(OSError):  # closing after a failed write: nothing more to save
                 self._file.close()
-            except OSError:
-                pass
             self._file = None
 
     # -- scheduler component -----------------------------------------------------------------------

@@ -27,8 +27,8 @@ from atemr.fsm.recording import AgentRecorder
 from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.secondary_link import build_secondary_link
-from atemr.io.trace_file import SUFFIX, TraceWriter
 from atemr.io.system_monitor import SystemMonitor
+from atemr.io.trace_file import SUFFIX, TraceWriter
 from atemr.msgs import Twist, WheelSpeeds
 from atemr.robot.core import Robot, Ticker
 from atemr.robot.health import FRESH_S, HealthBoard, fresh
@@ -159,11 +159,16 @@ def _add_agent(robot: Robot) -> None:
 
 
 def trace_path(config: Config, wall_time: float) -> Path:
-    """Where this run's trace goes: ``trace.file``, else ``data_dir/traces/run-<local date and time>.atrace``."""
+    """Where this run's trace goes: ``trace.file``, else a new ``data_dir/traces/run-<local date-time>.atrace``."""
     if config.trace.file is not None:
         return config.trace.file
     stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(wall_time))
-    return config.data_dir / "traces" / f"run-{stamp}{SUFFIX}"
+    path = config.data_dir / "traces" / f"run-{stamp}{SUFFIX}"
+    n = 1
+    while path.exists():  # two runs in one second keep both traces
+        n += 1
+        path = path.with_name(f"run-{stamp}-{n}{SUFFIX}")
+    return path
 
 
 def _add_recorder(robot: Robot) -> None:

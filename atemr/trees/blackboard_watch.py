@@ -3,8 +3,10 @@
 py_trees can log every blackboard access (``Blackboard.enable_activity_stream``) with the client that
 made it, but not the time, and its stream keeps reads too and drops the *newest* item when full. The
 agent drains the stream once per tick (`BlackboardWatch.drain`), so each write gets the robot time of the
-tick it happened in; reads and refused accesses are dropped there. The watch keeps the last write of every
-key (for the live view) and returns the tick's writes (for the recorder). No key or node limit.
+tick it happened in; reads, refused accesses and writes of the value a key already has are dropped there
+(the agent rewrites its keys every tick: "when" is when the key got its value). The watch keeps the last
+change of every key (for the live view) and returns the tick's changes (for the recorder). No key or node
+limit.
 
 py_trees keeps the stream at class level, like the storage: one process has one stream, so one agent per
 process drains it (the robot has one; tests build one at a time).
@@ -12,6 +14,8 @@ process drains it (the robot has one; tests build one at a time).
 
 from __future__ import annotations
 
+import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,7 +29,8 @@ STREAM_SIZE = 100_000
 
 @dataclass(frozen=True)
 class BlackboardWrite:
-    """One change of a key: its new value (None when unset), the client's name, the robot time, the kind."""
+    """One change of a key: its new value rendered JSON-able (None when unset), the client's name, the robot
+    time, the kind."""
 
     key: str
     value: Any
@@ -37,8 +42,10 @@ class BlackboardWrite:
 class BlackboardWatch:
     """The last write of every key, fed from py_trees' activity stream (see the module docstring)."""
 
-    def __init__(self) -> None:
+    def __init__(self, render: Callable[[Any], Any]) -> None:
+        self.render = render
         self.last: dict[str, BlackboardWrite] = {}
+        self._text: dict[str, str] = {}
         self._enable()
 
     @staticmethod
@@ -57,22 +64,26 @@ class BlackboardWatch:
         for item in items:
             if item.activity_type not in WRITES:
                 continue
-            value = None if item.activity_type == "UNSET" else item.current_value
-            write = BlackboardWrite(item.key, value, item.client_name, now, item.activity_type)
-            writes.append(write)
             if item.activity_type == "UNSET":
                 self.last.pop(item.key, None)
-            else:
-                self.last[item.key] = write
+                self._text.pop(item.key, None)
+                writes.append(BlackboardWrite(item.key, None, item.client_name, now, "UNSET"))
+                continue
+            value = self.render(item.current_value)
+            text = json.dumps(value, sort_keys=True, default=str)
+            if self._text.get(item.key) == text:
+                continue
+            self._text[item.key] = text
+            write = BlackboardWrite(item.key, value, item.client_name, now, item.activity_type)
+            writes.append(write)
+            self.last[item.key] = write
         return writes
 
-    def view(self, jsonable: Any) -> dict[str, dict[str, Any]]:
-        """Every key on the blackboard: ``{key: {"value", "by", "t"}}``, sorted by key.
-
-        A key written before the watch began has ``by`` "" and ``t`` None. ``jsonable`` renders values.
-        """
+    def view(self) -> dict[str, dict[str, Any]]:
+        """Every key on the blackboard: ``{key: {"value", "by", "t"}}``, sorted by key (``by`` and ``t``: who
+        gave the key its value, and when). A key set before the watch began has ``by`` "" and ``t`` None."""
         out: dict[str, dict[str, Any]] = {}
         for key, value in sorted(py_trees.blackboard.Blackboard.storage.items()):
             write = self.last.get(key)
-            out[key] = {"value": jsonable(value), "by": write.by if write else "", "t": write.t if write else None}
+            out[key] = {"value": self.render(value), "by": write.by if write else "", "t": write.t if write else None}
         return out

@@ -108,3 +108,24 @@ def test_an_invalid_goal_goes_to_error_with_the_reason_and_back_to_idle(robot):
     assert "ERROR" in dests and agent.state.startswith("IDLE")
     error = next(r for r in agent.trace if r.dest == "ERROR")
     assert "outside the map" in error.reason
+
+
+def test_every_run_records_a_trace_rotated_by_size(tmp_path):
+    from atemr.fsm.trace_timeline import TraceTimeline
+    from atemr.io.trace_file import read_trace
+
+    config = load_config(environ={}, overrides={
+        "data_dir": str(tmp_path), "can.channel": unique_channel("robot"), "ui.enabled": False,
+        "secondary.portal_serve": False, "trace.max_file_mb": 0.004, "trace.max_files": 3})
+    robot = build_robot(config, realtime=False, clock=SimClock())
+    with robot:
+        robot.run(duration=6.0)
+    parts = sorted((tmp_path / "traces").glob("run-*.atrace"))
+    assert len(parts) == 3  # rotated at 4 kB, the oldest parts deleted
+    assert all(p.stat().st_size <= 0.004 * 1024 * 1024 for p in parts)
+    newest = robot.extras["trace"].parts[-1]
+    timeline = TraceTimeline(read_trace(newest).records)
+    assert timeline.head["meta"] == {"world": "studio", "seed": 0, "map": "studio", "simulation": True}
+    end = timeline.frame(1e9)
+    assert end["state"] == "IDLE.MANUAL" and end["tree"]["name"] == "manual" and end["pose"] is not None
+    assert end["blackboard"]["/agent/state"]["by"] == "agent/agent"
