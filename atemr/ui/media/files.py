@@ -1,6 +1,7 @@
-"""The files the dashboard lists, serves and deletes: captured images, recorded videos and maps.
+"""The files the dashboard lists, serves and deletes: captured images, recorded videos, maps and agent traces.
 
-Layout under ``data_dir``: ``media/images/`` and ``media/videos/``; maps belong to the robot's
+Layout under ``data_dir``: ``media/images/``, ``media/videos/`` and ``traces/`` (the recorder's ``.atrace``
+files, which the Agent page replays; uploads are read before they are stored); maps belong to the robot's
 `atemr.io.map_store.MapStore` (``maps/``, ROS map_server pairs, plus read-only built-ins), and every map
 listing, download, upload and delete goes through it, so the dashboard and the robot have one set of
 rules (built-ins protected, uploaded images only, size limit). Names coming from a browser go through
@@ -11,6 +12,7 @@ written or deleted.
 from __future__ import annotations
 
 import io
+import secrets
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,15 +23,17 @@ from werkzeug.utils import secure_filename
 
 from atemr.errors import AtemrError, ConfigError
 from atemr.io.map_store import MapStore, clean_name
+from atemr.io.trace_file import SUFFIX, TraceContents, decode_trace
 from atemr.yamlsafe import load_yaml
 
-Kind = Literal["images", "videos", "maps"]
-KINDS: tuple[Kind, ...] = ("images", "videos", "maps")
+Kind = Literal["images", "videos", "maps", "traces"]
+KINDS: tuple[Kind, ...] = ("images", "videos", "maps", "traces")
 #: File types listed per kind (maps are listed by their YAML).
 EXTENSIONS: dict[Kind, frozenset[str]] = {
     "images": frozenset({".jpg", ".jpeg", ".png"}),
     "videos": frozenset({".mp4", ".webm", ".avi", ".mjpeg", ".mkv"}),
     "maps": frozenset({".yaml", ".yml"}),
+    "traces": frozenset({SUFFIX}),
 }
 MAP_IMAGE_EXTENSIONS = frozenset({".pgm", ".png", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"})
 PAGE_SIZE = 10
@@ -70,6 +74,7 @@ class MediaStore:
             "images": self.data_dir / "media" / "images",
             "videos": self.data_dir / "media" / "videos",
             "maps": self.maps.dir,
+            "traces": self.data_dir / "traces",
         }
 
     def dir(self, kind: str) -> Path:
@@ -209,6 +214,40 @@ class MediaStore:
             return self.maps.upload({yaml_safe: yaml_bytes, image_safe: image_bytes}, name=name)
         except ConfigError as exc:
             raise MediaError(f"not a valid ROS map: {exc}") from None
+
+
+    # -- uploading traces -----------------------------------------------------------------------------
+    def upload_trace(self, name: str, data: bytes) -> tuple[str, TraceContents]:
+        """Store an uploaded agent trace under ``traces/`` after reading it as the replay will (a trace
+        from another robot, or one copied off this one); returns its stored name (through ``secure_filename``)
+        and what was read.
+
+        Refused with `MediaError` (nothing stored): a name that is not a ``.atrace`` file name, a file
+        that is not a trace or has no agent ``head`` record, a name already taken. A trace damaged after
+        some good records is stored; its warnings say where the damage is.
+        """
+        from atemr.fsm.trace_timeline import TraceTimeline
+
+        safe = secure_filename(name or "")
+        if not safe or Path(safe).suffix.lower() != SUFFIX:
+            raise MediaError(f"a trace upload is a file name ending in {SUFFIX}, got {name!r}")
+        folder = self.dir("traces")
+        try:
+            contents = decode_trace(data, Path(safe))
+            TraceTimeline(contents.records, name=safe)
+        except ConfigError as exc:
+            raise MediaError(f"not a valid trace: {exc}") from None
+        target = folder / safe
+        if target.exists():
+            raise MediaError(f"a trace named '{safe}' exists already; delete it first or rename the upload")
+        tmp = folder / f".upload-{secrets.token_hex(8)}{SUFFIX}.part"
+        try:
+            tmp.write_bytes(data)
+            tmp.replace(target)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            raise MediaError(f"cannot store the trace: {exc.strerror}") from None
+        return safe, contents
 
 
 class MapExistsError(MediaError):
