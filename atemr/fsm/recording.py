@@ -12,6 +12,8 @@ What is recorded, each a flat JSON object with ``k`` (kind) and ``t`` (robot tim
            nodes in pre-order as ``[name, type, parent index]`` (parent -1 for the root); ``nodes`` null
            when the state has no tree
 ``st``     node status changes of tree ``id`` after a tick: ``n`` = ``[[index, status, ticks, why], ...]``
+``tk``     tick counts that changed, once a second (`TICKS_PERIOD_S`) per tree: ``id``, ``n`` =
+           ``[[index, ticks], ...]`` (a status change carries its count at once)
 ``bb``     a blackboard key changed value: ``key, value, by`` (``unset`` true when removed); a value longer
            than `MAX_VALUE_CHARS` as JSON is kept as its cut text
 ``pose``   the robot's pose at ``pose_hz``: ``x, y, yaw`` (map frame, m and rad)
@@ -40,6 +42,8 @@ if TYPE_CHECKING:
 VERSION = 1
 MAX_VALUE_CHARS = 4000
 UNRECORDED_KEYS = frozenset({"/agent/now"})
+#: How often the tick counts of running nodes are recorded (robot seconds).
+TICKS_PERIOD_S = 1.0
 Record = dict[str, Any]
 
 
@@ -59,6 +63,7 @@ class _Seen:
     id: int
     nodes: list[py_trees.behaviour.Behaviour] = field(default_factory=list)
     last: list[tuple[str, str]] = field(default_factory=list)
+    ticks: list[int] = field(default_factory=list)
 
 
 class AgentRecorder:
@@ -77,6 +82,7 @@ class AgentRecorder:
         self._slots: dict[str, _Seen] = {}
         self._ids = 0
         self._last_pose_t = float("-inf")
+        self._last_ticks_t = float("-inf")
         self._pose: Record | None = None
         self.attached = False
 
@@ -143,6 +149,15 @@ class AgentRecorder:
             if write.kind == "UNSET":
                 record["unset"] = True
             self.sink(record)
+        if now - self._last_ticks_t >= TICKS_PERIOD_S - 1e-9:
+            self._last_ticks_t = now
+            for seen in self._slots.values():
+                counts = [[i, self.agent.node_ticks(n)] for i, n in enumerate(seen.nodes)]
+                changed = [c for c in counts if c[1] != seen.ticks[c[0]]]
+                if changed:
+                    for i, ticks in changed:
+                        seen.ticks[i] = ticks
+                    self.sink({"k": "tk", "t": t3(now), "id": seen.id, "n": changed})
         if now - self._last_pose_t >= self.pose_period:
             pose = self.agent.context.port.pose()
             if pose is not None:
@@ -174,6 +189,7 @@ class AgentRecorder:
             if root is not None:
                 seen.nodes = _preorder(root)
                 seen.last = [("", "")] * len(seen.nodes)
+                seen.ticks = [0] * len(seen.nodes)
             self._slots[slot] = seen
             self.sink(self._tree_record(slot, seen, now))
         if root is None:
@@ -183,7 +199,8 @@ class AgentRecorder:
             now_seen = (node.status.name, why_of(node))
             if now_seen != seen.last[i]:
                 seen.last[i] = now_seen
-                changes.append([i, now_seen[0], self.agent.node_ticks(node), now_seen[1]])
+                seen.ticks[i] = self.agent.node_ticks(node)
+                changes.append([i, now_seen[0], seen.ticks[i], now_seen[1]])
         if changes:
             self.sink({"k": "st", "t": now, "id": seen.id, "n": changes})
 

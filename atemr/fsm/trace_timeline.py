@@ -158,6 +158,13 @@ def _apply(state: _State, r: Record) -> None:
                     if isinstance(change, list) and len(change) == 4 and isinstance(change[0], int) \
                             and 0 <= change[0] < len(tree.status):
                         tree.status[change[0]] = [change[1], change[2], change[3]]
+    elif kind == "tk":
+        for tree in state.trees.values():
+            if tree is not None and tree.id == r.get("id"):
+                for change in r.get("n", []):
+                    if isinstance(change, list) and len(change) == 2 and isinstance(change[0], int) \
+                            and 0 <= change[0] < len(tree.status):
+                        tree.status[change[0]][1] = change[1]
     elif kind == "pose":
         state.pose = {"x_m": r.get("x"), "y_m": r.get("y"), "yaw_rad": r.get("yaw")}
 

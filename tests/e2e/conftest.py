@@ -346,6 +346,16 @@ def robot_site(tmp_path: Path) -> Iterator[RobotSite]:
     site.stop()
 
 
+@pytest.fixture
+def fast_robot_site(tmp_path: Path) -> Iterator[RobotSite]:
+    """The robot site paced at 4× real time (a whole mission in a few seconds)."""
+    site = RobotSite(tmp_path / "data", speed=4.0)
+    site.users.set_password("admin", ADMIN_PW)
+    site.start()
+    yield site
+    site.stop()
+
+
 def _skip_reason() -> str | None:
     if not Path(CHROMIUM).exists():
         return f"{CHROMIUM} is missing (./test installs Debian's chromium when run as root)"

@@ -62,6 +62,10 @@ def recorded(agent_spec: AgentSpec, link: RecordingLink) -> Recorded:
     return rec
 
 
+def ticks(node: dict[str, Any] | None) -> list[int]:
+    return [] if node is None else [node["ticks"], *(t for c in node.get("children", []) for t in ticks(c))]
+
+
 def shape(node: dict[str, Any] | None) -> Any:
     """Name, status and children of a snapshot tree (what the live view and the replay both draw)."""
     if node is None:
@@ -104,6 +108,9 @@ def test_a_frame_shows_what_the_live_view_showed_then(recorded: Recorded, moment
     live, frame = recorded.snapshots[t], timeline.frame(t)
     assert frame["state"] == live["state"] and frame["mode"] == live["mode"] and frame["task"] == live["task"]
     assert shape(frame["tree"]) == shape(live["tree"]) and shape(frame["monitor"]) == shape(live["monitor"])
+    for slot in ("tree", "monitor"):  # tick counts: exact at a status change, else recorded once a second
+        pairs = list(zip(ticks(frame[slot]), ticks(live[slot]), strict=True))
+        assert all(live_n - 10 <= n <= live_n for n, live_n in pairs), pairs
     live_bb = {k: v for k, v in live["blackboard"].items() if k != "/agent/now"}
     assert frame["blackboard"] == live_bb
     assert frame["transitions"][-1]["trigger"] == live["transitions"][-1]["trigger"]
