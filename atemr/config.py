@@ -133,7 +133,7 @@ class TraceConfig:
     max_file_mb: float = field(default=8.0, metadata={"min": 0.004, "max": 4096.0,
                                                       "help": "a trace file past this size continues in a new part"})
     max_files: int = field(default=20, metadata={"min": 1, "max": 100_000,
-                                                 "help": "trace files kept in data_dir/traces (oldest deleted)"})
+                                                 "help": "recorded run-*.atrace kept (oldest deleted, uploads never)"})
     pose_hz: float = field(default=2.0, metadata={"min": 0.0, "max": 50.0,
                                                   "help": "robot poses recorded per second (0: none)"})
 

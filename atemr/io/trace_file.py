@@ -10,7 +10,8 @@ time in seconds); what the kinds mean is the recorder's business (`atemr.fsm.rec
 checksum, not JSON) and a warning naming the file and the byte offset of the damage, so a file cut by a
 power loss is still worth reading. `TraceWriter` rotates to a new part when the current one would pass
 ``max_bytes``; each part begins with the recorder's preamble (what the agent looks like at that moment), so
-every part replays on its own. With ``max_files`` the oldest ``.atrace`` files of the directory are deleted.
+every part replays on its own. With ``max_files`` the oldest files of the directory matching ``prune`` (the
+robot's own ``run-*.atrace``, never an uploaded trace) are deleted.
 The writer is a scheduler component: its tick flushes, its shutdown closes.
 """
 
@@ -130,30 +131,32 @@ def part_path(base: Path, index: int) -> Path:
     return base.with_name(f"{base.name.removesuffix(SUFFIX)}.{index}{SUFFIX}")
 
 
-def trace_files(directory: Path) -> list[Path]:
-    """The ``.atrace`` files of ``directory``, oldest first (by modification time, then name)."""
+def trace_files(directory: Path, pattern: str = f"*{SUFFIX}") -> list[Path]:
+    """The trace files of ``directory`` matching ``pattern``, oldest first (by modification time, then name)."""
     if not directory.is_dir():
         return []
-    files = [p for p in directory.glob(f"*{SUFFIX}") if p.is_file()]
+    files = [p for p in directory.glob(pattern) if p.is_file()]
     return sorted(files, key=lambda p: (p.stat().st_mtime_ns, p.name))
 
 
 class TraceWriter:
     """Appends records to ``path``, rotating to a new part past ``max_bytes`` (see the module docstring).
 
-    ``preamble`` gives the records that open every part. A write that fails (disk full, directory gone)
-    stops the recording with one logged error (``error`` says why); the robot goes on.
+    ``preamble`` gives the records that open every part; ``max_files`` bounds the files matching ``prune``.
+    A write that fails (disk full, directory gone) stops the recording with one logged error (``error`` says
+    why); the robot goes on.
     """
 
     name = "trace_writer"
 
     def __init__(self, path: str | Path, *, max_bytes: int = 8 * 1024 * 1024, max_files: int | None = None,
-                 preamble: Callable[[], Iterable[Record]] | None = None) -> None:
+                 prune: str = f"*{SUFFIX}", preamble: Callable[[], Iterable[Record]] | None = None) -> None:
         if max_bytes < 1024:
             raise ConfigError(f"a trace part must be allowed at least 1024 bytes, got {max_bytes}", path="trace")
         self.base = Path(path)
         self.max_bytes = max_bytes
         self.max_files = max_files
+        self.prune = prune
         self.preamble = preamble
         self.parts: list[Path] = []
         self.error: str | None = None
@@ -202,7 +205,7 @@ class TraceWriter:
         if self.max_files is None:
             return
         mine = [p for p in self.parts if p.exists()]
-        files = [p for p in trace_files(self.base.parent) if p not in mine] + mine  # own parts: newest last
+        files = [p for p in trace_files(self.base.parent, self.prune) if p not in mine] + mine  # own: newest last
         for old in files[: max(0, len(files) - self.max_files)]:
             if old == self.parts[-1]:
                 continue

@@ -181,7 +181,8 @@ def _add_recorder(robot: Robot) -> None:
     meta = {"world": cfg.sim.world if sim is not None else None, "seed": cfg.sim.seed if sim is not None else None,
             "map": robot.extras["maps"].active_name, "simulation": cfg.simulation}
     writer = TraceWriter(trace_path(cfg, WallClock().wall_time()), max_bytes=int(cfg.trace.max_file_mb * 1024 * 1024),
-                         max_files=None if cfg.trace.file is not None else cfg.trace.max_files)
+                         max_files=None if cfg.trace.file is not None else cfg.trace.max_files,
+                         prune=f"run-*{SUFFIX}")
     recorder = AgentRecorder(agent, writer.write, pose_hz=cfg.trace.pose_hz, meta=meta)
     writer.preamble = recorder.preamble
     recorder.attach()

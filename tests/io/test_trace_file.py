@@ -59,14 +59,16 @@ def test_rotation_by_size_each_part_opens_with_the_preamble(tmp_path: Path) -> N
     assert body == written  # nothing lost or doubled at the seams
 
 
-def test_max_files_deletes_the_oldest_traces(tmp_path: Path) -> None:
-    old = tmp_path / "old.atrace"
+def test_max_files_deletes_the_oldest_traces_of_the_pattern(tmp_path: Path) -> None:
+    old, uploaded = tmp_path / "run-0.atrace", tmp_path / "uploaded.atrace"
     old.write_bytes(MAGIC)
-    with TraceWriter(tmp_path / "run.atrace", max_bytes=2048, max_files=3) as writer:
+    uploaded.write_bytes(MAGIC)
+    with TraceWriter(tmp_path / "run-1.atrace", max_bytes=2048, max_files=3, prune="run-*.atrace") as writer:
         for r in records(300):
             writer.write(r)
-    kept = trace_files(tmp_path)
-    assert len(kept) == 3 and kept == writer.parts[-3:] and not old.exists()
+    kept = trace_files(tmp_path, "run-*.atrace")
+    assert len(writer.parts) > 4 and len(kept) == 3 and kept == writer.parts[-3:] and not old.exists()
+    assert uploaded.exists()  # not the recorder's: never pruned
 
 
 def test_a_truncated_file_is_read_up_to_the_damage_with_a_warning(tmp_path: Path,
