@@ -123,7 +123,8 @@ class RobotGateway(Protocol):
         The shape of `atemr.fsm.agent.Agent.snapshot` plus an optional ``machine``:
         ``state`` (e.g. ``"IDLE.MANUAL"``), ``mode``, ``valid_triggers``, ``task``, ``error``,
         ``tree`` and ``monitor`` (nested ``{name, type, status, ticks, feedback, reason?, children?}``),
-        ``transitions`` (``[{t, trigger, source, dest, accepted, reason, origin}]``), ``commands``,
+        ``transitions`` (``[{t, trigger, source, dest, accepted, reason, origin}]``), ``blackboard``
+        (``{key: {value, by, t}}``: every key, the client that gave it its value and when), ``commands``,
         ``errors`` and ``machine`` (``{"states": [name, ...], "transitions": [{trigger, source, dest}]}``).
         """
         ...
