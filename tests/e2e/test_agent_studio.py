@@ -73,6 +73,7 @@ def test_live_view_follows_a_mission_through_exec_and_back_then_replays_it(fast_
     seek(page, start + 1.0)
     wait_for(page, "document.getElementById('agent-current').textContent === 'EXEC'")
     assert "look-around" in page.inner_text("#agent-tree")
+    assert page.inner_text("#agent-mission") == "look-around (recorded)"
     assert page.evaluate("ATEMR.map.state.pose !== null")
     page.screenshot(path=str(shots / "agent-replay-real.png"), full_page=True)
 
@@ -138,6 +139,7 @@ def test_a_trace_replays_seek_step_play_search_and_collapse(ready_site, page, sh
     seek(page, 11.7)
     wait_for(page, "document.getElementById('replay-time').textContent === '11.7'")
     assert page.inner_text("#agent-current") == "EXEC"
+    assert page.inner_text("#agent-mission") == "no task (recorded)"
     assert statuses(page) == {"exec": "RUNNING", "mission look-around": "RUNNING", "capture look-0": "SUCCESS",
                               "rotate 90": "RUNNING", "report": "INVALID"}
     assert bb_row(page, "/mission/step") == ["/mission/step", "0", "mission/look-around", "11.0"]

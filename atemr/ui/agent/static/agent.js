@@ -30,10 +30,11 @@
   // Self-healing: no agent snapshot for 2 s while states arrive → subscribe again.
   A.onState(() => { if (!subscribed || (lastAgent && Date.now() - lastAgent > 2000)) { lastAgent = Date.now(); subscribe(); } });
   A.onState((s) => {
+    if (replay.name) return;  // the replay draws its own task and pose
     const m = s.mission;
     $("agent-mission").textContent = m ? `${m.name}: ${m.state || ""}` : "no mission";
     $("agent-mission-progress").value = m && typeof m.progress === "number" ? m.progress : 0;
-    if (!replay.name && A.map) A.map.update(s);
+    if (A.map) A.map.update(s);
   });
 
   // -- drawing ------------------------------------------------------------------------------------
@@ -260,6 +261,8 @@
       $("replay-time").textContent = A.fmt(frame.t, 1);
       if (document.activeElement !== $("replay-seek") || !replay.playing) $("replay-seek").value = frame.t;
       draw(frame);
+      $("agent-mission").textContent = frame.task ? `${frame.task} (recorded)` : "no task (recorded)";
+      $("agent-mission-progress").value = 0;
       if (A.map) A.map.update({ pose: frame.pose, map_version: A.state.map_version });
       if (replay.playing && frame.t >= replay.summary.end_t) stop();
     } catch (err) {
@@ -299,6 +302,7 @@
   }
 
   $("trace-open").addEventListener("click", () => { const n = $("trace-select").value; if (n) openTrace(n); });
+  $("trace-select").addEventListener("focus", () => listTraces($("trace-select").value));  // new parts, uploads
   $("replay-live").addEventListener("click", live);
   $("replay-play").addEventListener("click", () => (replay.playing ? stop() : play()));
   $("replay-step").addEventListener("click", () => {
