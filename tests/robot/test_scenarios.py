@@ -17,8 +17,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import pytest
-
 from atemr.clock import SimClock
 from atemr.config import load_config
 from atemr.io.can.bus import unique_channel

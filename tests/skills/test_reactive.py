@@ -117,7 +117,8 @@ def test_nearness_with_a_different_near_term_per_sector(engines):
     narrower = dataclasses.replace(near, params=(1.0, 0.4))
     assert isinstance(narrower, Term) and near.params == (1.2, 0.5)
     inputs = tuple(
-        dataclasses.replace(v, terms=tuple(narrower if t.name == "NEAR" else t for t in v.terms)) if v.name == "LC" else v
+        dataclasses.replace(v, terms=tuple(narrower if t.name == "NEAR" else t for t in v.terms))
+        if v.name == "LC" else v
         for v in manual.inputs
     )
     r = ReactiveEngine(engines[0], dataclasses.replace(manual, inputs=inputs))
