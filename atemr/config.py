@@ -25,6 +25,9 @@ ENV_PREFIX = "ATEMR_"
 #: Environment variables with the prefix that are not configuration keys.
 ENV_RESERVED = {"ATEMR_CONFIG"}
 
+#: URL schemes of the Socket.IO message queues the dashboard accepts (Redis, plain or TLS).
+QUEUE_SCHEMES = ("redis://", "rediss://")
+
 LogLevel = Literal["DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"]
 
 
@@ -99,7 +102,12 @@ class UiConfig:
     max_upload_mb: float = field(default=50.0, metadata={"min": 0.001, "max": 4096.0, "help": "largest upload"})
     login_max_failures: int = field(default=5, metadata={"min": 1, "help": "failed logins before HTTP 429"})
     login_lockout_s: float = field(default=300.0, metadata={"min": 1.0, "help": "how long a lockout lasts"})
-    message_queue: str | None = field(default=None, metadata={"help": "Socket.IO message queue URL (redis://...)"})
+    message_queue: str | None = field(
+        default=None,
+        metadata={"help": "Socket.IO message queue (redis://host:port/db): robots publish state there and "
+                          "every dashboard worker on it delivers it; unset: one process",
+                  "prefixes": QUEUE_SCHEMES},
+    )
 
 
 @dataclass(frozen=True)
@@ -107,7 +115,11 @@ class SecondaryConfig:
     """The secondary core: the emulated ESP32 board (simulation) and the primary's side of its link."""
 
     emulate: bool = field(default=True, metadata={"help": "run the emulated board in simulation (robot: the ESP32)"})
-    robot_name: str = field(default="KAY", metadata={"help": "name on the board's screens"})
+    robot_name: str = field(
+        default="KAY",
+        metadata={"help": "the robot's name: on the board's screens and in the dashboard's state (tells robots "
+                          "apart on a shared message queue)"},
+    )
     boot_s: float = field(default=3.0, metadata={"min": 0.0, "max": 60.0, "help": "length of the power-on sequence"})
     portal_serve: bool = field(default=True, metadata={"help": "serve the emulated captive portal while in CONFIG"})
     portal_host: str = field(default="127.0.0.1", metadata={"help": "captive portal address (0.0.0.0: all)"})

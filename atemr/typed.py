@@ -2,7 +2,7 @@
 
 One function, `merge_into`, turns a mapping into a (nested) frozen dataclass, coercing each value to the
 field's annotated type and checking the bounds declared in field metadata (``min``, ``max``,
-``choices``). Every problem raises `ConfigError` that names the key path and its source: a YAML
+``choices``, ``prefixes``). Every problem raises `ConfigError` that names the key path and its source: a YAML
 file with line and column, an environment variable, or a command-line argument. Unknown keys are
 errors, and nothing is half-applied: a new object is returned only when the whole layer is valid.
 """
@@ -151,6 +151,8 @@ def _check_bounds(value: Any, meta: Mapping[str, Any]) -> None:
         raise ValueError(f"must be at most {meta['max']}, got {value!r}")
     if "choices" in meta and value not in meta["choices"]:
         raise ValueError(f"must be one of {', '.join(map(repr, meta['choices']))}, got {value!r}")
+    if "prefixes" in meta and not str(value).startswith(tuple(meta["prefixes"])):
+        raise ValueError(f"must start with {' or '.join(meta['prefixes'])}, got {value!r}")
 
 
 def merge_into(obj: T, layer: Mapping[str, Any], source: Source, *, prefix: str = "") -> T:

@@ -13,8 +13,8 @@ from atemr.errors import AtemrError
 from atemr.logsetup import configure_logging
 
 #: The built-in subcommands, in the order ``--help`` lists them.
-COMMAND_MODULES = ["atemr.cli.run", "atemr.cli.bench", "atemr.cli.user", "atemr.cli.fuzzy", "atemr.cli.sim",
-                   "atemr.cli.can", "atemr.cli.tree", "atemr.cli.mission", "atemr.cli.trace"]
+COMMAND_MODULES = ["atemr.cli.run", "atemr.cli.dashboard", "atemr.cli.bench", "atemr.cli.user", "atemr.cli.fuzzy",
+                   "atemr.cli.sim", "atemr.cli.can", "atemr.cli.tree", "atemr.cli.mission", "atemr.cli.trace"]
 
 
 def build_parser() -> argparse.ArgumentParser:

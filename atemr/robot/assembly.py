@@ -92,6 +92,10 @@ def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = 
         from atemr.robot.dashboard import add_dashboard  # lazy: headless runs never import Flask
 
         add_dashboard(robot)
+    elif config.ui.message_queue is not None:
+        from atemr.robot.dashboard import add_state_publisher
+
+        add_state_publisher(robot, config.ui.message_queue)
     else:
         # Headless: no web server is expected, so its absence is not a fault (0x153 bit 5 stays set).
         health.add("webserver", lambda now: ComponentHealth(True, "dashboard disabled (headless run)"))

@@ -223,6 +223,7 @@ class RobotGatewayImpl:
         localization = self.robot.extras.get("localization")
         pose = None if localization is None else localization.map_pose()
         out: dict[str, Any] = {
+            "robot": self.config.secondary.robot_name,
             "agent_state": str(agent["state"]).split(".")[0],
             "mode": agent["mode"] or self.inputs.mode,
             "simulation": self.sim is not None,

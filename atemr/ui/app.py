@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import secrets
+import threading
 from datetime import timedelta
 from pathlib import Path
 from typing import Any
@@ -95,6 +96,7 @@ def create_app(
     maps = map_store or MapStore(config.data_dir)
     app.extensions["atemr.maps"] = maps
     app.extensions["atemr.media"] = media_files.MediaStore(config.data_dir, maps)
+    app.extensions["atemr.stopping"] = threading.Event()  # set by the server's shutdown: streams end
 
     app.before_request(check_csrf)
     app.after_request(_security_headers)

@@ -14,6 +14,8 @@ it yet, and the page shows "—" for it:
 ======================  ==========================================================================
 key                     value
 ======================  ==========================================================================
+``robot``               str: the robot's name (``secondary.robot_name``); tells robots apart when
+                        several publish into one message queue (``ui.message_queue``)
 ``agent_state``         ``"UNDEFINED" | "STARTUP" | "IDLE" | "EXEC" | "MAPPING" | "SHUTDOWN" | "ERROR"``
 ``mode``                ``"MANUAL" | "AUTO"``
 ``simulation``          bool: the simulation panel is shown when true
@@ -41,6 +43,8 @@ key                     value
 ``maps``                ``[name, ...]``: the stored maps
 ``events``              ``[{"t", "kind", "text"}, ...]``: the latest events, oldest first
 ======================  ==========================================================================
+
+The ``state`` event adds ``sent_unix_s``, the wall-clock time it was sent (`atemr.ui.sockets.state_message`).
 """
 
 from __future__ import annotations

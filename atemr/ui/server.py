@@ -3,7 +3,8 @@
 ``start()`` binds ``ui.host:ui.port`` (port 0 picks a free port, see `port`) and serves Flask-SocketIO
 (threading async mode) with werkzeug's threaded server in a daemon thread; ``tick(now)`` — scheduled by
 the robot at `PUSH_RATE_HZ` — sends the gateway's snapshot to every logged-in browser and camera frames
-to those watching; ``shutdown()`` stops the server and joins the thread (idempotent). The pushes ride on
+to those watching; ``shutdown()`` ends the camera streams, stops the server and joins the thread
+(idempotent). With ``ui.message_queue`` set, ``start()`` first checks the queue is reachable. The pushes ride on
 the robot's scheduler, so there is no timer thread and no wall-clock sleep here.
 """
 
@@ -23,6 +24,7 @@ from atemr.io.map_store import MapStore
 from atemr.ui import sockets
 from atemr.ui.app import create_app
 from atemr.ui.gateway import RobotGateway
+from atemr.ui.message_queue import check_reachable
 from atemr.ui.users import HASH_METHOD
 
 log = logging.getLogger(__name__)
@@ -116,6 +118,9 @@ class DashboardServer:
     def start(self) -> None:
         if self._server is not None:
             return
+        if self.config.ui.message_queue is not None:
+            check_reachable(self.config.ui.message_queue, self.name)
+        self.app.extensions["atemr.stopping"].clear()
         try:
             self._server = make_server(
                 self.config.ui.host, self.config.ui.port, CloseEarly(self.app), threaded=True,
@@ -145,6 +150,7 @@ class DashboardServer:
     def shutdown(self) -> None:
         server, thread = self._server, self._thread
         self._server = self._thread = None
+        self.app.extensions["atemr.stopping"].set()  # ends the open camera streams
         if server is not None:
             server.shutdown()
             server.server_close()

@@ -9,6 +9,10 @@ change or a removal disconnects that user's sockets at once (`disconnect_user`).
 Rooms: every accepted client joins ``operators`` (state at 10 Hz); a client that turned its camera on
 also joins ``camera`` (JPEG frames, base64 in JSON, only while someone watches), and the Agent view joins
 ``agent`` (the agent's snapshot: lifecycle, trees, transitions).
+
+With ``ui.message_queue`` set, ``state`` events travel through the queue: every robot process publishing
+there (`atemr.ui.publisher.StatePublisher`, or a robot's own dashboard) reaches the ``operators`` of
+every dashboard worker on it, each state carrying its robot's name (``robot``).
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import base64
 import functools
 import logging
 import threading
+import time
 from collections.abc import Callable
 from typing import Any, cast
 
@@ -173,31 +178,44 @@ def disconnect_user(app: Flask, username: str) -> None:
         sessions_of(app).remove(sid)
 
 
-def push(app: Flask, robot: RobotGateway | None) -> int:
-    """Send the state snapshot to the operators and a camera frame to the camera watchers.
-
-    Returns the number of connected clients (nothing is read from the robot when nobody watches).
-    """
-    sessions = sessions_of(app)
-    clients = len(sessions)
-    if clients == 0 or robot is None:
-        return clients
-    socketio = socketio_of(app)
+def state_message(robot: RobotGateway) -> dict[str, Any]:
+    """The ``state`` event's payload: the robot's snapshot stamped with the wall-clock time it is sent
+    (``sent_unix_s``, for latency on the receiving side). A robot-side bug becomes an ``error`` the page
+    shows instead of stopping the pushes."""
     try:
-        state = robot.state()
+        state = dict(robot.state())
     except Exception:  # the dashboard must outlive a robot-side bug; say so on the page
         log.exception("gateway.state() failed")
         state = {"error": "the robot's state could not be read"}
-    socketio.emit("state", state, to=OPERATORS)
+    state["sent_unix_s"] = round(time.time(), 4)
+    return state
+
+
+def push(app: Flask, robot: RobotGateway | None) -> int:
+    """Send the state snapshot to the operators and a camera frame to the camera watchers.
+
+    Returns the number of clients connected to this worker. Without a message queue nothing is read from
+    the robot when nobody watches; with one the state always goes into the queue (other workers' clients
+    may watch), while camera frames and the agent view stay with this worker's own watchers (they
+    belong to this robot, and frames are too heavy for the queue).
+    """
+    sessions = sessions_of(app)
+    clients = len(sessions)
+    queued = app.config["ATEMR_CONFIG"].ui.message_queue is not None
+    if robot is None or (clients == 0 and not queued):
+        return clients
+    socketio = socketio_of(app)
+    socketio.emit("state", state_message(robot), to=OPERATORS)
     if sessions.camera:
         frame = robot.camera_jpeg()
         if frame:
-            socketio.emit("camera", {"jpeg": base64.b64encode(frame).decode("ascii")}, to=CAMERA)
+            socketio.emit("camera", {"jpeg": base64.b64encode(frame).decode("ascii")}, to=CAMERA,
+                          ignore_queue=True)
     if sessions.agent:
         try:
             agent = robot.agent_snapshot()
         except Exception:
             log.exception("gateway.agent_snapshot() failed")
             agent = {"error": "the agent's state could not be read"}
-        socketio.emit("agent", agent, to=AGENT)
+        socketio.emit("agent", agent, to=AGENT, ignore_queue=True)
     return clients
