@@ -162,4 +162,6 @@ def _template_globals() -> dict[str, Any]:
     from flask import current_app
 
     config: Config = current_app.config["ATEMR_CONFIG"]
-    return {"current_user": current_user(), "version": __version__, "simulation": config.simulation}
+    own = current_app.extensions["atemr.gateway"] is not None
+    return {"current_user": current_user(), "version": __version__, "simulation": config.simulation,
+            "robot_name": config.secondary.robot_name if own else ""}

@@ -59,12 +59,17 @@ def screen_point(page, x_m: float, y_m: float) -> tuple[float, float]:
     return box["x"] + sx * box["width"] / cw, box["y"] + sy * box["height"] / ch
 
 
+#: The Control page shows the MJPEG stream and its first frame (at least 640 wide) has arrived.
+CAMERA_STREAMING = ("document.getElementById('camera').src.includes('/api/camera.mjpeg') "
+                    "&& document.getElementById('camera').naturalWidth >= 640")
+
+
 def test_control_page_shows_the_robot_and_the_keyboard_drives_it(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
-    wait_for(page, "document.getElementById('camera').src.startsWith('data:image/jpeg')")
+    wait_for(page, CAMERA_STREAMING)
     wait_for(page, "ATEMR.map.image !== null && ATEMR.state.pose !== null && ATEMR.state.scan.length > 100")
     assert page.evaluate("ATEMR.state.active_map") == "studio"
     assert page.evaluate("ATEMR.state.level2.lidar && ATEMR.state.level2.webserver && ATEMR.state.level1.heartbeat")
@@ -260,7 +265,7 @@ def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, "document.getElementById('camera').src.startsWith('data:image/jpeg')")
+    wait_for(page, CAMERA_STREAMING)
     images = robot_site.data_dir / "media" / "images"
     for _ in range(2):
         page.click("#capture")

@@ -1,5 +1,6 @@
 """The Control page (camera, map, joystick, mode, states, graph, missions, simulation panel) and the
-robot products it fetches over HTTP: the map image and the secondary core's screen."""
+robot products it fetches over HTTP: the map image, the secondary core's screen and the camera as MJPEG
+(`atemr.ui.control.mjpeg`)."""
 
 from __future__ import annotations
 
@@ -8,11 +9,17 @@ from typing import Any, cast
 from flask import Blueprint, abort, current_app, jsonify, render_template
 from werkzeug.wrappers import Response
 
+from atemr.ui.control.mjpeg import MIMETYPE, StreamCount, mjpeg_parts
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.security import role_required
 
 bp = Blueprint("control", __name__, template_folder="templates", static_folder="static",
                static_url_path="/static/control")
+
+
+@bp.record_once
+def _init(state: Any) -> None:
+    state.app.extensions["atemr.camera_streams"] = StreamCount()
 
 
 def _gateway() -> RobotGateway | None:
@@ -60,3 +67,16 @@ def secondary_screen() -> Response:
     if png is None:
         abort(404, description="no secondary-core screen")
     return Response(png, mimetype="image/png", headers={"Cache-Control": "no-store"})
+
+
+@bp.route("/api/camera.mjpeg")
+@role_required("user")
+def camera_stream() -> Response:
+    """The camera as an endless ``multipart/x-mixed-replace`` of JPEG frames (an ``<img>`` source), for as
+    long as the client stays; 404 when there is no robot or its camera is off."""
+    robot = _gateway()
+    if robot is None or robot.camera_jpeg() is None:
+        abort(404, description="no camera frame: the camera is off or no robot is connected")
+    app = current_app._get_current_object()  # type: ignore[attr-defined]
+    parts = mjpeg_parts(robot.camera_jpeg, app.extensions["atemr.stopping"], app.extensions["atemr.camera_streams"])
+    return Response(parts, mimetype=MIMETYPE, headers={"Cache-Control": "no-store", "X-Accel-Buffering": "no"})

@@ -7,25 +7,50 @@
   const A = window.ATEMR;
 
   // -- camera --------------------------------------------------------------------------------------
+  // CAM-ON shows the MJPEG stream (/api/camera.mjpeg: binary JPEG parts the browser decodes itself, read by
+  // the server only while this page watches). When the stream cannot be had (it fails to load), the page
+  // falls back to JPEG frames over the Socket.IO connection (the "camera" subscription).
   const cam = $("camera"), camOff = $("camera-off"), camBtn = $("cam-toggle");
+  const MJPEG = "/api/camera.mjpeg";
+  let transport = "mjpeg"; // "mjpeg" | "socket"
   let camOn = false;
   let camWanted = true; // CAM-ON by default (thesis 3.5.3); off saves bandwidth
   let camPending = false;
-  async function setCamera(on) {
-    camPending = true;
-    const ack = await A.command("camera", { on });
-    camPending = false;
-    if (!ack.ok) return;
+  function showCamera(on) {
     camOn = on;
     camBtn.textContent = on ? "CAM-ON" : "CAM-OFF";
     camBtn.classList.toggle("on", on);
     cam.hidden = !on; camOff.hidden = on;
+    cam.dataset.transport = transport;
   }
+  async function setCamera(on) {
+    if (transport === "mjpeg") {
+      if (on) cam.src = `${MJPEG}?t=${Date.now()}`; // a new stream (also after a reconnect)
+      else cam.removeAttribute("src"); // the browser drops the stream: the server stops reading frames
+      showCamera(on);
+      return;
+    }
+    camPending = true;
+    const ack = await A.command("camera", { on });
+    camPending = false;
+    if (ack.ok) showCamera(on);
+  }
+  cam.addEventListener("error", () => {
+    if (transport !== "mjpeg" || !cam.getAttribute("src")) return;
+    transport = "socket";
+    cam.removeAttribute("src");
+    showCamera(false);
+    setCamera(camWanted);
+  });
   camBtn.addEventListener("click", () => { camWanted = !camOn; setCamera(camWanted); });
-  A.socket.on("camera", (f) => { if (camOn && f && f.jpeg) cam.src = `data:image/jpeg;base64,${f.jpeg}`; });
+  A.socket.on("camera", (f) => {
+    if (transport === "socket" && camOn && f && f.jpeg) cam.src = `data:image/jpeg;base64,${f.jpeg}`;
+  });
   A.socket.on("connect", () => setCamera(camWanted));
   // Self-healing: a subscription lost on the way (reconnect, a refused ack) is asked for again.
-  A.onState(() => { if (camWanted !== camOn && !camPending && A.socket.status === "ONLINE") setCamera(camWanted); });
+  A.onState(() => {
+    if (transport === "socket" && camWanted !== camOn && !camPending && A.socket.status === "ONLINE") setCamera(camWanted);
+  });
 
   // -- map modes: MAP CTL (pan/zoom) / SEND CMD, and INITIAL POS. / SEND GOAL ---------------------------
   const ctlBtn = $("map-ctl"), cmdBtn = $("map-cmd");

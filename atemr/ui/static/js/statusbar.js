@@ -1,16 +1,30 @@
 // The status bar on every page (socket ONLINE/OFFLINE/ERROR, agent state, emergency) and the page-wide
 // ATEMR object: the socket, the latest state, listeners, and `command(event, data)` with feedback.
+//
+// Several robots (ui.message_queue): each state names its robot (`robot`). States are kept per robot and
+// the page shows the selected one; the status bar's robot selector appears when a second robot publishes
+// (or when the one robot is not this dashboard's own). Commands go to this dashboard's own robot
+// (<body data-robot>), so they are refused on the page while another robot is shown.
 "use strict";
 
 (function () {
   const listeners = [];
+  const SUBSCRIPTIONS = new Set(["camera", "agent_view"]); // this dashboard's own views, not commands
+  const STALE_MS = 5000; // a robot silent this long leaves the selector
   const ATEMR = {
     state: {},
     socket: null,
     onState(f) { listeners.push(f); if (Object.keys(this.state).length) f(this.state); },
     csrf: (document.querySelector('meta[name="csrf-token"]') || {}).content || "",
+    own: document.body.dataset.robot || "", // this dashboard's robot ("" for a worker without one)
+    robot: null, // the robot shown
     async command(event, data) {
       if (!this.socket) return { ok: false, reason: "no connection on this page" };
+      if (this.own && this.robot !== null && this.robot !== this.own && !SUBSCRIPTIONS.has(event)) {
+        const ack = { ok: false, reason: `${this.robot} is only watched here: commands go to ${this.own}` };
+        if (event !== "joystick") this.report(event, ack);
+        return ack;
+      }
       const ack = await this.socket.emit(event, data);
       if (event !== "joystick") this.report(event, ack);
       return ack;
@@ -47,18 +61,73 @@
     else if (s.emergency === false) { emergency.textContent = "NO EMERGENCY"; emergency.className = "ind online"; }
   }
 
+  // -- robots -------------------------------------------------------------------------------------
+  const robots = new Map(); // name → {state, seen (ms)}
+  const picker = document.getElementById("robot");
+
+  function deliver(s) {
+    ATEMR.state = s || {};
+    showState(ATEMR.state);
+    for (const f of listeners) {
+      try { f(ATEMR.state); } catch (err) { console.error(err); }
+    }
+  }
+
+  function showRobots() {
+    const names = [...robots.keys()].sort();
+    picker.hidden = !(names.length > 1 || (names.length === 1 && names[0] !== ATEMR.own));
+    const list = names.join("\n");
+    if (picker.dataset.names !== list) {
+      picker.dataset.names = list;
+      picker.innerHTML = "";
+      for (const n of names) {
+        const o = document.createElement("option");
+        o.value = n;
+        o.textContent = n === ATEMR.own ? `${n || "robot"} (here)` : n || "robot";
+        picker.appendChild(o);
+      }
+    }
+    picker.value = ATEMR.robot ?? "";
+    picker.classList.toggle("error", ATEMR.own !== "" && ATEMR.robot !== ATEMR.own);
+  }
+
+  function prune(now) {
+    for (const [n, r] of robots) if (now - r.seen > STALE_MS) robots.delete(n);
+    if (ATEMR.robot !== null && !robots.has(ATEMR.robot)) {
+      const next = robots.has(ATEMR.own) ? ATEMR.own : [...robots.keys()].sort()[0];
+      ATEMR.robot = next ?? null;
+      if (next !== undefined) deliver(robots.get(next).state);
+    }
+    showRobots();
+  }
+
+  function received(s) {
+    s = s || {};
+    const name = typeof s.robot === "string" ? s.robot : ATEMR.own; // unnamed: this dashboard's robot
+    const now = Date.now();
+    robots.set(name, { state: s, seen: now });
+    if (ATEMR.robot === null || (name === ATEMR.own && ATEMR.robot !== ATEMR.own && !picker.dataset.chosen)) {
+      ATEMR.robot = name; // the first robot heard, or this dashboard's own as soon as it speaks
+    }
+    prune(now);
+    if (name === ATEMR.robot) deliver(s);
+  }
+
+  picker.addEventListener("change", () => {
+    picker.dataset.chosen = "1";
+    ATEMR.robot = picker.value;
+    const r = robots.get(ATEMR.robot);
+    if (r) deliver(r.state);
+    showRobots();
+  });
+
   if (document.body.dataset.socket === "on") {
     ATEMR.socket = new AtemrSocket(showStatus);
-    ATEMR.socket.on("state", (s) => {
-      ATEMR.state = s || {};
-      showState(ATEMR.state);
-      for (const f of listeners) {
-        try { f(ATEMR.state); } catch (err) { console.error(err); }
-      }
-    });
+    ATEMR.socket.on("state", received);
+    setInterval(() => prune(Date.now()), 1000);
     fetch("/api/state", { headers: { Accept: "application/json" } })
       .then((r) => (r.ok ? r.json() : null))
-      .then((s) => { if (s && !Object.keys(ATEMR.state).length) { ATEMR.state = s; showState(s); listeners.forEach((f) => f(s)); } })
+      .then((s) => { if (s && s.connected && ATEMR.robot === null) received(s); })
       .catch(() => {});
   }
 })();
