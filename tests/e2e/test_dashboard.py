@@ -311,3 +311,43 @@ def test_agent_view_draws_the_lifecycle_and_tree(ready_site, page, shots, helper
     wait_for(page, "document.querySelectorAll('#agent-tree li.node').length === 3")
     assert "all checks passed" in page.inner_text("#agent-transitions")
     page.screenshot(path=str(shots / "agent.png"), full_page=True)
+
+
+def test_several_robots_on_one_dashboard_are_told_apart(ready_site, page, shots, helpers):
+    """A second robot publishing into this dashboard (as through ui.message_queue) brings up the robot
+    selector; showing it displays its state and refuses commands, which belong to this dashboard's robot."""
+    import threading
+
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.wait_for_url(re.compile(r"/control$"))
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    assert page.locator("#robot").is_hidden()  # one robot: the view is as it always was
+    socketio = ready_site.server.app.extensions["socketio"]
+    stop = threading.Event()
+
+    def publish() -> None:  # another robot's state, at 10 Hz
+        while not stop.wait(0.1):
+            socketio.emit("state", {"robot": "BRAVO", "agent_state": "EXEC", "mode": "AUTO", "emergency": True},
+                          to="operators")
+
+    publisher = threading.Thread(target=publish, daemon=True)
+    publisher.start()
+    try:
+        wait_for(page, "!document.getElementById('robot').hidden "
+                       "&& document.getElementById('robot').options.length === 2")
+        assert page.evaluate("ATEMR.robot") == "KAY"  # this dashboard's own robot stays shown
+        assert page.inner_text("#agent-state") == "IDLE"
+        page.select_option("#robot", "BRAVO")
+        wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
+        page.click("#capture")
+        wait_for(page, "document.getElementById('command-result').textContent.includes('BRAVO is only watched here')")
+        assert ready_site.robot.count("capture_image") == 0
+        page.screenshot(path=str(shots / "control-two-robots.png"), full_page=True)
+        page.select_option("#robot", "KAY")
+        wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+        page.click("#capture")
+        wait_for(page, "document.getElementById('command-result').textContent === 'capture_image: ok'")
+    finally:
+        stop.set()
+        publisher.join(timeout=5)
+    wait_for(page, "document.getElementById('robot').hidden")  # BRAVO went silent: it leaves the selector

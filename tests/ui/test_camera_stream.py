@@ -104,8 +104,23 @@ def test_an_unchanged_frame_is_not_sent_again_at_once(app, alice, gateway):
     response.close()
 
 
-def test_no_stream_when_the_camera_is_off_or_no_robot(app, alice, ui, tmp_path):
-    assert alice.get(URL).status_code == 404  # the recording gateway's camera is off (None)
+def test_a_stream_waits_for_the_cameras_first_frame(app, alice, gateway):
+    camera = Camera()
+    calls = []
+
+    def warming_up() -> bytes | None:  # no frame for the first three reads, as a camera just switched on
+        calls.append(1)
+        return camera() if len(calls) > 3 else None
+
+    gateway.camera_jpeg = warming_up
+    response = alice.get(URL, buffered=False)
+    assert response.status_code == 200
+    assert jpegs_of([next(iter(response.response))])[0].size == (640, 480)
+    assert len(calls) == 4
+    response.close()
+
+
+def test_no_stream_without_a_robot(ui, tmp_path):
     from atemr.ui.app import create_app
 
     robotless = create_app(ui.make_config(tmp_path / "other"), None, hash_method=ui.FAST_SCRYPT)

@@ -73,10 +73,10 @@ def secondary_screen() -> Response:
 @role_required("user")
 def camera_stream() -> Response:
     """The camera as an endless ``multipart/x-mixed-replace`` of JPEG frames (an ``<img>`` source), for as
-    long as the client stays; 404 when there is no robot or its camera is off."""
+    long as the client stays; parts start with the camera's first frame. 404 when no robot is connected."""
     robot = _gateway()
-    if robot is None or robot.camera_jpeg() is None:
-        abort(404, description="no camera frame: the camera is off or no robot is connected")
+    if robot is None:
+        abort(404, description="no robot is connected: no camera")
     app = current_app._get_current_object()  # type: ignore[attr-defined]
     parts = mjpeg_parts(robot.camera_jpeg, app.extensions["atemr.stopping"], app.extensions["atemr.camera_streams"])
     return Response(parts, mimetype=MIMETYPE, headers={"Cache-Control": "no-store", "X-Accel-Buffering": "no"})
