@@ -24,8 +24,8 @@ from atemr.ui.gateway import RobotGateway
 
 #: Every key of the snapshot (`atemr.ui.gateway` docstring).
 SNAPSHOT_KEYS = {
-    "agent_state", "mode", "simulation", "active_map", "map_version", "pose", "scan", "global_path", "local_path",
-    "goal", "wheel_speeds", "emergency", "level1", "level2", "system", "limits", "awareness", "wifi_ssid",
+    "robot", "agent_state", "mode", "simulation", "active_map", "map_version", "pose", "scan", "global_path",
+    "local_path", "goal", "wheel_speeds", "emergency", "level1", "level2", "system", "limits", "awareness", "wifi_ssid",
     "mapping", "recording", "mission", "missions", "maps", "events",
 }
 BOOTED_S = 4.0  # the secondary core boots for 3 s; the agent is IDLE soon after
@@ -72,6 +72,7 @@ def test_the_snapshot_has_every_key_filled_from_the_robot(booted):
     state = gateway.state()
     assert set(state) >= SNAPSHOT_KEYS, SNAPSHOT_KEYS - set(state)
     assert state["agent_state"] == "IDLE" and state["mode"] == "MANUAL" and state["simulation"] is True
+    assert state["robot"] == robot.config.secondary.robot_name == "KAY"
     assert state["active_map"] == "studio" and state["maps"][0] == "studio"
     assert "look-around" in state["missions"] and state["mission"] is None
     truth = robot.extras["sim"].pose

@@ -1,5 +1,5 @@
 """Beyond one machine: robots publish their state into a Redis message queue and a dashboard worker without
-a robot of its own delivers both robots' state to a logged-in Socket.IO client.
+a robot of its own (``atemr dashboard``) delivers both robots' state to a logged-in Socket.IO client.
 
 Runs against a real ``redis-server`` (Debian package; ``./test`` installs it as root) started here on
 127.0.0.1 on a free port without persistence; skips with the reason when it is not installed.
@@ -74,10 +74,12 @@ def _env(tmp_path: Path, name: str, **extra: str) -> dict[str, str]:
     return env
 
 
-def _robot(tmp_path: Path, name: str, url: str) -> subprocess.Popen[str]:
-    """A simulated robot without a dashboard, publishing its state into the queue."""
-    env = _env(tmp_path, name, ATEMR_UI__ENABLED="false", ATEMR_UI__MESSAGE_QUEUE=url,
-               ATEMR_SECONDARY__ROBOT_NAME=name, ATEMR_SECONDARY__PORTAL_SERVE="false", ATEMR_SIM__CAMERA_HZ="0")
+def _robot(tmp_path: Path, name: str, url: str, *, dashboard: bool) -> subprocess.Popen[str]:
+    """A simulated robot publishing its state into the queue: through its own dashboard (on a free port),
+    or without one (`StatePublisher`)."""
+    env = _env(tmp_path, name, ATEMR_UI__ENABLED=str(dashboard).lower(), ATEMR_UI__PORT="0",
+               ATEMR_UI__MESSAGE_QUEUE=url, ATEMR_SECONDARY__ROBOT_NAME=name,
+               ATEMR_SECONDARY__PORTAL_SERVE="false", ATEMR_SIM__CAMERA_HZ="0")
     return subprocess.Popen([sys.executable, "-m", "atemr", "run"], env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 
@@ -106,7 +108,7 @@ def _login(base: str) -> Any:
 
 
 @pytest.mark.slow
-def test_two_robots_reach_one_dashboard_through_redis(tmp_path, redis_url):
+def test_two_robots_reach_one_dashboard_worker_through_redis(tmp_path, redis_url):
     socketio = pytest.importorskip("socketio", reason="python-socketio[client] is a test extra")
     pytest.importorskip("websocket", reason="python-socketio[client] is a test extra (websocket-client)")
     users = UserStore(tmp_path / "dash" / "users.sqlite3", hash_method=FAST_SCRYPT)
@@ -117,7 +119,9 @@ def test_two_robots_reach_one_dashboard_through_redis(tmp_path, redis_url):
         [sys.executable, "-m", "atemr", "dashboard", "--message-queue", redis_url, "--port", "0"],
         env=_env(tmp_path, "dash"), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )
-    robots = [_robot(tmp_path, name, redis_url) for name in ("ALPHA", "BRAVO")]
+    # ALPHA has no dashboard (a StatePublisher); BRAVO emits through its own dashboard's Socket.IO server.
+    robots = [_robot(tmp_path, "ALPHA", redis_url, dashboard=False),
+              _robot(tmp_path, "BRAVO", redis_url, dashboard=True)]
     client = None
     seen: dict[str, dict[str, Any]] = {}
     both = threading.Event()
