@@ -14,6 +14,18 @@ def test_pages_render_for_users(alice):
     assert 'id="save-dialog"' in alice.get("/mapping").get_data(as_text=True)
 
 
+def test_pages_name_their_own_robot_for_the_robot_selector(alice, ui, tmp_path):
+    html = alice.get("/control").get_data(as_text=True)
+    assert 'data-robot="KAY"' in html and 'id="robot"' in html  # secondary.robot_name
+    from atemr.ui.app import create_app
+
+    robotless = create_app(ui.make_config(tmp_path / "worker"), None, hash_method=ui.FAST_SCRYPT)
+    robotless.extensions["atemr.users"].set_password("admin", ui.ADMIN_PW)
+    client = robotless.test_client()
+    ui.login(client, "admin", ui.ADMIN_PW)
+    assert 'data-robot=""' in client.get("/control").get_data(as_text=True)  # a worker without a robot
+
+
 def test_agent_page_renders(alice):
     html = alice.get("/agent").get_data(as_text=True)
     assert 'id="machine"' in html and 'id="agent-tree"' in html and 'id="agent-transitions"' in html

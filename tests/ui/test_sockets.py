@@ -120,6 +120,8 @@ def test_push_sends_state_to_logged_in_clients_only(app, alice, gateway):
     assert sockets.push(app, gateway) == 1
     received = [m for m in ws.get_received() if m["name"] == "state"]
     assert received and received[-1]["args"][0]["agent_state"] == "EXEC"
+    sent = received[-1]["args"][0]["sent_unix_s"]  # stamped when sent, for the receivers' latency
+    assert isinstance(sent, float) and sent > 1.7e9
 
 
 def test_push_reads_nothing_when_nobody_watches(app, gateway):
