@@ -123,9 +123,16 @@ def test_the_joystick_pad_resends_while_held_and_stops_on_release(ready_site, pa
     wait_for(page, "ATEMR.state.wheel_speeds.left_radps === 0")
     assert ready_site.robot.count("joystick") - before >= 6
 
+    streams = ready_site.server.app.extensions["atemr.camera_streams"]
+    assert streams.open == 1  # CAM-ON: the page watches the MJPEG stream
     page.click("#cam-toggle")
     wait_for(page, "document.getElementById('cam-toggle').textContent === 'CAM-OFF'")
     assert page.locator("#camera").is_hidden()
+    for _ in range(200):  # the browser dropped the stream; the server notices at its next part (<= 1 s)
+        if streams.open == 0:
+            break
+        page.wait_for_timeout(50)
+    assert streams.open == 0
 
 
 def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site, page, shots, helpers):
