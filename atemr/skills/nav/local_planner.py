@@ -4,8 +4,9 @@ Each tick: target velocities (v, ω) are sampled over the whole speed range; eac
 base would drive it — from the current velocity towards the target at the acceleration limits, then
 held (TrajectoryPlanner's model, so a sharp turn from rest is planned as it will really happen) — over
 ``sim_time_s`` at ``sim_step_s``: one (targets × steps) array, no Python loop. Each trajectory is checked
-against the costmap's clearance (any pose within the inscribed radius of an obstacle rules it out) and
-scored (lower is better):
+against the costmap's clearance (any pose within the inscribed radius of an obstacle rules it out, and so
+does any pose with an obstacle in the speed ramp's stop cone ahead: a path the safety layer would end in an
+emergency stop is no path) and scored (lower is better):
 
 * ``path_weight`` × distance from its end to the global path (stay on the plan),
 * ``goal_weight`` × path length still to go from its end (progress),
@@ -59,11 +60,16 @@ class LocalPlannerParams:
     escape_reverse_mps: float = 0.15
     #: Gain of the in-place rotation (rad/s per rad of error), before the rate and acceleration limits.
     rotate_gain: float = 2.0
+    #: Keep obstacles this far from the base within ±60° of the direction it drives: the speed ramp's stop
+    #: zone (0.28 m), its braking anticipation at the slow zone's 0.35 m/s (0.04 m), the travel during one
+    #: 10 Hz scan (0.035 m) and a grid cell (0.05 m). A path the ramp would end in an emergency stop is no
+    #: path (a turn round a door jamb); a 0.8 m doorway still passes (its jambs enter the cone at 0.46 m).
+    stop_cone_m: float = 0.40
 
     def __post_init__(self) -> None:
         for name in ("max_linear_mps", "max_angular_radps", "linear_accel_mps2", "angular_accel_radps2",
                      "control_period_s", "sim_time_s", "sim_step_s", "lookahead_m", "rotate_threshold_rad",
-                     "rotate_gain", "escape_reverse_mps"):
+                     "rotate_gain", "escape_reverse_mps", "stop_cone_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise NavigationError(f"local planner: {name} must be a finite number > 0, got {value!r}")
@@ -105,6 +111,20 @@ def ramped_rollout(pose: Pose2D, velocity: Twist, v_target: FloatArray, w_target
     x = pose.x_m + np.cumsum(v * np.cos(yaw_mid) * step_s, axis=1)
     y = pose.y_m + np.cumsum(v * np.sin(yaw_mid) * step_s, axis=1)
     return x, y, yaw
+
+
+def stop_cone_clearance(costmap: Costmap, xs: FloatArray, ys: FloatArray, yaw: FloatArray, *, direction: FloatArray,
+                        radius_m: float) -> FloatArray:
+    """A cheap stand-in for "is anything within ``radius_m`` inside ±60° of the direction of travel", per pose:
+    the clearance at a probe half ``radius_m`` ahead, scaled so that 1 means nothing in that cone.
+
+    An obstacle at distance r ≤ R and bearing |φ| ≤ 60° is within R·√(1 − 1/2 + 1/4) = 0.866·R of a probe at
+    R/2 ahead, while one beside the base (φ = 90°) at the inscribed distance is farther: the probe's clearance
+    below 0.866·R flags the cone (a little conservative between 60° and 75°). ``direction`` is +1 forward, -1
+    reversing, 0 turning on the spot (never flagged: the ramp does not stop a turn)."""
+    half = 0.5 * radius_m * direction
+    probe = costmap.distance_at(xs + half * np.cos(yaw), ys + half * np.sin(yaw))
+    return np.where(direction == 0, np.inf, probe / (math.sqrt(0.75) * radius_m))
 
 
 def path_progress(path: FloatArray, x: float, y: float) -> tuple[int, FloatArray]:
@@ -207,6 +227,14 @@ class LocalPlanner:
             hard = cm.static_distance_at(xs, ys)
             floor = min(r_in + 0.05, hard_here)
             valid &= (hard.min(axis=1) >= floor) & (hard[:, -1] >= floor)
+        # Never into the speed ramp's stop zone ahead (or, already in it, never deeper): an emergency stop is
+        # not a way to follow a path.
+        direction = np.sign(vs)[:, None] * np.ones_like(xs)
+        cone = stop_cone_clearance(cm, xs, ys, th, direction=direction, radius_m=p.stop_cone_m).min(axis=1)
+        cone_here = float(stop_cone_clearance(cm, np.array([pose.x_m]), np.array([pose.y_m]),
+                                              np.array([pose.yaw_rad]), direction=np.array([1.0]),
+                                              radius_m=p.stop_cone_m)[0])
+        valid &= cone >= min(1.0, cone_here)
         obstacle = np.minimum(cm.cost_at(xs, ys).max(axis=1), MAX_NON_OBSTACLE) / MAX_NON_OBSTACLE
         # Path terms against the part of the path ahead (a window of a few metres).
         j1 = int(np.searchsorted(s, s[i_near] + p.lookahead_m + p.max_linear_mps * p.sim_time_s + 0.5))

@@ -6,7 +6,7 @@ import pytest
 from atemr.errors import NavigationError
 from atemr.msgs import Pose2D, Twist
 from atemr.skills.nav.costmap import Costmap
-from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, ramped_rollout
+from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, ramped_rollout, stop_cone_clearance
 
 RES = 0.05
 
@@ -99,6 +99,51 @@ def test_never_drives_into_a_wall_ahead(make_map, make_room):
     plan = lp.compute(pose, Twist(), path, (5.0, 2.0), 0.1)
     ends = plan.trajectory[-1]
     assert cm.distance_at(ends[0], ends[1]) >= cm.distance_at(pose.x_m, pose.y_m)
+
+
+def test_the_stop_cone_flags_obstacles_ahead_within_60_degrees_not_beside(make_map, make_room):
+    data = make_room(80, 120)
+    data[40, 60] = 100  # one obstacle cell at (3.025, 2.025)
+    cm = Costmap(make_map(data, RES))
+    ox, oy = 3.025, 2.025
+    r = 0.40
+
+    def cone(bearing_deg, dist, yaw=0.0, direction=1.0):
+        # the base placed so that the obstacle is at ``dist`` and ``bearing_deg`` from its heading ``yaw``
+        a = yaw + math.radians(bearing_deg)
+        x, y = ox - dist * math.cos(a), oy - dist * math.sin(a)
+        return float(stop_cone_clearance(cm, np.array([x]), np.array([y]), np.array([yaw]),
+                                         direction=np.array([direction]), radius_m=r)[0])
+
+    for bearing in (0.0, 30.0, -45.0, 58.0):
+        assert cone(bearing, 0.33) < 1.0, bearing  # inside the ramp's stop cone (less the margins): flagged
+    assert cone(90.0, 0.32) >= 1.0 and cone(-90.0, 0.32) >= 1.0  # beside the base (a door jamb passed): not
+    assert cone(0.0, 0.60) >= 1.0  # ahead but far enough
+    assert cone(180.0, 0.33) >= 1.0  # behind a base that drives forward
+    assert cone(180.0, 0.33, direction=-1.0) < 1.0  # ... is ahead of one that reverses
+    assert cone(0.0, 0.33, direction=0.0) == math.inf  # turning on the spot is never stopped by the ramp
+
+
+def test_does_not_cut_round_a_door_jamb_into_the_stop_cone(make_map, make_room):
+    # A wall from the bottom up to y = 2.0 at x = 3.0 (a door jamb); the path turns south round its end. Just
+    # past the jamb, heading south-east at 0.35 m/s, the tightest turn towards the path brings the jamb into the
+    # ramp's stop cone (an emergency stop in the whole robot); the planner must keep it out.
+    data = make_room(80, 120)
+    data[:40, 60] = 100
+    cm = Costmap(make_map(data, RES))
+    path = np.vstack([straight_path(1.5, 2.95, 2.45), np.column_stack([np.full(20, 3.45), np.linspace(2.4, 1.2, 20)])])
+    pose = Pose2D(3.2, 2.35, -0.5)
+
+    def chosen_cone(planner):
+        plan = planner.compute(pose, Twist(0.35, 0.0), path, (3.45, 1.2), 0.1)
+        assert plan.ok
+        traj = plan.trajectory
+        yaw = np.arctan2(np.diff(traj[:, 1]), np.diff(traj[:, 0]))
+        return float(stop_cone_clearance(cm, traj[1:, 0], traj[1:, 1], yaw, direction=np.ones(len(yaw)),
+                                           radius_m=0.40).min())
+
+    assert chosen_cone(LocalPlanner(cm)) >= 1.0
+    assert chosen_cone(LocalPlanner(cm, LocalPlannerParams(stop_cone_m=1e-3))) < 0.9  # what it did without
 
 
 def test_bad_params_are_navigation_errors():
