@@ -133,6 +133,10 @@ class AgentConfig:
 
     file: Path | None = field(default=None, metadata={"help": "agent YAML (default: the shipped trees/agent.yaml)"})
     rate_hz: float = field(default=10.0, metadata={"min": 1.0, "max": 100.0, "help": "agent tick rate"})
+    autonomy: Literal["off", "low", "high", "full"] = field(default="full", metadata={
+        "help": "robot autonomy level at start: a transition above it waits for the operator (full: none wait)"})
+    confirm_timeout_s: float = field(default=30.0, metadata={
+        "min": 1.0, "max": 3600.0, "help": "robot seconds a gated transition waits for the operator (then: deny)"})
 
 
 @dataclass(frozen=True)

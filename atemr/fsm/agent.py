@@ -13,6 +13,11 @@ Changing state stops the old tree (its driving leaves command zero in ``terminat
 one. A new state's tree first runs after the Monitor has published the state, so every state the agent
 passes through appears in 0x153, even one (like Error) whose tree finishes in a single tick.
 
+Operator autonomy (`atemr.fsm.autonomy`): while a transition waits for the operator's confirmation, step 3
+is replaced by holding still (zero motion), and each tick first applies the operator's answer or the
+timeout. Hot reload (`atemr.fsm.reload`): a new agent document is applied in IDLE only (deferred from any
+other state), a running mission's later steps are swapped between steps; both keep the blackboard.
+
 Time comes only from ``now``; nothing here blocks or reads a clock. A refused trigger becomes a
 `CommandResult` (for commands) and a `TransitionRecord` in the trace (for everything), never an exception.
 """
@@ -33,9 +38,12 @@ import py_trees
 
 from atemr.config import Config
 from atemr.errors import AtemrError, ConfigError
+from atemr.fsm.autonomy import DEFAULT_LEVEL, DEFAULT_TIMEOUT_S, AutonomyGate, Level
 from atemr.fsm.codes import state_code, top_level
 from atemr.fsm.machine import Lifecycle, TransitionRecord
+from atemr.fsm.reload import ReloadReport, swap_pending_steps
 from atemr.fsm.spec import AgentSpec, StateSpec, load_agent
+from atemr.msgs import Twist
 from atemr.trees.behaviours import Leaf
 from atemr.trees.blackboard_watch import BlackboardWatch, BlackboardWrite
 from atemr.trees.builder import build, setup_tree
@@ -50,6 +58,7 @@ Status = py_trees.common.Status
 #: The agent document shipped with the package checkout.
 DEFAULT_AGENT_FILE = Path(__file__).resolve().parents[2] / "trees" / "agent.yaml"
 RELOAD = "__reload__"
+RELOAD_MISSION = "__reload_mission__"
 _OUTCOMES = {"reached": "reached", "failed": "failed", "cancel": "cancelled"}
 
 
@@ -89,16 +98,19 @@ class Agent:
     ``port``, ``link`` and ``navigation`` are the robot, secondary-core and navigation ports
     (`atemr.trees.ports`; without navigation, goals and missions that drive to a pose are refused with that
     reason); ``on_halt`` is called once when the power-off sequence has finished (the robot then stops its
-    scheduler).
+    scheduler). ``autonomy`` is the robot's starting autonomy level and ``confirm_timeout_s`` how long (robot
+    time) a gated transition waits for the operator (`atemr.fsm.autonomy`).
     """
 
     def __init__(self, spec: AgentSpec, port: RobotPort, link: LinkPort | None = None, *, name: str = "agent",
                  navigation: NavigationPort | None = None, history: int = 200,
-                 on_halt: Callable[[], None] | None = None) -> None:
+                 on_halt: Callable[[], None] | None = None, autonomy: str = DEFAULT_LEVEL,
+                 confirm_timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
         self.name = name
         self.spec = spec
         self.context = AgentContext(port=port, link=link, navigation=navigation)
-        self.lifecycle = Lifecycle(spec, self.context)
+        self.gate = AutonomyGate(autonomy, confirm_timeout_s)
+        self.lifecycle = Lifecycle(spec, self.context, gate=self.gate)
         self.on_halt = on_halt
         self.results: deque[CommandResult] = deque(maxlen=history)
         self.errors: deque[str] = deque(maxlen=history)
@@ -124,6 +136,9 @@ class Agent:
         self._tick_error: str | None = None
         #: Reports of finished tasks (missions and goals), newest last: outcome, steps, times, errors.
         self.task_reports: deque[dict[str, Any]] = deque(maxlen=history)
+        #: Hot-reload requests and what became of them, newest last (`ReloadReport`).
+        self.reloads: deque[ReloadReport] = deque(maxlen=20)
+        self._deferred: tuple[AgentSpec, ReloadReport] | None = None
         self._bb = py_trees.blackboard.Client(name=f"{name}/agent", namespace=AGENT_NS)
         for key in ("state", "code", "mode", "task", "error", "last_transition", "now"):
             self._bb.register_key(key, access=py_trees.common.Access.WRITE)
@@ -136,6 +151,8 @@ class Agent:
     @classmethod
     def from_config(cls, config: Config, port: RobotPort, link: LinkPort | None = None, **kwargs: Any) -> Agent:
         """The agent as the robot wires it: ``config.agent.file`` or the shipped ``trees/agent.yaml``."""
+        kwargs.setdefault("autonomy", config.agent.autonomy)
+        kwargs.setdefault("confirm_timeout_s", config.agent.confirm_timeout_s)
         return cls.from_file(config.agent.file or DEFAULT_AGENT_FILE, port, link, **kwargs)
 
     # -- read-only views ---------------------------------------------------------------------------
@@ -187,8 +204,39 @@ class Agent:
             return f"'{trigger}' is not valid in state {self.state} (valid here: {', '.join(valid) or 'none'})"
 
     def submit_reload(self, path: str | Path, *, origin: str = "dashboard") -> int:
-        """Queue a reload of the agent document; applied only in IDLE and only if it validates."""
+        """Queue a reload of the agent document; applied only if it validates, in IDLE (deferred until then)."""
         return self.submit(RELOAD, origin=origin, path=str(path))
+
+    def request_reload(self, spec: AgentSpec, report: ReloadReport) -> int:
+        """Queue a validated agent document (from the file watcher); ``report`` follows what becomes of it."""
+        with self._lock:
+            self.reloads.append(report)
+        return self.submit(RELOAD, origin=report.origin or "reload", spec=spec, report=report)
+
+    def request_mission_reload(self, mission: Mission, report: ReloadReport) -> int:
+        """Queue a validated mission: swapped into the running mission between steps, if it is the one running."""
+        with self._lock:
+            self.reloads.append(report)
+        return self.submit(RELOAD_MISSION, origin=report.origin or "reload", mission=mission, report=report)
+
+    def note_reload(self, report: ReloadReport) -> None:
+        """Keep a reload that never reached the agent (an invalid file) beside the others, for the dashboard."""
+        with self._lock:
+            self.reloads.append(report)
+
+    # -- operator autonomy -------------------------------------------------------------------------
+    def set_autonomy(self, level: str, *, by: str = "") -> Level:
+        """Set the robot's autonomy level (thread-safe; `ConfigError` for an unknown level)."""
+        applied = self.gate.set_level(level)
+        log.info("autonomy level %s%s", applied, f" (set by {by})" if by else "")
+        return applied
+
+    def answer(self, request_id: int, confirm: bool, *, by: str) -> str | None:
+        """The operator confirms or denies the pending transition (thread-safe; applied at the next tick).
+
+        Returns why the answer cannot be taken (no such pending request), else None.
+        """
+        return self.gate.answer(request_id, confirm, by)
 
     def result(self, command_id: int) -> CommandResult | None:
         """The outcome of a submitted command, once its tick has run."""
@@ -216,12 +264,15 @@ class Agent:
             if self.context.halted:
                 return
             self._drain_commands()
+            self._resolve_autonomy()
             self._fire_events()
             if self._monitor is not None:
                 self._tick(self._monitor)
                 self._unpublished = False
                 self._fire_events()
-            if self._tree is not None and not self._tree_done and not self._unpublished:
+            if self.gate.pending is not None:
+                self._hold_still()
+            elif self._tree is not None and not self._tree_done and not self._unpublished:
                 status = self._tick(self._tree)
                 if self._progress is not None:
                     self._progress.update(self.context.now, self.context.port.pose())
@@ -229,6 +280,7 @@ class Agent:
                     self._tree_done = True
                     self._on_outcome(status)
                 self._fire_events()
+            self._apply_deferred_reload()
             self._write_blackboard()
             self.ticks += 1
             writes = self.blackboard_watch.drain(now)
@@ -250,15 +302,18 @@ class Agent:
     def reload(self, spec: AgentSpec) -> str | None:
         """Swap in a validated document; returns None when applied, else why not (the old one stays).
 
-        Only in IDLE (never mid-Exec or mid-Mapping), and only if the new document has the current state.
-        The blackboard, the trace and the context (mode, ports) are kept.
+        Only in IDLE (never mid-Exec or mid-Mapping), with no transition waiting for the operator, and only
+        if the new document has the current state. The blackboard, the trace, the autonomy level and the
+        context (mode, ports) are kept.
         """
         with self._lock:
             if top_level(self.state) != "IDLE":
                 return f"a new agent document is applied only in IDLE (now {self.state})"
+            if self.gate.pending is not None:
+                return "a transition is waiting for the operator's confirmation"
             if self.state not in spec.states or spec.states[self.state].children:
                 return f"the new document has no state {self.state} to continue in"
-            lifecycle = Lifecycle(spec, self.context, initial=self.state)
+            lifecycle = Lifecycle(spec, self.context, initial=self.state, gate=self.gate)
             lifecycle.trace.extendleft(reversed(self.lifecycle.trace))
             self._stop_tree()
             if self._monitor is not None and self._monitor.status == Status.RUNNING:
@@ -279,20 +334,108 @@ class Agent:
             except queue.Empty:
                 return
             if trigger == RELOAD:
-                self.results.append(self._reload_command(command_id, str(kwargs.get("path")), origin))
+                self.results.append(self._reload_command(command_id, kwargs, origin))
+                continue
+            if trigger == RELOAD_MISSION:
+                self.results.append(self._reload_mission(command_id, kwargs["mission"], kwargs["report"], origin))
                 continue
             record = self._fire(Event(trigger, kwargs, "", origin))
             self.results.append(CommandResult(command_id, record.t, trigger, record.accepted, record.source,
                                               record.dest, record.reason, origin))
 
-    def _reload_command(self, command_id: int, path: str, origin: str) -> CommandResult:
-        source = self.state
-        try:
-            why = self.reload(load_agent(path))
-        except ConfigError as exc:
-            why = f"not reloaded, the running document stays: {exc}"
-        return CommandResult(command_id, self.context.now, RELOAD, why is None, source, self.state if why is None
-                             else None, why or f"reloaded {path}", origin)
+    def _reload_command(self, command_id: int, kwargs: dict[str, Any], origin: str) -> CommandResult:
+        """Apply a new agent document now (IDLE), defer it until IDLE (any other state), or refuse it."""
+        source, now = self.state, self.context.now
+        report: ReloadReport | None = kwargs.get("report")
+        spec: AgentSpec | None = kwargs.get("spec")
+        path = str(kwargs.get("path") or (report.file if report else ""))
+        if spec is None:
+            try:
+                spec = load_agent(path)
+            except ConfigError as exc:
+                why = f"not reloaded, the running document stays: {exc}"
+                return CommandResult(command_id, now, RELOAD, False, source, None, why, origin)
+            report = ReloadReport("agent", path, now, origin=origin)
+            self.reloads.append(report)
+        assert report is not None
+        if top_level(source) != "IDLE" or self.gate.pending is not None:
+            if self._deferred is not None:
+                self._deferred[1].status, self._deferred[1].reason = "superseded", "a newer version was requested"
+            self._deferred = (spec, report)
+            waiting = "IDLE" if top_level(source) != "IDLE" else "the operator's answer"
+            report.status, report.reason = "deferred", f"deferred: applied when {waiting} is reached (now {source})"
+            return CommandResult(command_id, now, RELOAD, True, source, None, report.reason, origin)
+        why = self.reload(spec)
+        self._settle_reload(report, why)
+        return CommandResult(command_id, now, RELOAD, why is None, source, self.state if why is None else None,
+                             report.reason, origin)
+
+    def _settle_reload(self, report: ReloadReport, why: str | None) -> None:
+        report.status = "applied" if why is None else "refused"
+        report.reason = f"reloaded {report.file} in {self.state}" if why is None else why
+        report.applied_t = self.context.now if why is None else None
+        log.info("agent document %s: %s", report.status, report.reason)
+
+    def _apply_deferred_reload(self) -> None:
+        """A deferred document goes in on the first tick in IDLE (nothing waiting for the operator)."""
+        if self._deferred is None or top_level(self.state) != "IDLE" or self.gate.pending is not None:
+            return
+        spec, report = self._deferred
+        self._deferred = None
+        self._settle_reload(report, self.reload(spec))
+
+    def _reload_mission(self, command_id: int, mission: Mission, report: ReloadReport,
+                        origin: str) -> CommandResult:
+        """Swap the running mission's later steps (between steps), or note the file for its next start."""
+        source, now = self.state, self.context.now
+        task = self.context.task
+        running = (top_level(source) == "EXEC" and isinstance(task, Mission) and self._progress is not None
+                   and task.file is not None and task.file == mission.file)
+        if not running:
+            report.status, report.reason = "saved", f"'{mission.name}' is not running: its next start uses the new file"
+        else:
+            assert self._progress is not None
+            try:
+                note = swap_pending_steps(self._progress, mission, self.context)
+            except AtemrError as exc:
+                report.status, report.reason = "refused", f"not swapped, the running mission stays: {exc}"
+            else:
+                report.status, report.reason, report.applied_t = "applied", f"between steps: {note}", now
+        log.info("mission %s: %s", report.status, report.reason)
+        return CommandResult(command_id, now, RELOAD_MISSION, report.status != "refused", source, None,
+                             report.reason, origin)
+
+    def _resolve_autonomy(self) -> None:
+        """Apply the operator's answer to the pending request, or the safe default once it timed out."""
+        request = self.gate.pending
+        if request is None:
+            return
+        answer = self.gate.take_answer()
+        if answer is None and self.context.now < request.deadline:
+            return
+        self.gate.close()
+        if answer is not None and answer.confirm:
+            self.gate.confirmed = (request, answer.by)
+            try:
+                self._fire(Event(request.trigger, request.kwargs, f"confirmed by {answer.by}", request.origin))
+            finally:
+                self.gate.confirmed = None
+            return
+        if answer is None:
+            decision, by = "timed_out", "timeout"
+            why = f"no answer within {self.gate.timeout_s:g} s: the safe default (deny) applies"
+        else:
+            decision, by, why = "denied", answer.by, f"denied by {answer.by}"
+        why += f"; '{request.trigger}' not taken, " + (f"fires '{request.on_deny}'" if request.on_deny
+                                                       else f"stays in {request.source}")
+        self._notify(self.listeners, "transition", self.lifecycle.resolve(request, decision, by, why))
+        if request.on_deny:
+            self.context.post(request.on_deny, why, f"autonomy:{decision}")
+
+    def _hold_still(self) -> None:
+        """While the operator decides the robot does not move: zero on every motion input, every tick."""
+        self.context.port.stop_motors()
+        self.context.port.command_velocity("joystick", Twist(), self.context.now)
 
     def _fire_events(self) -> None:
         for _ in range(100):  # bounded: a burst of events cannot spin the tick forever
@@ -317,6 +460,11 @@ class Agent:
                 self._progress = None
             self._enter_state()
         self._notify(self.listeners, "transition", record)
+        if record.state_changed and self.gate.pending is not None:
+            request = self.gate.close()
+            assert request is not None
+            why = f"the state changed to {self.state} before the operator answered"
+            self._notify(self.listeners, "transition", self.lifecycle.resolve(request, "superseded", "agent", why))
         return record
 
     def _notify(self, listeners: list[Callable[..., None]], what: str, *args: Any) -> None:
@@ -427,9 +575,12 @@ class Agent:
                 "transitions": [r.as_dict() for r in list(self.lifecycle.trace)[-transitions:]],
                 "commands": [r.as_dict() for r in list(self.results)[-transitions:]],
                 "errors": list(self.errors)[-transitions:],
+                "autonomy": self.gate.snapshot(),
+                "reloads": [r.as_dict() for r in self.reloads],
                 "machine": {
                     "states": list(self.spec.states),
-                    "transitions": [{"trigger": t.trigger, "source": list(t.sources), "dest": t.dest}
+                    "transitions": [{"trigger": t.trigger, "source": list(t.sources), "dest": t.dest,
+                                     **({"autonomy": t.autonomy} if t.autonomy else {})}
                                     for t in self.spec.transitions],
                 },
             }

@@ -3,6 +3,10 @@
 `Lifecycle.fire` is the only way in. It never raises into the agent's loop: a trigger that is not valid in
 the current state, guards that all say no, or a callback that fails, each come back as a refused
 `TransitionRecord` with the reason, and every attempt (accepted or not) is kept in the trace.
+
+With an `AutonomyGate`, a transition whose ``autonomy`` level is above the robot's gets one more condition,
+checked after its own guards: it holds only for the request the operator confirmed; otherwise it opens a
+`ConfirmRequest` and the attempt is refused as ``decision="requested"`` (see `atemr.fsm.autonomy`).
 """
 
 from __future__ import annotations
@@ -17,9 +21,10 @@ from transitions.extensions import HierarchicalMachine
 from transitions.extensions.nesting import NestedState
 
 from atemr.errors import AtemrError
+from atemr.fsm.autonomy import AutonomyGate, ConfirmRequest, safety_reason
 from atemr.fsm.codes import SEPARATOR, state_code
 from atemr.fsm.guards import Callback, Guard, GuardInput, callbacks, guards
-from atemr.fsm.spec import AgentSpec, TransitionDict
+from atemr.fsm.spec import AgentSpec, TransitionDict, TransitionSpec
 from atemr.registry import Registry
 from atemr.trees.context import AgentContext
 
@@ -45,6 +50,10 @@ class TransitionRecord:
     accepted: bool
     reason: str = ""
     origin: str = ""
+    #: Operator autonomy: "requested", "confirmed", "denied", "timed_out" or "superseded" ("" otherwise).
+    decision: str = ""
+    #: Who decided: the operator's user name, or "timeout" / "agent".
+    decided_by: str = ""
 
     @property
     def state_changed(self) -> bool:
@@ -68,9 +77,12 @@ class Lifecycle:
 
     def __init__(self, spec: AgentSpec, context: AgentContext, *, guard_registry: Registry[Guard] = guards,
                  callback_registry: Registry[Callback] = callbacks, initial: str | None = None,
-                 trace_size: int = 1000) -> None:
+                 trace_size: int = 1000, gate: AutonomyGate | None = None) -> None:
         self.spec = spec
         self.context = context
+        self.gate = gate
+        self._firing: tuple[str, str, str] = ("", "", "")  # source, origin, reason of the trigger being fired
+        self._opened: ConfirmRequest | None = None
         self._guards = guard_registry
         self._callbacks = callback_registry
         self.trace: deque[TransitionRecord] = deque(maxlen=trace_size)
@@ -109,6 +121,9 @@ class Lifecycle:
             return self._record(TransitionRecord(now, trigger, source, None, False, why, origin))
         self._reasons = [reason] if reason else []
         self._kwargs = kwargs
+        self._firing, self._opened = (source, origin, reason), None
+        confirmed = self.gate.confirmed if self.gate is not None else None
+        decision, by = ("confirmed", confirmed[1]) if confirmed is not None else ("", "")
         try:
             moved = self.model.trigger(trigger, **kwargs)
         except AtemrError as exc:
@@ -117,10 +132,17 @@ class Lifecycle:
             return self._after_error(trigger, source, origin, f"internal error in a callback: {exc!r}")
         self.context.state = self.state
         text = "; ".join(r for r in self._reasons if r)
+        if self._opened is not None:
+            decision, by = "requested", ""
         if not moved:
             return self._record(TransitionRecord(now, trigger, source, None, False, text or "guards refused",
-                                                 origin))
-        return self._record(TransitionRecord(now, trigger, source, self.state, True, text, origin))
+                                                 origin, decision, by))
+        return self._record(TransitionRecord(now, trigger, source, self.state, True, text, origin, decision, by))
+
+    def resolve(self, request: ConfirmRequest, decision: str, by: str, why: str) -> TransitionRecord:
+        """Record how a pending request ended without being taken (denied, timed out, superseded)."""
+        return self._record(TransitionRecord(self.context.now, request.trigger, request.source, None, False, why,
+                                             request.origin, decision, by))
 
     def _after_error(self, trigger: str, source: str, origin: str, why: str) -> TransitionRecord:
         self.context.state = self.state
@@ -154,6 +176,32 @@ class Lifecycle:
 
         return run
 
+    def _autonomy(self, t: TransitionSpec) -> Callable[[EventData], bool]:
+        """The gate condition of a transition with a level (checked after its own guards)."""
+
+        def check(event: EventData) -> bool:
+            gate = self.gate
+            if gate is None or t.autonomy is None or not gate.gates(t.autonomy):
+                return True
+            confirmed = gate.confirmed
+            if confirmed is not None and confirmed[0].index == t.index:
+                return True
+            source, origin, reason = self._firing
+            dest = self.spec.leaf_of(t.dest)
+            if gate.pending is not None:
+                self._reasons.append(f"'{t.trigger}' to {dest} needs autonomy {t.autonomy} and another "
+                                     f"transition ('{gate.pending.trigger}') is waiting for the operator")
+                return False
+            self._opened = gate.open(now=self.context.now, trigger=t.trigger, source=source, dest=dest,
+                                     level=t.autonomy, index=t.index, origin=origin, reason=reason,
+                                     on_deny=t.on_deny, kwargs=dict(event.kwargs))
+            self._reasons.append(f"waits for the operator: '{t.trigger}' to {dest} needs autonomy {t.autonomy}, "
+                                 f"the robot is at {self._opened.robot_level} (request {self._opened.id}, "
+                                 f"{gate.timeout_s:g} s)")
+            return False
+
+        return check
+
     def _transition_dicts(self) -> list[TransitionDict]:
         out: list[TransitionDict] = []
         for t in self.spec.transitions:
@@ -161,6 +209,10 @@ class Lifecycle:
                                  "dest": t.dest}
             d["conditions"] = [self._guard(g, negated=False) for g in t.conditions]
             d["unless"] = [self._guard(g, negated=True) for g in t.unless]
+            if t.autonomy is not None and safety_reason(t.trigger, t.dest) is None:
+                # transitions checks `conditions`, then `unless`: the gate goes last, as a negated check.
+                gate = self._autonomy(t)
+                d["unless"].append(lambda event, gate=gate: not gate(event))
             d["before"] = [self._callback(c) for c in t.before]
             d["after"] = [self._callback(c) for c in t.after]
             out.append(d)

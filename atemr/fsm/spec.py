@@ -15,11 +15,14 @@ Shape (the `StateDict`/`TransitionDict` TypedDicts are what transitions receives
         on_enter: [callback]       # callbacks from atemr.fsm.guards.callbacks
         on_exit: [callback]
     transitions:
-      - {trigger: goal, source: IDLE.AUTO, dest: EXEC, conditions: [goal_valid], after: [set_goal_task]}
+      - {trigger: goal, source: IDLE.AUTO, dest: EXEC, conditions: [goal_valid], after: [set_goal_task],
+         autonomy: high, on_deny: null}   # autonomy: off|low|high|full; on_deny: trigger fired on a denial
     monitor: {...}                 # the tree ticked every tick, whatever the state
 
 Checked: unknown keys, wrong types, duplicate or badly named states, an initial or ``dest`` that does not
-exist, unknown guards/callbacks (closest names), an ``on_success``/``on_failure`` trigger with no
+exist, unknown guards/callbacks (closest names), an ``autonomy`` level that is not one of off/low/high/full
+or sits on a safety transition (never gated), an ``on_deny`` without a level or with no ungated transition
+out of every source, an ``on_success``/``on_failure`` trigger with no
 transition out of its state, a state no transition can reach, and every tree (see `atemr.trees.builder`).
 """
 
@@ -33,6 +36,7 @@ from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
 from atemr.errors import ConfigError
+from atemr.fsm.autonomy import LEVELS, Level, safety_reason
 from atemr.fsm.codes import SEPARATOR, TOP_LEVEL_STATES
 from atemr.fsm.guards import callbacks, guards
 from atemr.registry import Registry
@@ -66,7 +70,8 @@ _TRIGGER = re.compile(r"^[a-z][a-z0-9_]*$")
 _TOP_KEYS = ("version", "description", "initial", "states", "transitions", "monitor")
 _STATE_KEYS = ("name", "description", "children", "initial", "tree", "on_success", "on_failure", "on_enter",
                "on_exit")
-_TRANSITION_KEYS = ("trigger", "source", "dest", "conditions", "unless", "before", "after", "description")
+_TRANSITION_KEYS = ("trigger", "source", "dest", "conditions", "unless", "before", "after", "description", "autonomy",
+                    "on_deny")
 
 
 @dataclass(frozen=True)
@@ -116,6 +121,10 @@ class TransitionSpec:
     description: str = ""
     index: int = 0
     where: Where = field(default_factory=Where)
+    #: The autonomy level the robot needs to take this transition on its own (`atemr.fsm.autonomy`).
+    autonomy: Level | None = None
+    #: The trigger fired when the operator denies it or the confirmation times out (None: stay).
+    on_deny: str | None = None
 
 
 @dataclass(frozen=True)
@@ -225,6 +234,7 @@ def parse_agent(document: Any, file: str | None = None) -> AgentSpec:
                              allow_task=False)
     spec = AgentSpec(initial, states, tuple(roots), transitions, monitor, file, description)
     _check_outcome_triggers(spec)
+    _check_on_deny(spec)
     _check_reachable(spec)
     return spec
 
@@ -362,14 +372,54 @@ def _parse_transition(node: Any, i: int, source: Source, raw: list[Any], states:
     if not isinstance(dest, str) or dest not in states:
         raise source.error(f"transition to a missing state: {_unknown('state', dest, states)}", f"{p}.dest", node,
                            "dest")
+    autonomy, on_deny = _autonomy(node, p, source, trigger, dest)
     return TransitionSpec(
         trigger, tuple(sources), dest,
         _names(node, "conditions", source, p, guards, what="guard"),
         _names(node, "unless", source, p, guards, what="guard"),
         _names(node, "before", source, p, callbacks, what="callback"),
         _names(node, "after", source, p, callbacks, what="callback"),
-        _opt_str(node, "description", source, f"{p}.description"), i, _where(node, source, p),
+        _opt_str(node, "description", source, f"{p}.description"), i, _where(node, source, p), autonomy, on_deny,
     )
+
+
+def _autonomy(node: Mapping[str, Any], p: str, source: Source, trigger: str, dest: str
+              ) -> tuple[Level | None, str | None]:
+    """The transition's ``autonomy`` level and ``on_deny`` trigger, checked (a safety transition has none)."""
+    level = node.get("autonomy")
+    if level is not None:
+        if level not in LEVELS:
+            raise source.error(f"'autonomy' must be one of {', '.join(LEVELS)}, got {level!r}", f"{p}.autonomy",
+                               node, "autonomy")
+        why = safety_reason(trigger, dest)
+        if why is not None:
+            raise source.error(f"transition '{trigger}' to {dest} is a safety transition ({why}) and is never "
+                               "gated: remove 'autonomy'", f"{p}.autonomy", node, "autonomy", on_key=True)
+    on_deny = node.get("on_deny")
+    if on_deny is not None:
+        if level is None:
+            raise source.error("'on_deny' needs an 'autonomy' level on the same transition", f"{p}.on_deny", node,
+                               "on_deny", on_key=True)
+        if not isinstance(on_deny, str) or not _TRIGGER.match(on_deny):
+            raise source.error(f"'on_deny' must be a trigger name (lower case), got {on_deny!r}", f"{p}.on_deny",
+                               node, "on_deny")
+    return level, on_deny
+
+
+def _check_on_deny(spec: AgentSpec) -> None:
+    """A denial's trigger must lead out of every leaf the gated transition covers, never through a gate."""
+    for t in spec.transitions:
+        if t.on_deny is None:
+            continue
+        covered = [leaf for leaf in spec.leaves() if spec.covers(t, leaf)]
+        for leaf in covered:
+            ways = [o for o in spec.transitions if o.trigger == t.on_deny and spec.covers(o, leaf)]
+            if not ways:
+                raise t.where.error(f"on_deny trigger '{t.on_deny}' has no transition out of {leaf}")
+            gated = [o for o in ways if o.autonomy is not None]
+            if gated:
+                raise t.where.error(f"on_deny trigger '{t.on_deny}' out of {leaf} carries an autonomy level "
+                                    f"(transitions[{gated[0].index}]): the safe path must never wait")
 
 
 def _check_outcome_triggers(spec: AgentSpec) -> None:

@@ -50,6 +50,11 @@ def _target(step_spec: Any) -> Pose2D | None:
     return poses[-1].pose() if poses else None
 
 
+def step_record(step: Any) -> StepRecord:
+    """A fresh (pending) record for a mission step."""
+    return StepRecord(step.index, step.kind, step.name, target=_target(step.spec))
+
+
 class TaskProgress:
     """Follows ``root`` (the built task: a Sequence with one child per step of ``mission``)."""
 
@@ -59,8 +64,13 @@ class TaskProgress:
         self.started_s = started_s
         self.finished_s: float | None = None
         self.outcome = "running"
-        self.steps = [StepRecord(s.index, s.kind, s.name, target=_target(s.spec)) for s in mission.steps]
+        self.steps = [step_record(s) for s in mission.steps]
         self._nodes = list(root.children) if len(root.children) == len(self.steps) else [root]
+
+    def retarget(self, mission: Mission, steps: list[StepRecord]) -> None:
+        """Follow an edited ``mission`` whose later steps were swapped into ``root`` (hot reload)."""
+        self.mission, self.steps = mission, steps
+        self._nodes = list(self.root.children) if len(self.root.children) == len(steps) else [self.root]
 
     def update(self, now: float, pose: Pose2D | None) -> None:
         """Read the step nodes' statuses after a tick."""

@@ -335,6 +335,7 @@ def test_trace_replays_to_the_same_states(rig: Rig, agent_spec: AgentSpec) -> No
 
 
 def test_reload_applies_only_in_idle_and_only_when_valid(rig: Rig, tmp_path: Path) -> None:
+    """Valid: applied in IDLE; requested mid-EXEC: deferred (never applied there) until IDLE is reached."""
     idle(rig)
     text = AGENT_YAML.read_text().replace("period_s: 0.5}", "period_s: 0.2}")
     good = tmp_path / "agent.yaml"
@@ -353,9 +354,17 @@ def test_reload_applies_only_in_idle_and_only_when_valid(rig: Rig, tmp_path: Pat
     rig.command("set_auto")
     rig.command("start_mission", mission=parse_mission(
         load_yaml("w.yaml", text="mission:\n  name: w\n  steps:\n    - wait: {duration_s: 3}\n"), "w.yaml"))
+    good.write_text(text.replace("period_s: 0.5}", "period_s: 0.25}"))
+    before = rig.agent.spec
     rig.agent.submit_reload(good)
     rig.scheduler.step()
-    assert not rig.agent.results[-1].accepted and "only in IDLE" in rig.agent.results[-1].reason
+    assert "deferred: applied when IDLE is reached (now EXEC)" in rig.agent.results[-1].reason
+    while rig.agent.state == "EXEC":
+        assert rig.agent.spec is before, "never applied mid-EXEC"
+        rig.scheduler.step()
+    rig.scheduler.step()
+    assert rig.agent.state == "IDLE.AUTO" and rig.agent.spec is not before
+    assert rig.agent.reloads[-1].status == "applied"
 
 
 class ExplodingPort(RecordingPort):
