@@ -231,6 +231,10 @@ class Agent:
         log.info("autonomy level %s%s", applied, f" (set by {by})" if by else "")
         return applied
 
+    def autonomy_state(self) -> dict[str, Any]:
+        """The level, the pending request and the agent's time (for the deadline), JSON-able; thread-safe."""
+        return {**self.gate.snapshot(), "now": self.context.now}
+
     def answer(self, request_id: int, confirm: bool, *, by: str) -> str | None:
         """The operator confirms or denies the pending transition (thread-safe; applied at the next tick).
 
@@ -575,7 +579,7 @@ class Agent:
                 "transitions": [r.as_dict() for r in list(self.lifecycle.trace)[-transitions:]],
                 "commands": [r.as_dict() for r in list(self.results)[-transitions:]],
                 "errors": list(self.errors)[-transitions:],
-                "autonomy": self.gate.snapshot(),
+                "autonomy": self.autonomy_state(),
                 "reloads": [r.as_dict() for r in self.reloads],
                 "machine": {
                     "states": list(self.spec.states),

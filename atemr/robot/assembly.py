@@ -22,7 +22,7 @@ import numpy as np
 from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
 from atemr.config import Config
 from atemr.errors import AtemrError, HardwareError
-from atemr.fsm.agent import Agent
+from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.fsm.recording import AgentRecorder
 from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
@@ -36,6 +36,8 @@ from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
 from atemr.robot.port import RobotPortImpl
+from atemr.robot.reload import RATE_HZ as RELOAD_RATE_HZ
+from atemr.robot.reload import ReloadWatcher
 from atemr.robot.settings_store import SettingsStore
 from atemr.scheduler import Component, Scheduler
 from atemr.skills.localization.pipeline import LocalizationPipeline
@@ -55,6 +57,7 @@ RATES = {
     "odometry": 50.0,
     "agent": 10.0,
     "system_monitor": 1.0,
+    "reload_watcher": RELOAD_RATE_HZ,
 }
 
 
@@ -160,6 +163,8 @@ def _add_agent(robot: Robot) -> None:
                               navigation=navigation, on_halt=robot.stop)
     robot.extras.update(port=port, navigation=navigation)
     robot.add(agent, cfg.agent.rate_hz)
+    # Hot reload: edits of the agent document and the missions are validated and handed to the agent.
+    robot.add(ReloadWatcher(agent, Path(agent.spec.file or DEFAULT_AGENT_FILE)), RATES["reload_watcher"])
 
 
 def trace_path(config: Config, wall_time: float) -> Path:

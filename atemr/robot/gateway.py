@@ -41,6 +41,7 @@ from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
 from atemr.robot.port import jpeg
+from atemr.robot.reload import ReloadWatcher
 from atemr.robot.settings_store import SettingsStore
 from atemr.robot.video import VideoRecorder
 from atemr.skills.motion_pipeline import MotionControl, MotionPipeline
@@ -260,6 +261,7 @@ class RobotGatewayImpl:
         out["limits"] = {"linear_mps": limits.max_linear_mps, "angular_radps": limits.max_angular_radps}
         out["wifi_ssid"] = self._current_ssid()
         out["events"] = self.robot.recent_events(EVENTS_SHOWN)
+        out["autonomy"] = self.agent.autonomy_state()
         return out
 
     def _current_ssid(self) -> str | None:
@@ -496,6 +498,29 @@ class RobotGatewayImpl:
 
     def stop_mission(self) -> CommandResult:
         return self._submit("cancel")
+
+    # -- agent studio: autonomy and reload -------------------------------------------------------------
+    def answer_transition(self, request_id: int, confirm: bool, by: str) -> CommandResult:
+        why = self.agent.answer(request_id, confirm, by=by)
+        if why is not None:
+            return CommandResult.refused(why)
+        self.robot.event("autonomy", f"request {request_id} {'confirmed' if confirm else 'denied'} by {by}")
+        return CommandResult.accepted()
+
+    def set_autonomy(self, level: str, by: str) -> CommandResult:
+        try:
+            applied = self.agent.set_autonomy(level, by=by)
+        except ConfigError as exc:
+            return CommandResult.refused(exc.reason)
+        self.robot.event("autonomy", f"level {applied} (set by {by})")
+        return CommandResult.accepted()
+
+    def reload_agent(self) -> CommandResult:
+        watcher: ReloadWatcher | None = cast("ReloadWatcher | None", self.robot.parts.get("reload_watcher"))
+        if watcher is None:
+            return CommandResult.refused("this robot does not watch its agent document")
+        watcher.request()
+        return CommandResult.accepted()
 
     # -- simulation panel --------------------------------------------------------------------------------
     def _sim_action(self, what: str, action: Callable[[], object]) -> CommandResult:

@@ -42,6 +42,9 @@ key                     value
 ``missions``            ``[name, ...]``: the missions that can be started
 ``maps``                ``[name, ...]``: the stored maps
 ``events``              ``[{"t", "kind", "text"}, ...]``: the latest events, oldest first
+``autonomy``            ``{"level", "levels", "timeout_s", "pending", "now"}``: the robot's autonomy level, the
+                        transition waiting for the operator (``{"id", "trigger", "source", "dest", "level",
+                        "deadline", ...}``) or None, and the agent's time (`atemr.fsm.autonomy`)
 ======================  ==========================================================================
 
 The ``state`` event adds ``sent_unix_s``, the wall-clock time it was sent (`atemr.ui.sockets.state_message`).
@@ -127,9 +130,11 @@ class RobotGateway(Protocol):
         The shape of `atemr.fsm.agent.Agent.snapshot` plus an optional ``machine``:
         ``state`` (e.g. ``"IDLE.MANUAL"``), ``mode``, ``valid_triggers``, ``task``, ``error``,
         ``tree`` and ``monitor`` (nested ``{name, type, status, ticks, feedback, reason?, children?}``),
-        ``transitions`` (``[{t, trigger, source, dest, accepted, reason, origin}]``), ``blackboard``
-        (``{key: {value, by, t}}``: every key, the client that gave it its value and when), ``commands``,
-        ``errors`` and ``machine`` (``{"states": [name, ...], "transitions": [{trigger, source, dest}]}``).
+        ``transitions`` (``[{t, trigger, source, dest, accepted, reason, origin, decision, decided_by}]``),
+        ``blackboard`` (``{key: {value, by, t}}``: every key, the client that gave it its value and when),
+        ``commands``, ``errors``, ``machine`` (``{"states": [name, ...], "transitions": [{trigger, source, dest,
+        autonomy?}]}``), ``autonomy`` (as in `state`) and ``reloads`` (``[{kind, file, t, status, reason, diff,
+        error, ...}]``: the hot-reload requests, `atemr.fsm.reload.ReloadReport`).
         """
         ...
 
@@ -207,6 +212,19 @@ class RobotGateway(Protocol):
         ...
 
     def stop_mission(self) -> CommandResult:
+        ...
+
+    # -- agent studio --------------------------------------------------------------------------------
+    def answer_transition(self, request_id: int, confirm: bool, by: str) -> CommandResult:
+        """Confirm or deny the transition waiting for the operator (``by``: the user name, recorded)."""
+        ...
+
+    def set_autonomy(self, level: str, by: str) -> CommandResult:
+        """Set the robot's autonomy level (off, low, high, full)."""
+        ...
+
+    def reload_agent(self) -> CommandResult:
+        """Re-read the agent document now (validated; applied in IDLE, deferred from other states)."""
         ...
 
     # -- simulation panel --------------------------------------------------------------------------

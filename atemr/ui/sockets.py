@@ -158,6 +158,7 @@ def _subscription(event: str, room: str, members: Callable[[Sessions], set[str]]
 def init_app(app: Flask, socketio: SocketIO) -> None:
     """Attach the connect check and every page group's events to ``socketio``."""
     # Importing the page groups' event modules fills `_registrations` (once per process).
+    from atemr.ui.agent import events as _agent_events  # noqa: F401
     from atemr.ui.control import events as _control_events  # noqa: F401
     from atemr.ui.mapping import events as _mapping_events  # noqa: F401
 

@@ -10,6 +10,8 @@ from typing import Any
 
 import pytest
 
+from atemr.fsm.autonomy import LEVELS as AUTONOMY_LEVELS
+from atemr.fsm.autonomy import AutonomyGate
 from atemr.fsm.codes import state_code
 from atemr.fsm.machine import Lifecycle
 from atemr.fsm.spec import AgentSpec
@@ -54,7 +56,16 @@ ROWS: list[tuple[str, str, str, dict[str, bool], str, StateCode]] = [
 ]
 
 
-def controlled(spec: AgentSpec, inputs: dict[str, bool], source: str) -> tuple[Lifecycle, list[str]]:
+#: The rows whose transition carries an autonomy level (every other row has none), and that level.
+LEVELS: dict[tuple[str, str, str], str] = {
+    ("IDLE.AUTO", "goal", "EXEC"): "high",
+    ("IDLE.AUTO", "start_mission", "EXEC"): "high",
+    ("IDLE.MANUAL", "begin_mapping", "MAPPING"): "low",
+}
+
+
+def controlled(spec: AgentSpec, inputs: dict[str, bool], source: str, gate: AutonomyGate | None = None
+               ) -> tuple[Lifecycle, list[str]]:
     """A lifecycle in ``source`` whose guards answer from ``inputs`` and whose callbacks only record."""
     guards: Registry[Any] = Registry("test-guards")
     callbacks: Registry[Any] = Registry("test-callbacks")
@@ -67,7 +78,7 @@ def controlled(spec: AgentSpec, inputs: dict[str, bool], source: str) -> tuple[L
         callbacks.add(name, lambda g, n=name: called.append(n))
     context = AgentContext(port=RecordingPort())
     return Lifecycle(spec, context, guard_registry=guards, callback_registry=callbacks,
-                     initial=spec.leaf_of(source)), called
+                     initial=spec.leaf_of(source), gate=gate), called
 
 
 def test_every_yaml_transition_has_a_row(agent_spec: AgentSpec) -> None:
@@ -93,6 +104,29 @@ def test_transition(agent_spec: AgentSpec, source: str, trigger: str, dest: str,
     exits = [c for s in left if s not in entered for c in agent_spec.states[s].on_exit]
     enters = [c for s in reversed(entered) if s not in left for c in agent_spec.states[s].on_enter]
     assert called == [*spec.before, *exits, *enters, *spec.after]
+
+
+def test_every_autonomy_level_has_its_row(agent_spec: AgentSpec) -> None:
+    in_yaml = {(s, t.trigger, t.dest): t.autonomy for t in agent_spec.transitions for s in t.sources if t.autonomy}
+    assert in_yaml == LEVELS
+
+
+@pytest.mark.parametrize("level", AUTONOMY_LEVELS)
+@pytest.mark.parametrize(("source", "trigger", "dest", "inputs", "expected", "code"), ROWS,
+                         ids=[f"{r[0]}-{r[1]}-{r[2]}" for r in ROWS])
+def test_transition_at_each_autonomy_level(agent_spec: AgentSpec, level: str, source: str, trigger: str, dest: str,
+                                           inputs: dict[str, bool], expected: str, code: StateCode) -> None:
+    """Below its level a row's transition waits for the operator (the machine stays); otherwise it is taken."""
+    gate = AutonomyGate(level)
+    machine, called = controlled(agent_spec, inputs, source, gate)
+    record = machine.fire(trigger, reason="table row")
+    needed = LEVELS.get((source, trigger, dest))
+    if needed is not None and AUTONOMY_LEVELS.index(needed) > AUTONOMY_LEVELS.index(level):  # type: ignore[arg-type]
+        assert (record.accepted, record.decision, machine.state) == (False, "requested", agent_spec.leaf_of(source))
+        assert gate.pending is not None and gate.pending.dest == expected and called == []
+    else:
+        assert record.accepted and machine.state == expected and record.decision == ""
+        assert gate.pending is None
 
 
 GUARDED = [r for r in ROWS if any(r[3].values())]

@@ -59,6 +59,38 @@
     agent.dataset.state = s.agent_state || "";
     if (s.emergency === true) { emergency.textContent = "EMERGENCY"; emergency.className = "ind error"; }
     else if (s.emergency === false) { emergency.textContent = "NO EMERGENCY"; emergency.className = "ind online"; }
+    showAutonomy(s.autonomy);
+  }
+
+  // Operator autonomy: the level in the bar, and a transition waiting for the operator with Confirm/Deny.
+  const level = document.getElementById("autonomy-level");
+  const request = document.getElementById("autonomy-request");
+  function showAutonomy(a) {
+    if (!a) return;
+    level.textContent = `AUTONOMY:${String(a.level || "—").toUpperCase()}`;
+    level.dataset.level = a.level || "";
+    if (!request) return;
+    const p = a.pending;
+    request.hidden = !p;
+    request.dataset.id = p ? String(p.id) : "";
+    if (!p) return;
+    document.getElementById("autonomy-what").textContent = `${p.trigger}: ${p.source} → ${p.dest}`;
+    document.getElementById("autonomy-why").textContent =
+      `needs autonomy ${p.level}, the robot is at ${a.level}${p.origin ? ` (from ${p.origin})` : ""}`;
+    const now = a.now;
+    document.getElementById("autonomy-left").textContent =
+      typeof now === "number" ? Math.max(0, p.deadline - now).toFixed(0) : `${a.timeout_s}`;
+  }
+  if (request) {
+    for (const [id, event] of [["autonomy-confirm", "autonomy_confirm"], ["autonomy-deny", "autonomy_deny"]]) {
+      document.getElementById(id).addEventListener("click", async () => {
+        const rid = Number(request.dataset.id);
+        if (!rid) return;
+        const ack = await ATEMR.command(event, { id: rid });
+        if (ack.ok) request.hidden = true;
+        else document.getElementById("autonomy-why").textContent = ack.reason;
+      });
+    }
   }
 
   // -- robots -------------------------------------------------------------------------------------
