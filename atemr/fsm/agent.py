@@ -74,6 +74,8 @@ class CommandResult:
     dest: str | None
     reason: str
     origin: str
+    #: "requested" when the command's transition waits for the operator (`atemr.fsm.autonomy`).
+    decision: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -345,7 +347,7 @@ class Agent:
                 continue
             record = self._fire(Event(trigger, kwargs, "", origin))
             self.results.append(CommandResult(command_id, record.t, trigger, record.accepted, record.source,
-                                              record.dest, record.reason, origin))
+                                              record.dest, record.reason, origin, record.decision))
 
     def _reload_command(self, command_id: int, kwargs: dict[str, Any], origin: str) -> CommandResult:
         """Apply a new agent document now (IDLE), defer it until IDLE (any other state), or refuse it."""
@@ -369,10 +371,10 @@ class Agent:
             waiting = "IDLE" if top_level(source) != "IDLE" else "the operator's answer"
             report.status, report.reason = "deferred", f"deferred: applied when {waiting} is reached (now {source})"
             return CommandResult(command_id, now, RELOAD, True, source, None, report.reason, origin)
-        why = self.reload(spec)
-        self._settle_reload(report, why)
-        return CommandResult(command_id, now, RELOAD, why is None, source, self.state if why is None else None,
-                             report.reason, origin)
+        refused = self.reload(spec)
+        self._settle_reload(report, refused)
+        return CommandResult(command_id, now, RELOAD, refused is None, source,
+                             self.state if refused is None else None, report.reason, origin)
 
     def _settle_reload(self, report: ReloadReport, why: str | None) -> None:
         report.status = "applied" if why is None else "refused"

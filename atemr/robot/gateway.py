@@ -147,6 +147,8 @@ class RobotGatewayImpl:
             result = self.agent.result(command_id)
             if result is None:
                 self._watched.append((command_id, trigger))
+            elif result.decision == "requested":
+                self.robot.event("autonomy", f"{trigger}: {result.reason}")
             elif not result.accepted:
                 self.robot.event("refused", f"{trigger}: {result.reason}")
         localization = self.robot.extras.get("localization")

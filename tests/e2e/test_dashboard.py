@@ -358,3 +358,30 @@ def test_several_robots_on_one_dashboard_are_told_apart(ready_site, page, shots,
         stop.set()
         publisher.join(timeout=5)
     wait_for(page, "document.getElementById('robot').hidden")  # BRAVO went silent: it leaves the selector
+
+
+def test_a_gated_transition_is_confirmed_from_the_page(robot_site, page, shots, helpers):
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{robot_site.url}/agent")
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('autonomy-level').textContent === 'AUTONOMY:FULL'")
+    page.click("#agent-reload")  # the explicit reload: the file is the running version
+    wait_for(page, "document.getElementById('reload-status').dataset.status === 'unchanged'")
+    page.screenshot(path=str(shots / "agent-studio.png"), full_page=True)
+    page.select_option("#autonomy-select", "off")
+    page.click("#autonomy-set")
+    wait_for(page, "document.getElementById('autonomy-level').textContent === 'AUTONOMY:OFF'")
+    assert "begin_mapping → MAPPING (low)" in page.inner_text("#autonomy-gated")
+    page.goto(f"{robot_site.url}/mapping")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    page.click("#mapping-toggle")
+    wait_for(page, "!document.getElementById('autonomy-request').hidden")
+    assert "begin_mapping: IDLE.MANUAL → MAPPING" in page.inner_text("#autonomy-what")
+    assert robot_site.agent_state == "IDLE.MANUAL", "it waits for the operator"
+    wait_for(page, "ATEMR.state.events.some((e) => e.kind === 'autonomy' && e.text.includes('waits for the operator'))")
+    page.screenshot(path=str(shots / "autonomy-request.png"), full_page=True)
+    page.click("#autonomy-confirm")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'MAPPING'")
+    wait_for(page, "document.getElementById('autonomy-request').hidden")
+    confirmed = [r for r in robot_site.robot.parts["agent"].trace if r.decision == "confirmed"]
+    assert [(r.trigger, r.dest, r.decided_by) for r in confirmed] == [("begin_mapping", "MAPPING", "admin")]

@@ -123,7 +123,7 @@ def test_on_deny_needs_a_level_and_an_ungated_way_out() -> None:
     assert (info.value.line, info.value.column) == position(no_level, "on_deny: set_auto")
     nowhere = TEXT.replace("autonomy: high,\n     description: \"a validated", "autonomy: high, on_deny: save_map,\n"
                            "     description: \"a validated")
-    with pytest.raises(ConfigError, match="on_deny trigger 'save_map' has no transition out of IDLE.AUTO"):
+    with pytest.raises(ConfigError, match=r"on_deny trigger 'save_map' has no transition out of IDLE\.AUTO"):
         parse(nowhere)
     gated = TEXT.replace("autonomy: high,\n     description: \"a validated", "autonomy: high, on_deny: goal,\n"
                          "     description: \"a validated")

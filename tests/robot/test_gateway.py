@@ -26,7 +26,7 @@ from atemr.ui.gateway import RobotGateway
 SNAPSHOT_KEYS = {
     "robot", "agent_state", "mode", "simulation", "active_map", "map_version", "pose", "scan", "global_path",
     "local_path", "goal", "wheel_speeds", "emergency", "level1", "level2", "system", "limits", "awareness", "wifi_ssid",
-    "mapping", "recording", "mission", "missions", "maps", "events",
+    "mapping", "recording", "mission", "missions", "maps", "events", "autonomy",
 }
 BOOTED_S = 4.0  # the secondary core boots for 3 s; the agent is IDLE soon after
 
@@ -329,3 +329,27 @@ def test_auto_goal_shows_the_paths_and_is_reached(booted):
     assert agent_state(robot) == "IDLE.AUTO"
     assert robot.extras["sim"].pose.distance_to(goal) < 0.3
     assert gateway.state()["goal"] is None and gateway.state()["global_path"] == []
+
+
+def test_autonomy_level_confirm_and_reload_through_the_gateway(booted):
+    robot, gateway = booted
+    state = gateway.state()["autonomy"]
+    assert state["level"] == "full" and state["pending"] is None and state["levels"] == ["off", "low", "high", "full"]
+    assert "unknown autonomy level" in gateway.set_autonomy("max", "alice").reason
+    assert gateway.set_autonomy("low", "alice").ok
+    assert gateway.set_mode("AUTO").ok
+    run(robot, 0.3)
+    assert gateway.start_mission("look-around").ok
+    run(robot, 0.3)
+    pending = gateway.state()["autonomy"]["pending"]
+    assert agent_state(robot) == "IDLE.AUTO" and pending["trigger"] == "start_mission" and pending["dest"] == "EXEC"
+    assert "no longer pending" in gateway.answer_transition(pending["id"] + 7, True, "alice").reason
+    assert gateway.answer_transition(pending["id"], True, "alice").ok
+    run(robot, 0.3)
+    assert agent_state(robot) == "EXEC" and gateway.state()["autonomy"]["pending"] is None
+    confirmed = next(t for t in gateway.agent_snapshot()["transitions"] if t["decision"] == "confirmed")
+    assert confirmed["decided_by"] == "alice" and confirmed["dest"] == "EXEC"
+    assert any(e["kind"] == "autonomy" and "confirmed by alice" in e["text"] for e in gateway.state()["events"])
+    assert gateway.reload_agent().ok
+    run(robot, 1.2)
+    assert gateway.agent_snapshot()["reloads"][-1]["status"] == "unchanged"

@@ -121,6 +121,15 @@ class RecordingGateway:
     def stop_mission(self) -> CommandResult:
         return self._cmd("stop_mission")
 
+    def answer_transition(self, request_id: int, confirm: bool, by: str) -> CommandResult:
+        return self._cmd("answer_transition", request_id, confirm, by)
+
+    def set_autonomy(self, level: str, by: str) -> CommandResult:
+        return self._cmd("set_autonomy", level, by)
+
+    def reload_agent(self) -> CommandResult:
+        return self._cmd("reload_agent")
+
     def sim_button(self, hold_s: float) -> CommandResult:
         return self._cmd("sim_button", hold_s)
 

@@ -52,6 +52,10 @@ EVENTS = [
     ("map_save", {"name": "kitchen"}, ("save_map", ("kitchen",))),
     ("map_discard", None, ("discard_map", ())),
     ("map_select", {"name": "kitchen.yaml"}, ("select_map", ("kitchen",))),
+    ("autonomy_confirm", {"id": 3}, ("answer_transition", (3, True, "alice"))),
+    ("autonomy_deny", {"id": 4}, ("answer_transition", (4, False, "alice"))),
+    ("autonomy_level", {"level": "low"}, ("set_autonomy", ("low", "alice"))),
+    ("agent_reload", None, ("reload_agent", ())),
 ]
 
 
@@ -96,6 +100,12 @@ BAD = [
     ("map_save", {"name": "../../etc/passwd"}),
     ("map_save", {"name": "a b"}),
     ("map_select", {"name": ".hidden"}),
+    ("autonomy_confirm", {"id": "3"}),
+    ("autonomy_confirm", {"id": True}),
+    ("autonomy_deny", {}),
+    ("autonomy_deny", None),
+    ("autonomy_level", {"level": "max"}),
+    ("autonomy_level", {"level": 2}),
 ]
 
 
@@ -233,3 +243,13 @@ def test_a_failing_agent_snapshot_is_reported(app, alice, gateway):
     sockets.push(app, gateway)
     got = [m["args"][0] for m in ws.get_received() if m["name"] == "agent"]
     assert "could not be read" in got[-1]["error"]
+
+
+@pytest.mark.parametrize("event", ["autonomy_confirm", "autonomy_deny", "autonomy_level", "agent_reload"])
+def test_studio_events_are_refused_without_a_session_or_a_role(app, gateway, ui, event):
+    anonymous = sio(app, app.test_client())
+    assert not anonymous.is_connected()
+    client = app.test_client()
+    ui.login(client, "bob", ui.USER_PW)  # role none
+    assert not sio(app, client).is_connected()
+    assert gateway.calls == []
