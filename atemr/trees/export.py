@@ -74,7 +74,10 @@ def options_text(node: NodeSpec) -> str:
 
 
 def guard_text(t: TransitionSpec) -> str:
+    """The guards and, when it has one, the autonomy level the robot needs to take it on its own."""
     guards = [*t.conditions, *(f"not {g}" for g in t.unless)]
+    if t.autonomy is not None:
+        guards.append(f"autonomy {t.autonomy}")
     return f" [{', '.join(guards)}]" if guards else ""
 
 
@@ -152,7 +155,8 @@ def to_json(d: Drawing) -> str:
                         "on_failure": s.on_failure, "description": s.description} for n, s in a.states.items()],
             "transitions": [{"trigger": t.trigger, "source": list(t.sources), "dest": t.dest,
                              "conditions": list(t.conditions), "unless": list(t.unless), "before": list(t.before),
-                             "after": list(t.after), "description": t.description} for t in a.transitions],
+                             "after": list(t.after), "description": t.description, "autonomy": t.autonomy,
+                             "on_deny": t.on_deny} for t in a.transitions],
         }
     out["trees"] = {owner: node_dict(tree) for owner, tree in d.trees}
     return json.dumps(out, indent=2) + "\n"

@@ -385,3 +385,29 @@ def test_a_gated_transition_is_confirmed_from_the_page(robot_site, page, shots, 
     wait_for(page, "document.getElementById('autonomy-request').hidden")
     confirmed = [r for r in robot_site.robot.parts["agent"].trace if r.decision == "confirmed"]
     assert [(r.trigger, r.dest, r.decided_by) for r in confirmed] == [("begin_mapping", "MAPPING", "admin")]
+
+
+def test_the_agent_page_shows_a_reload_error_with_its_position_and_the_diff(ready_site, page, helpers):
+    snapshot = ready_site.robot.agent_snapshot
+
+    def with_reload() -> dict:
+        out = dict(snapshot())
+        out["reloads"] = [{
+            "kind": "agent", "file": "/robot/trees/agent.yaml", "t": 12.0, "status": "invalid", "origin": "file watcher",
+            "reason": "not reloaded, the running version stays: agent.yaml:131:35: unknown node type 'Hault'",
+            "diff": "--- agent.yaml (running)\n+++ agent.yaml (edited)\n@@ -131 +131 @@\n-            - {type: Halt}\n"
+                    "+            - {type: Hault}\n",
+            "error": {"message": "unknown node type 'Hault' (did you mean 'Halt'?)", "line": 131, "column": 35,
+                      "path": "states[5].children[1].tree.children[3].type", "text": "..."},
+            "applied_t": None,
+        }]
+        return out
+
+    ready_site.robot.agent_snapshot = with_reload
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{ready_site.url}/agent")
+    wait_for(page, "document.getElementById('reload-status').dataset.status === 'invalid'")
+    assert page.inner_text("#reload-error") == "line 131, column 35: unknown node type 'Hault' (did you mean 'Halt'?)"
+    assert page.inner_text("#reload-diff .del").rstrip() == "-            - {type: Halt}"
+    assert page.inner_text("#reload-diff .add").rstrip() == "+            - {type: Hault}"
+    assert "agent agent.yaml: invalid" in page.inner_text("#reload-status")

@@ -252,3 +252,15 @@ def test_a_level_given_to_a_safety_transition_in_code_is_ignored(agent_spec: Age
     record = machine.fire("cancel")
     assert record.accepted and record.dest == "IDLE.AUTO" and machine.gate is not None
     assert machine.gate.pending is None
+
+
+def test_the_export_shows_the_levels(agent_spec: AgentSpec) -> None:
+    import json
+
+    from atemr.trees.export import drawing_of, to_ascii, to_json
+
+    ascii_text = to_ascii(drawing_of(agent_spec))
+    assert "IDLE.AUTO --start_mission [mission_runnable, autonomy high]--> EXEC" in ascii_text
+    rows = json.loads(to_json(drawing_of(agent_spec)))["machine"]["transitions"]
+    assert {(r["trigger"], r["autonomy"]) for r in rows if r["autonomy"]} == {
+        ("goal", "high"), ("start_mission", "high"), ("begin_mapping", "low")}
