@@ -393,7 +393,8 @@ def test_the_agent_page_shows_a_reload_error_with_its_position_and_the_diff(read
     def with_reload() -> dict:
         out = dict(snapshot())
         out["reloads"] = [{
-            "kind": "agent", "file": "/robot/trees/agent.yaml", "t": 12.0, "status": "invalid", "origin": "file watcher",
+            "kind": "agent", "file": "/robot/trees/agent.yaml", "t": 12.0, "status": "invalid",
+            "origin": "file watcher",
             "reason": "not reloaded, the running version stays: agent.yaml:131:35: unknown node type 'Hault'",
             "diff": "--- agent.yaml (running)\n+++ agent.yaml (edited)\n@@ -131 +131 @@\n-            - {type: Halt}\n"
                     "+            - {type: Hault}\n",
