@@ -38,7 +38,7 @@ import py_trees
 
 from atemr.config import Config
 from atemr.errors import AtemrError, ConfigError
-from atemr.fsm.autonomy import DEFAULT_LEVEL, DEFAULT_TIMEOUT_S, AutonomyGate, Level
+from atemr.fsm.autonomy import DEFAULT_LEVEL, DEFAULT_TIMEOUT_S, Answer, AutonomyGate, Level
 from atemr.fsm.codes import state_code, top_level
 from atemr.fsm.machine import Lifecycle, TransitionRecord
 from atemr.fsm.reload import ReloadReport, swap_pending_steps
@@ -359,17 +359,21 @@ class Agent:
             try:
                 spec = load_agent(path)
             except ConfigError as exc:
-                why = f"not reloaded, the running document stays: {exc}"
-                return CommandResult(command_id, now, RELOAD, False, source, None, why, origin)
+                invalid = ReloadReport.invalid("agent", path, now, exc, origin=origin)
+                self.reloads.append(invalid)
+                return CommandResult(command_id, now, RELOAD, False, source, None, invalid.reason, origin)
             report = ReloadReport("agent", path, now, origin=origin)
             self.reloads.append(report)
         assert report is not None
+        if self._deferred is not None:  # a newer version replaces one still waiting for IDLE
+            self._deferred[1].status, self._deferred[1].reason = "superseded", "a newer version was requested"
+            self._deferred = None
         if top_level(source) != "IDLE" or self.gate.pending is not None:
-            if self._deferred is not None:
-                self._deferred[1].status, self._deferred[1].reason = "superseded", "a newer version was requested"
             self._deferred = (spec, report)
-            waiting = "IDLE" if top_level(source) != "IDLE" else "the operator's answer"
-            report.status, report.reason = "deferred", f"deferred: applied when {waiting} is reached (now {source})"
+            report.status = "deferred"
+            report.reason = (f"deferred: applied when IDLE is reached (now {source})" if top_level(source) != "IDLE"
+                             else f"deferred: applied once the operator has answered the waiting transition "
+                                  f"(now {source})")
             return CommandResult(command_id, now, RELOAD, True, source, None, report.reason, origin)
         refused = self.reload(spec)
         self._settle_reload(report, refused)
@@ -417,6 +421,9 @@ class Agent:
         if request is None:
             return
         answer = self.gate.take_answer()
+        if answer is None and not self.gate.gates(request.level):
+            # The operator raised the robot's level to the transition's own: it no longer needs a confirmation.
+            answer = Answer(request.id, True, f"level {self.gate.level}")
         if answer is None and self.context.now < request.deadline:
             return
         self.gate.close()

@@ -11,7 +11,8 @@ or until ``timeout_s`` of robot time pass.
   became invalid meanwhile takes the invalid-goal path) and the gate lets this one transition through;
 - deny or timeout (the safe default): the transition is not taken, the machine stays in its source state,
   and the transition's ``on_deny`` trigger (if it names one, e.g. ``cancel``) is fired;
-- a state change before the answer (a fault, a power-off, a cancel) supersedes the request.
+- a state change before the answer (a fault, a power-off, a cancel) supersedes the request;
+- raising the robot's level to the transition's own confirms it (recorded as decided by ``level <L>``).
 
 Safety transitions are never gated: those into ERROR or SHUTDOWN (critical failure, errors, faults,
 shutdown, restart, power-off) and the triggers in `SAFETY_TRIGGERS` (cancel, emergency, ...). The

@@ -264,3 +264,22 @@ def test_the_export_shows_the_levels(agent_spec: AgentSpec) -> None:
     rows = json.loads(to_json(drawing_of(agent_spec)))["machine"]["transitions"]
     assert {(r["trigger"], r["autonomy"]) for r in rows if r["autonomy"]} == {
         ("goal", "high"), ("start_mission", "high"), ("begin_mapping", "low")}
+
+
+def test_raising_the_level_lets_the_waiting_transition_go(rig: Rig) -> None:
+    rig.ask()
+    rig.agent.set_autonomy("high", by="alice")
+    rig.scheduler.step()
+    assert rig.agent.state == "EXEC"
+    taken = next(r for r in rig.agent.trace if r.decision == "confirmed")
+    assert taken.decided_by == "level high" and taken.dest == "EXEC"
+
+
+def test_the_level_and_timeout_come_from_the_configuration(port: RecordingPort, link: RecordingLink) -> None:
+    from atemr.config import load_config
+
+    config = load_config(environ={"ATEMR_AGENT__AUTONOMY": "low"}, overrides={"agent.confirm_timeout_s": 2.5})
+    agent = Agent.from_config(config, port, link)
+    assert (agent.gate.level, agent.gate.timeout_s) == ("low", 2.5)
+    with pytest.raises(ConfigError, match="autonomy"):
+        load_config(environ={}, overrides={"agent.autonomy": "max"})

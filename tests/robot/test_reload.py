@@ -136,6 +136,23 @@ def test_a_reload_mid_exec_is_deferred_until_idle(studio: Studio) -> None:
     assert studio.agent.task_reports[-1]["outcome"] == "reached"
 
 
+def test_a_newer_edit_supersedes_a_deferred_one(studio: Studio) -> None:
+    studio.command("set_auto")
+    studio.command("start_mission", mission=load_mission(studio.mission_file))
+    text = studio.file.read_text()
+    write(studio.file, text.replace("period_s: 0.5}", "period_s: 0.2}"))
+    studio.run(1.0)
+    write(studio.file, text.replace("period_s: 0.5}", "period_s: 0.25}"))
+    studio.run(1.0)
+    first, second = studio.agent.reloads[-2], studio.agent.reloads[-1]
+    assert (first.status, second.status) == ("superseded", "deferred")
+    studio.run(2.0)
+    assert studio.agent.state == "IDLE.AUTO" and (first.status, second.status) == ("superseded", "applied")
+    assert studio.agent.spec.monitor is not None
+    publish = studio.agent.spec.monitor.children[0]
+    assert publish.options.period_s == 0.25
+
+
 def test_the_explicit_reload_action_reports_an_unchanged_file(studio: Studio) -> None:
     before = studio.agent.spec
     studio.watcher.request()
