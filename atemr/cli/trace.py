@@ -48,7 +48,9 @@ def print_report(report: dict[str, Any]) -> None:
         move = f"{row['source'] or '—'} -> {row['dest']}" if row["accepted"] else f"refused in {row['source']}"
         origin = f" [{row['origin']}]" if row.get("origin") else ""
         reason = f": {row['reason']}" if row.get("reason") else ""
-        print(f"{row['t']:10.3f}  {row['trigger']:<16} {move}{origin}{reason}")
+        by = f" by {row['decided_by']}" if row.get("decided_by") else ""
+        decision = f" ({row['decision']}{by})" if row.get("decision") else ""
+        print(f"{row['t']:10.3f}  {row['trigger']:<16} {move}{origin}{decision}{reason}")
 
 
 commands.add("trace", TraceCommand())

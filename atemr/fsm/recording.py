@@ -7,7 +7,8 @@ What is recorded, each a flat JSON object with ``k`` (kind) and ``t`` (robot tim
 ``head``   first of every file part: format version, agent name, ``meta`` (world, map, seed, ...), the
            machine (states and transitions) for drawing
 ``snap``   after ``head``: the state, the mode, and every blackboard key ``{value, by, t}`` at that time
-``tr``     every transition attempt: ``trigger, source, dest, accepted, reason, origin``
+``tr``     every transition attempt: ``trigger, source, dest, accepted, reason, origin`` (+ ``decision,
+           decided_by`` for an operator autonomy decision: requested, confirmed, denied, timed_out, superseded)
 ``tree``   a tree was built (``slot`` "tree" for the current state's, "monitor"): ``id`` and ``nodes``, the
            nodes in pre-order as ``[name, type, parent index]`` (parent -1 for the root); ``nodes`` null
            when the state has no tree
@@ -130,9 +131,12 @@ class AgentRecorder:
 
     # -- hooks ---------------------------------------------------------------------------------------
     def on_transition(self, record: TransitionRecord) -> None:
-        self.sink({"k": "tr", "t": t3(record.t), "trigger": record.trigger, "source": record.source,
-                   "dest": record.dest, "accepted": record.accepted, "reason": record.reason,
-                   "origin": record.origin})
+        out: Record = {"k": "tr", "t": t3(record.t), "trigger": record.trigger, "source": record.source,
+                       "dest": record.dest, "accepted": record.accepted, "reason": record.reason,
+                       "origin": record.origin}
+        if record.decision:  # an operator autonomy decision (`atemr.fsm.autonomy`): what, and by whom
+            out.update(decision=record.decision, decided_by=record.decided_by)
+        self.sink(out)
 
     def on_tree(self, root: py_trees.behaviour.Behaviour) -> None:
         slot = "monitor" if root is self.agent.monitor else "tree"

@@ -79,8 +79,9 @@ class TraceTimeline:
                 key = (row.get("t"), row.get("trigger"), row.get("source"), row.get("dest"), row.get("accepted"))
                 if key not in seen:
                     seen.add(key)
-                    out.append({k: row.get(k) for k in ("t", "trigger", "source", "dest", "accepted", "reason",
-                                                        "origin")})
+                    out.append({**{k: row.get(k) for k in ("t", "trigger", "source", "dest", "accepted", "reason",
+                                                           "origin")},
+                                **{k: row[k] for k in ("decision", "decided_by") if row.get(k)}})
         return out
 
     def summary(self) -> dict[str, Any]:
@@ -131,7 +132,8 @@ def _apply(state: _State, r: Record) -> None:
         if isinstance(rows, list):
             state.transitions = [dict(x) for x in rows if isinstance(x, dict)][-FRAME_TRANSITIONS:]
     elif kind == "tr":
-        row = {k: r.get(k) for k in ("t", "trigger", "source", "dest", "accepted", "reason", "origin")}
+        row = {**{k: r.get(k) for k in ("t", "trigger", "source", "dest", "accepted", "reason", "origin")},
+               **{k: r[k] for k in ("decision", "decided_by") if r.get(k)}}
         if not state.transitions or state.transitions[-1] != row:
             state.transitions = [*state.transitions[-(FRAME_TRANSITIONS - 1):], row]
         if r.get("accepted") and r.get("dest"):

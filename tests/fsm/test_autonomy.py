@@ -283,3 +283,23 @@ def test_the_level_and_timeout_come_from_the_configuration(port: RecordingPort, 
     assert (agent.gate.level, agent.gate.timeout_s) == ("low", 2.5)
     with pytest.raises(ConfigError, match="autonomy"):
         load_config(environ={}, overrides={"agent.autonomy": "max"})
+
+
+def test_a_recorder_keeps_every_decision_and_by_whom(rig: Rig) -> None:
+    from atemr.fsm.recording import AgentRecorder
+    from atemr.fsm.trace_timeline import TraceTimeline
+
+    records: list[dict[str, object]] = []
+    recorder = AgentRecorder(rig.agent, records.append)
+    records.extend(recorder.preamble())
+    recorder.attach()
+    request_id = rig.ask()
+    rig.agent.answer(request_id, False, by="bob")
+    rig.scheduler.step()
+    rig.ask()
+    rig.scheduler.run(duration=5.2)
+    decisions = [(r["decision"], r["decided_by"]) for r in records if r["k"] == "tr" and "decision" in r]
+    assert decisions == [("requested", ""), ("denied", "bob"), ("requested", ""), ("timed_out", "timeout")]
+    rows = TraceTimeline(records).transitions()
+    assert [r.get("decision") for r in rows if r.get("decision")] == ["requested", "denied", "requested", "timed_out"]
+    assert next(r for r in rows if r.get("decision") == "denied")["decided_by"] == "bob"
