@@ -66,7 +66,11 @@
   const level = document.getElementById("autonomy-level");
   const request = document.getElementById("autonomy-request");
   function showAutonomy(a) {
-    if (!a) return;
+    if (!a) { // a robot that does not report autonomy (another robot's dashboard): nothing to answer here
+      level.textContent = "AUTONOMY:—";
+      if (request) request.hidden = true;
+      return;
+    }
     level.textContent = `AUTONOMY:${String(a.level || "—").toUpperCase()}`;
     level.dataset.level = a.level || "";
     if (!request) return;
