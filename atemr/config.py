@@ -155,6 +155,17 @@ class TraceConfig:
 
 
 @dataclass(frozen=True)
+class ControlConfig:
+    """The local control channel of a running robot (``atemr mission run`` without ``--headless``)."""
+
+    enabled: bool = field(default=True, metadata={"help": "serve the control socket while the robot runs"})
+    socket: Path | None = field(
+        default=None,
+        metadata={"help": "Unix socket path, mode 0600: only the robot's user (default data_dir/control.sock)"},
+    )
+
+
+@dataclass(frozen=True)
 class Config:
     """Everything that can be configured; see README 'Configuration'."""
 
@@ -168,6 +179,7 @@ class Config:
     secondary: SecondaryConfig = field(default_factory=SecondaryConfig)
     agent: AgentConfig = field(default_factory=AgentConfig)
     trace: TraceConfig = field(default_factory=TraceConfig)
+    control: ControlConfig = field(default_factory=ControlConfig)
     #: Speed limits, slow/stop zones, idle time (`atemr.skills.ramp`); start values, the settings page
     #: changes them at run time through `MotionPipeline.set_limits`.
     motion: MotionLimits = field(default_factory=MotionLimits)

@@ -74,6 +74,10 @@ class BusError(HardwareError):
     """The CAN bus itself failed: bus-off, a dead receive side, send failures."""
 
 
+class ControlError(AtemrError):
+    """The robot's local control channel: no robot is running, the connection was lost, a request was refused."""
+
+
 class NavigationError(AtemrError):
     """A goal cannot be accepted or reached (outside the map, in an obstacle, no path, stuck, lost)."""
 

@@ -1,9 +1,11 @@
-"""``atemr mission validate FILE...`` and ``atemr mission run``.
+"""``atemr mission validate FILE...``, ``atemr mission run``, ``atemr mission status`` and ``cancel``.
 
 ``validate`` checks missions and says whether this build can run them. ``run`` runs one mission (a file,
-or ``--goal X,Y,YAW`` repeated) in a fresh headless simulation of the whole robot, exits when it ends, and
-prints the result (``--json``: outcome, each step's status, time, final pose, position and heading error,
-and the agent's state trace); the exit code is 0 only when the mission was completed.
+or ``--goal X,Y,YAW`` repeated) on the robot that is already running (``./run``; through its control socket,
+`atemr.cli.mission_attach`) or, with ``--headless``, in a fresh headless simulation of the whole robot that
+exits when the mission ends. Either way it prints the result (``--json``: outcome, each step's status,
+time, final pose, position and heading error, and the agent's state trace); the exit code is 0 only when
+the mission was completed. ``status`` and ``cancel`` ask the running robot.
 
 A mission is valid when its document is right (kinds, parameters, poses, timeouts). Whether it can run
 here is a separate answer: a step whose behaviour this build lacks (a plugin kind, or ``GoToPose`` in a
@@ -36,27 +38,36 @@ class MissionCommand:
         validate.add_argument("--json", action="store_true", help="print one JSON report for all files")
         validate.add_argument("--strict", action="store_true",
                               help="exit 1 when a valid mission cannot run in this build (missing behaviours)")
-        run = sub.add_parser("run", help="run a mission in a fresh headless simulation and report how it went")
+        run = sub.add_parser("run", help="run a mission on the running robot (or --headless: in a fresh "
+                                         "simulation) and report how it went")
         run.add_argument("file", type=Path, nargs="?", metavar="FILE", help="mission file (or give --goal)")
         run.add_argument("--goal", action="append", type=pose_argument, default=[], metavar="X,Y,YAW",
                          help="visit this pose (map frame, metres and radians); repeat to visit several in order")
-        run.add_argument("--start", type=pose_argument, metavar="X,Y,YAW", help="place the robot here first")
-        run.add_argument("--world", help="simulated world: a shipped world's name or a world/map YAML")
-        run.add_argument("--seed", type=int, help="seed of the simulation's random sources")
-        run.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
-        run.add_argument("--data-dir", type=Path, help="where captured images go (default: from config)")
+        run.add_argument("--start", type=pose_argument, metavar="X,Y,YAW",
+                         help="--headless only: place the robot here first")
+        run.add_argument("--world", help="--headless only: simulated world, a shipped world's name or a world/map YAML")
+        run.add_argument("--seed", type=int, help="--headless only: seed of the simulation's random sources")
         run.add_argument("--timeout", type=float, default=600.0, help="robot seconds before the mission is cancelled")
         run.add_argument("--headless", action="store_true",
-                         help="required: run in a fresh simulation without the dashboard (attaching to a running "
-                              "robot is not available yet)")
+                         help="run in a fresh simulation without the dashboard, instead of on the running robot")
         run.add_argument("--json", action="store_true", help="print the full result as JSON")
         run.add_argument("--trace", type=Path, metavar="FILE",
-                         help="record the agent (transitions, node statuses, blackboard, pose) to FILE "
+                         help="--headless only: record the agent (transitions, node statuses, blackboard, pose) to FILE "
                               "(read it with 'atemr trace show FILE' or replay it on the dashboard)")
+        _robot_options(run)
+        status = sub.add_parser("status", help="the running robot's agent: state, mode, task and its progress")
+        status.add_argument("--json", action="store_true", help="print the full status as JSON")
+        _robot_options(status)
+        cancel = sub.add_parser("cancel", help="cancel the mission (or the dashboard's task) on the running robot")
+        _robot_options(cancel)
 
     def run(self, args: argparse.Namespace) -> int:
         if args.mission_action == "run":
             return run_command(args)
+        if args.mission_action in ("status", "cancel"):
+            from atemr.cli.mission_attach import cancel_command, status_command
+
+            return status_command(args) if args.mission_action == "status" else cancel_command(args)
         reports: list[dict[str, Any]] = []
         worst = 0
         for path in args.files:
@@ -90,6 +101,16 @@ class MissionCommand:
 commands.add("mission", MissionCommand())
 
 
+def _robot_options(parser: argparse.ArgumentParser) -> None:
+    """Where the running robot's control socket is: from the configuration, or given."""
+    parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
+    parser.add_argument("--data-dir", type=Path,
+                        help="the robot's data directory: its control socket is there (with --headless: where "
+                             "captured images go; default: from config)")
+    parser.add_argument("--socket", type=Path, help="the running robot's control socket (default: from config, "
+                                                    "data_dir/control.sock)")
+
+
 def pose_argument(text: str) -> Pose2D:
     """``"X,Y,YAW"`` (metres, metres, radians) → `Pose2D`; argparse shows the error."""
     parts = text.split(",")
@@ -103,16 +124,21 @@ def pose_argument(text: str) -> Pose2D:
 
 
 def run_command(args: argparse.Namespace) -> int:
-    """``atemr mission run``: build the simulated robot, place it, run the mission, report."""
+    """``atemr mission run``: on the running robot, or build the simulated robot, place it, run the mission,
+    report."""
     from atemr.fsm.agent import Agent
     from atemr.fsm.mission_run import run_mission
     from atemr.robot.headless import build_headless_robot
 
-    if not args.headless:
-        raise ConfigError("attaching to a running robot is not available yet: add --headless to run the mission "
-                          "in a fresh simulation", path="atemr mission run")
     if (args.file is None) == (not args.goal):
         raise ConfigError("give a mission FILE or one or more --goal X,Y,YAW (not both)", path="atemr mission run")
+    if not args.headless:
+        from atemr.cli.mission_attach import run_attached
+
+        return run_attached(args)
+    if args.socket is not None:
+        raise ConfigError("--socket is for the running robot; a --headless run has no socket",
+                          path="atemr mission run")
     mission = load_mission(args.file) if args.file is not None else mission_from_goals(args.goal)
     config = load_config(args.config, overrides={
         "simulation": True, "ui.enabled": False, "sim.world": args.world, "sim.seed": args.seed,

@@ -103,7 +103,19 @@ def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = 
         # Headless: no web server is expected, so its absence is not a fault (0x153 bit 5 stays set).
         health.add("webserver", lambda now: ComponentHealth(True, "dashboard disabled (headless run)"))
     robot.add(SystemMonitor(config.data_dir), RATES["system_monitor"])
+    if config.control.enabled:
+        _add_control(robot)
     return robot
+
+
+def _add_control(robot: Robot) -> None:
+    """The local control channel (`atemr.robot.control`): a Unix socket another terminal of the same user
+    runs missions through. Added after the agent at the agent's rate, so it sees each tick's outcome at once."""
+    from atemr.robot.control import RobotControl
+
+    control = RobotControl(robot)
+    robot.add(control, robot.config.agent.rate_hz)
+    robot.extras["control"] = control
 
 
 def _add_localization(robot: Robot) -> None:

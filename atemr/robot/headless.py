@@ -1,8 +1,9 @@
 """Headless runs of the whole robot in simulation (``atemr sim --headless``, ``atemr mission run``).
 
 A headless robot runs on a `SimClock` as fast as the CPU allows, with no dashboard, no captive
-portal (nothing listens on a port) and nothing published to a message queue, on a CAN channel of its
-own so several runs in one process never hear each other.
+portal, no control socket (nothing listens on a port or a socket, so it never collides with a robot
+running beside it) and nothing published to a message queue, on a CAN channel of its own so several
+runs in one process never hear each other.
 """
 
 from __future__ import annotations
@@ -21,8 +22,9 @@ _RUNS = itertools.count()
 
 
 def headless_config(config: Config) -> Config:
-    """``config`` for a headless run: dashboard, message queue and portal off, a private virtual CAN channel,
-    and a trace only when ``trace.file`` names one (``--trace``): headless runs do not fill ``data_dir/traces``."""
+    """``config`` for a headless run: dashboard, message queue, portal and control socket off, a private
+    virtual CAN channel, and a trace only when ``trace.file`` names one (``--trace``): headless runs do not
+    fill ``data_dir/traces``."""
     if not config.simulation:
         raise ValueError("a headless run is a simulation")
     return dataclasses.replace(
@@ -30,6 +32,7 @@ def headless_config(config: Config) -> Config:
         ui=dataclasses.replace(config.ui, enabled=False, message_queue=None),
         secondary=dataclasses.replace(config.secondary, portal_serve=False),
         trace=dataclasses.replace(config.trace, enabled=False),
+        control=dataclasses.replace(config.control, enabled=False),
         can=dataclasses.replace(config.can, interface="virtual",
                                 channel=f"{config.can.channel}-headless-{os.getpid()}-{next(_RUNS)}"),
     )
