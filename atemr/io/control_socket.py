@@ -60,6 +60,9 @@ class ControlConnection:
         self.number = number
         self._lock = threading.Lock()
         self._gone = False
+        #: Clear while a command runs on this connection (stopping the server lets it finish its answers).
+        self.idle = threading.Event()
+        self.idle.set()
 
     def send(self, message: Mapping[str, Any]) -> bool:
         """Write one JSON line; False (and nothing raised) once the client has gone."""
@@ -170,6 +173,7 @@ class ControlServer:
         with self._lock:
             connections = list(self._connections.values())
         for connection, _ in connections:
+            connection.idle.wait(join_s)  # a command being answered finishes (its handler sees `stopping`)
             with contextlib.suppress(OSError):
                 connection.sock.shutdown(socket.SHUT_RDWR)  # wakes its thread out of a blocking read
         for _, thread in connections:
@@ -229,6 +233,7 @@ class ControlServer:
         if request is None:
             connection.send(refusal(why or "bad request"))
             return
+        connection.idle.clear()
         try:
             self.commands[request["cmd"]](request, connection)
         except AtemrError as exc:
@@ -236,12 +241,14 @@ class ControlServer:
         except Exception as exc:  # a bug in one command must not take the channel down
             log.exception("control command %r failed", request["cmd"])
             connection.send(refusal(f"internal error in '{request['cmd']}': {type(exc).__name__}: {exc}"))
+        finally:
+            connection.idle.set()
 
 
 def parse_request(line: bytes, commands: Mapping[str, Handler]) -> tuple[dict[str, Any] | None, str | None]:
     """(the request, None) or (None, why it is refused): JSON, an object, a known ``cmd``."""
     try:
-        request = json.loads(line.decode("utf-8"))
+        request = json.loads(line.decode("utf-8").rstrip("\r\n"))
     except UnicodeDecodeError as exc:
         return None, f"bad request: not UTF-8 ({exc.reason} at byte {exc.start})"
     except json.JSONDecodeError as exc:

@@ -1,4 +1,5 @@
-"""``atemr mission run``: a mission in a fresh headless simulation of the whole robot, to its end."""
+"""``atemr mission run --headless``: a mission in a fresh headless simulation of the whole robot, to its end
+(attached to a running robot: tests/robot/test_control.py)."""
 
 from __future__ import annotations
 
@@ -53,9 +54,11 @@ def test_goals_from_a_start_pose(capsys: pytest.CaptureFixture[str], tmp_path: P
     assert abs(result["final_pose"]["x_m"] - 3.8) <= 0.25
 
 
-def test_bad_invocations(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["mission", "run", str(LOOK_AROUND)]) == 2
-    assert "add --headless" in capsys.readouterr().err
+def test_bad_invocations(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["mission", "run", str(LOOK_AROUND), "--data-dir", str(tmp_path)]) == 2  # no robot runs there
+    assert "no robot is running" in capsys.readouterr().err
+    assert main(["mission", "run", str(LOOK_AROUND), "--headless", "--socket", str(tmp_path / "s")]) == 2
+    assert "--socket is for the running robot" in capsys.readouterr().err
     assert main(["mission", "run", str(LOOK_AROUND), "--goal", "1,1,0", "--headless"]) == 2
     assert "not both" in capsys.readouterr().err
     with pytest.raises(SystemExit):
