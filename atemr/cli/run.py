@@ -50,6 +50,10 @@ class RunCommand:
             can = f"{config.can.interface}:{config.can.channel}"
             mode = "simulation" if config.simulation else f"real hardware on {can}"
             print(f"ATEMR running in {mode}; started: {', '.join(robot.parts)}. Ctrl-C stops.", flush=True)
+            control = robot.extras.get("control")
+            if control is not None:
+                print(f"control socket {control.server.path}: atemr mission run FILE (or status, cancel) "
+                      f"from another terminal of this user", flush=True)
             robot.run(duration=args.duration)
         print("ATEMR stopped.", flush=True)
         return 0

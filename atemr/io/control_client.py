@@ -25,7 +25,7 @@ HOW_TO_START = "start the robot with ./run (or atemr run), or add --headless to 
 class ControlClient:
     """One connection to a running robot's control socket (a context manager)."""
 
-    def __init__(self, path: Path, *, timeout_s: float | None = 10.0) -> None:
+    def __init__(self, path: Path, *, timeout_s: float | None = 20.0) -> None:
         self.path = Path(path)
         self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         self.sock.settimeout(timeout_s)

@@ -66,7 +66,7 @@ class ControlConnection:
 
     def send(self, message: Mapping[str, Any]) -> bool:
         """Write one JSON line; False (and nothing raised) once the client has gone."""
-        data = (json.dumps(message, default=str, allow_nan=False) + "\n").encode("utf-8")
+        data = (json.dumps(message, default=str) + "\n").encode("utf-8")
         with self._lock:
             if self._gone:
                 return False

@@ -11,8 +11,9 @@
   the mission through the agent's inbox (`Agent.submit`, as the dashboard does) — `atemr.fsm.mission_run`.
   The answers follow on the same connection: ``started``, then ``state`` (each agent state change) and
   ``step`` (each step status change, with its report), and last ``result``: the same JSON as a headless
-  ``atemr mission run --json``. The connection that started a mission owns it: if it goes away before the
-  end (the client was killed), the mission is cancelled — nobody could stop it with Ctrl-C any more.
+  ``atemr mission run --json``. The connection that started a mission (with ``follow``, the default) owns
+  it: if it goes away before the end (the client was killed), the mission is cancelled — nobody could stop
+  it with Ctrl-C any more. With ``"follow": false`` the answer is ``started`` alone and the mission runs on.
 - ``{"cmd": "follow"}``: the same answers for the mission running from here, from its start.
 - ``{"cmd": "cancel", "reason": "..."}``: cancel the mission started here, or the agent's current task
   (a goal or mission from the dashboard).
