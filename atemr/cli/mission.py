@@ -156,7 +156,7 @@ def run_command(args: argparse.Namespace) -> int:
     result["seed"] = config.sim.seed
     writer = robot.extras.get("trace")
     if writer is not None:
-        result["trace"] = [str(p) for p in writer.parts]
+        result["trace_files"] = [str(p) for p in writer.parts]  # "trace" is the agent's state trace
         if writer.error:
             result["trace_error"] = writer.error
     if args.json:
@@ -188,9 +188,9 @@ def print_summary(result: dict[str, Any]) -> None:
         if step["position_error_m"] is not None:
             errors = f", {step['position_error_m']:.2f} m / {math.degrees(step['heading_error_rad']):.1f} deg off"
         print(f"  {step['index']}: {step['name']}: {step['status']}{took}{errors}")
-    if result.get("trace"):
-        print(f"  trace: {', '.join(result['trace'])}" + (f" ({result['trace_error']})" if result.get("trace_error")
-                                                          else ""))
+    if result.get("trace_files"):
+        print(f"  trace: {', '.join(result['trace_files'])}"
+              + (f" ({result['trace_error']})" if result.get("trace_error") else ""))
     pose = result["final_pose"]
     if pose is not None:
         print(f"  final pose ({pose['x_m']:.2f}, {pose['y_m']:.2f}, {pose['yaw_rad']:.2f}); "

@@ -76,7 +76,8 @@ def test_a_headless_mission_run_writes_a_trace(tmp_path: Path, capsys: pytest.Ca
     code = main(["--log-level", "ERROR", "mission", "run", "--headless", "--goal", "1.5,1.0,0", "--json",
                  "--data-dir", str(tmp_path / "data"), "--trace", str(trace)])
     result = json.loads(capsys.readouterr().out)
-    assert code == 0 and result["trace"] == [str(trace)]
+    assert code == 0 and result["trace_files"] == [str(trace)]
+    assert [r["dest"] for r in result["trace"]][-2:] == ["EXEC", "IDLE.AUTO"]  # the agent's state trace stays
     assert not (tmp_path / "data" / "traces").exists()  # headless runs record only where --trace says
     assert main(["trace", "show", str(trace), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
