@@ -45,7 +45,8 @@ class MissionCommand:
                          help="visit this pose (map frame, metres and radians); repeat to visit several in order")
         run.add_argument("--start", type=pose_argument, metavar="X,Y,YAW",
                          help="--headless only: place the robot here first")
-        run.add_argument("--world", help="--headless only: simulated world, a shipped world's name or a world/map YAML")
+        run.add_argument("--world",
+                         help="--headless only: simulated world, a shipped world's name or a world/map YAML")
         run.add_argument("--seed", type=int, help="--headless only: seed of the simulation's random sources")
         run.add_argument("--timeout", type=float, default=600.0, help="robot seconds before the mission is cancelled")
         run.add_argument("--headless", action="store_true",
