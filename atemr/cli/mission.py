@@ -53,8 +53,8 @@ class MissionCommand:
                          help="run in a fresh simulation without the dashboard, instead of on the running robot")
         run.add_argument("--json", action="store_true", help="print the full result as JSON")
         run.add_argument("--trace", type=Path, metavar="FILE",
-                         help="--headless only: record the agent (transitions, node statuses, blackboard, pose) to FILE "
-                              "(read it with 'atemr trace show FILE' or replay it on the dashboard)")
+                         help="--headless only: record the agent (transitions, node statuses, blackboard, pose) "
+                              "to FILE (read it with 'atemr trace show FILE' or replay it on the dashboard)")
         _robot_options(run)
         status = sub.add_parser("status", help="the running robot's agent: state, mode, task and its progress")
         status.add_argument("--json", action="store_true", help="print the full status as JSON")
