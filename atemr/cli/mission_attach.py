@@ -98,6 +98,9 @@ def follow(client: ControlClient, t0: float, *, quiet: bool) -> dict[str, Any]:
             print(f"{stamp} agent: {answer['state']}", flush=True)
         elif event == "step":
             print(f"{stamp} {step_line(answer['step'])}", flush=True)
+        elif event == "phase" and answer["phase"] == "confirming":
+            print(f"{stamp} waiting for the operator to confirm the mission on the dashboard (the robot's "
+                  f"autonomy level is {answer['autonomy']})", flush=True)
     raise ControlError("the robot stopped answering before the mission ended")  # answers() never ends
 
 

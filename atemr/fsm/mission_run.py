@@ -25,6 +25,8 @@ from atemr.trees.missions import Mission
 ANSWER_S = 5.0
 #: Robot seconds between two requests for AUTO while the sensors are still coming up.
 AUTO_RETRY_S = 0.5
+#: `MissionRun._answer`'s word for "the start waits for the operator's confirmation".
+CONFIRMING = "waits for the operator's confirmation"
 
 
 class MissionRun:
@@ -39,7 +41,8 @@ class MissionRun:
         self.started_s = agent.context.now
         self.result: dict[str, Any] = {"mission": mission.name, "file": mission.file, "outcome": "not started",
                                        "reason": None, "steps": [], "started_s": self.started_s}
-        #: startup → auto → start → running → cancelling → done
+        #: startup → auto → start → (confirming) → running → cancelling → done; ``confirming`` while the
+        #: mission's start waits for the operator (the robot's autonomy level is below the transition's).
         self.phase = "startup"
         self._startup_deadline = self.started_s + startup_timeout_s
         self._deadline = self._startup_deadline
@@ -48,6 +51,7 @@ class MissionRun:
         self._retry_at = self.started_s
         self._stop_reason: str | None = None
         self._timed_out = False
+        self._asked_s = self.started_s
 
     @property
     def done(self) -> bool:
@@ -60,6 +64,8 @@ class MissionRun:
         self._stop_reason = reason
         if self.phase in ("startup", "auto", "start") and self._pending is None:
             self._finish(outcome="cancelled")
+        elif self.phase == "confirming":
+            self._withdraw()
         elif self.phase == "running":
             self._submit("cancel")
             self.phase = "cancelling"
@@ -117,6 +123,11 @@ class MissionRun:
                     self.phase = "cancelling"
                 else:
                     return False
+            elif phase == "confirming":
+                request = agent.gate.pending
+                if request is not None and request.trigger == "start_mission":
+                    return False
+                self._confirmed()
             elif phase == "cancelling":
                 return False  # waits for the cancel's answer (handled above)
         return self.done
@@ -137,6 +148,8 @@ class MissionRun:
             self._pending = None
             return trigger, f"no answer to '{trigger}' before the time limit"
         self._pending = None
+        if result.decision == "requested":
+            return trigger, CONFIRMING
         if result.accepted and result.dest is not None and top_level(result.dest) != "ERROR":
             return trigger, None
         return trigger, result.reason or f"'{trigger}' led to {result.dest}"
@@ -146,7 +159,10 @@ class MissionRun:
         if trigger == "cancel":
             self._finish()
         elif self._stop_reason is not None:  # cancelled while set_auto or start_mission was on its way
-            if trigger == "start_mission" and why is None:
+            if trigger == "start_mission" and why == CONFIRMING:
+                self.phase, self._asked_s = "confirming", now
+                self._withdraw()
+            elif trigger == "start_mission" and why is None:
                 self._submit("cancel")
                 self.phase = "cancelling"
             else:
@@ -159,11 +175,36 @@ class MissionRun:
             else:
                 self._retry_at = now + (AUTO_RETRY_S if why is not None else 0.0)
         elif trigger == "start_mission":
-            if why is not None:
+            if why == CONFIRMING:
+                self.phase = "confirming"
+                self._asked_s = now
+            elif why is not None:
                 self._finish(reason=why)
             else:
                 self.phase = "running"
                 self._deadline = now + self.timeout_s
+
+    def _withdraw(self) -> None:
+        """Deny our own start still waiting for the operator (a cancel); `poll` then sees the denial."""
+        request = self.agent.gate.pending
+        if request is not None and request.trigger == "start_mission":
+            self.agent.answer(request.id, False, by=self.origin)
+
+    def _confirmed(self) -> None:
+        """The operator has decided on the mission's start: running if it was taken, else why not."""
+        records = [r for r in self.agent.trace if r.trigger == "start_mission" and r.t >= self._asked_s
+                   and r.decision != "requested"]
+        last = records[-1] if records else None
+        if last is not None and last.accepted and last.dest is not None and top_level(last.dest) == "EXEC":
+            self.phase = "running"
+            self._deadline = self.agent.context.now + self.timeout_s
+            if self._stop_reason is not None:
+                self._submit("cancel")
+                self.phase = "cancelling"
+        elif self._stop_reason is not None:
+            self._finish(outcome="cancelled")
+        else:
+            self._finish(reason=f"the operator did not confirm the mission: {last.reason if last else 'no answer'}")
 
     def _new_report(self) -> dict[str, Any] | None:
         reports = self.agent.task_reports

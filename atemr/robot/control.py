@@ -9,8 +9,10 @@
   not trusted); an invalid one, or a robot that is busy (Exec, Mapping, shutting down, another mission from
   here), is refused and nothing starts. Then, as an operator would: wait for IDLE, switch to AUTO, start
   the mission through the agent's inbox (`Agent.submit`, as the dashboard does) — `atemr.fsm.mission_run`.
-  The answers follow on the same connection: ``started``, then ``state`` (each agent state change) and
-  ``step`` (each step status change, with its report), and last ``result``: the same JSON as a headless
+  The answers follow on the same connection: ``started``, then ``state`` (each agent state change),
+  ``phase`` (the run's: ``confirming`` while the start waits for the operator's confirmation on the
+  dashboard, when the robot's autonomy level is below the mission's), ``step`` (each step status change,
+  with its report), and last ``result``: the same JSON as a headless
   ``atemr mission run --json``. The connection that started a mission (with ``follow``, the default) owns
   it: if it goes away before the end (the client was killed), the mission is cancelled — nobody could stop
   it with Ctrl-C any more. With ``"follow": false`` the answer is ``started`` alone and the mission runs on.
@@ -70,6 +72,7 @@ class _Session:
         self.finished = False
         self._cond = threading.Condition()
         self._state: str | None = None
+        self._phase = run.phase
         self._steps: dict[int, str] = {}
         mission = run.mission
         self.emit({"event": "started", "mission": mission.name, "file": mission.file,
@@ -96,10 +99,13 @@ class _Session:
             self._end()
 
     def _publish(self, steps: list[dict[str, Any]] | None) -> None:
-        state = self.run.agent.state
-        if state != self._state:
-            self._state = state
-            self.emit({"event": "state", "state": state})
+        agent = self.run.agent
+        if agent.state != self._state:
+            self._state = agent.state
+            self.emit({"event": "state", "state": agent.state})
+        if self.run.phase != self._phase:
+            self._phase = self.run.phase
+            self.emit({"event": "phase", "phase": self._phase, "autonomy": agent.gate.level})
         if self.run.phase not in ("running", "cancelling", "done"):
             return
         for step in steps or []:

@@ -67,14 +67,18 @@ class Running:
         self.robot.shutdown()
 
 
-@pytest.fixture
-def light(tmp_path: Path, agent_spec: AgentSpec) -> Iterator[Running]:
+def light_robot(data_dir: Path, spec: AgentSpec, **agent: Any) -> Running:
     """The agent over fake ports with the control channel, paced at 50x real time."""
     clock = RealTimeSimClock(speed=50.0)
-    robot = Robot(Config(data_dir=tmp_path), clock, Scheduler(clock, realtime=False))
-    robot.add(Agent(agent_spec, RecordingPort(), RecordingLink(time_source=clock.now)), 10.0)
+    robot = Robot(Config(data_dir=data_dir), clock, Scheduler(clock, realtime=False))
+    robot.add(Agent(spec, RecordingPort(), RecordingLink(time_source=clock.now), **agent), 10.0)
     robot.add(RobotControl(robot), 10.0)
-    running = Running(robot)
+    return Running(robot)
+
+
+@pytest.fixture
+def light(tmp_path: Path, agent_spec: AgentSpec) -> Iterator[Running]:
+    running = light_robot(tmp_path, agent_spec)
     yield running
     running.stop()
 
@@ -193,6 +197,34 @@ def test_the_robots_stop_ends_a_followed_mission_and_removes_the_socket(light: R
         result = until(client, "result")["result"]
     assert result["outcome"] == "interrupted" and result["reason"] == "the robot stopped before the mission ended"
     assert not light.socket.exists()
+
+
+def test_below_the_missions_autonomy_level_the_start_waits_for_the_operator(tmp_path: Path,
+                                                                           agent_spec: AgentSpec) -> None:
+    running = light_robot(tmp_path, agent_spec, autonomy="low")  # start_mission needs "high"
+    try:
+        client, _ = start(running.socket, TWO_WAITS)
+        with client:
+            assert until(client, "phase", phase="confirming")["autonomy"] == "low"
+            request = running.agent.gate.pending
+            assert request is not None and request.trigger == "start_mission"
+            assert running.agent.answer(request.id, True, by="operator") is None
+            result = until(client, "result")["result"]
+        assert result["outcome"] == "reached", result["reason"]
+        assert [s["status"] for s in result["steps"]] == ["reached", "reached"]
+
+        client, _ = start(running.socket, TWO_WAITS)
+        with client:
+            until(client, "phase", phase="confirming")
+            with ControlClient(running.socket) as other:
+                other.request({"cmd": "cancel"})
+            result = until(client, "result")["result"]
+        assert result["outcome"] == "cancelled" and result["steps"] == []
+        assert running.agent.state == "IDLE.AUTO" and running.agent.gate.pending is None
+        denial = [r for r in running.agent.trace if r.decision == "denied"][-1]
+        assert denial.trigger == "start_mission" and denial.decided_by == "control socket"
+    finally:
+        running.stop()
 
 
 # -- atemr mission run/status/cancel on the whole simulated robot -----------------------------------------
