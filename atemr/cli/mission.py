@@ -4,8 +4,10 @@
 or ``--goal X,Y,YAW`` repeated) on the robot that is already running (``./run``; through its control socket,
 `atemr.cli.mission_attach`) or, with ``--headless``, in a fresh headless simulation of the whole robot that
 exits when the mission ends. Either way it prints the result (``--json``: outcome, each step's status,
-time, final pose, position and heading error, and the agent's state trace); the exit code is 0 only when
-the mission was completed. ``status`` and ``cancel`` ask the running robot.
+time, final pose, position and heading error, and the agent's state trace; ``--headless`` adds the
+simulator's ground truth: collisions, falls, the true final pose, the localization's pose error (RMSE, max)
+and its events, see `atemr.robot.headless.TruthWatch`); the exit code is 0 only when the mission was
+completed. ``status`` and ``cancel`` ask the running robot.
 
 A mission is valid when its document is right (kinds, parameters, poses, timeouts). Whether it can run
 here is a separate answer: a step whose behaviour this build lacks (a plugin kind, or ``GoToPose`` in a
@@ -51,6 +53,9 @@ class MissionCommand:
         run.add_argument("--timeout", type=float, default=600.0, help="robot seconds before the mission is cancelled")
         run.add_argument("--headless", action="store_true",
                          help="run in a fresh simulation without the dashboard, instead of on the running robot")
+        run.add_argument("--kidnap", type=kidnap_argument, metavar="T,X,Y,YAW",
+                         help="--headless only: teleport the robot to X,Y,YAW T robot seconds after the start (the localizer must "
+                              "notice and find it again)")
         run.add_argument("--json", action="store_true", help="print the full result as JSON")
         run.add_argument("--trace", type=Path, metavar="FILE",
                          help="--headless only: record the agent (transitions, node statuses, blackboard, pose) "
@@ -124,12 +129,24 @@ def pose_argument(text: str) -> Pose2D:
     return Pose2D(*values)
 
 
+def kidnap_argument(text: str) -> tuple[float, Pose2D]:
+    """``"T,X,Y,YAW"`` → (seconds after the start, pose); argparse shows the error."""
+    when, _, pose = text.partition(",")
+    try:
+        t = float(when)
+    except ValueError:
+        t = math.nan
+    if not (math.isfinite(t) and t >= 0):
+        raise argparse.ArgumentTypeError(f"expected T,X,Y,YAW with T >= 0 seconds, got {text!r}")
+    return t, pose_argument(pose)
+
+
 def run_command(args: argparse.Namespace) -> int:
     """``atemr mission run``: on the running robot, or build the simulated robot, place it, run the mission,
     report."""
     from atemr.fsm.agent import Agent
     from atemr.fsm.mission_run import run_mission
-    from atemr.robot.headless import build_headless_robot
+    from atemr.robot.headless import TruthWatch, build_headless_robot
 
     if (args.file is None) == (not args.goal):
         raise ConfigError("give a mission FILE or one or more --goal X,Y,YAW (not both)", path="atemr mission run")
@@ -152,7 +169,9 @@ def run_command(args: argparse.Namespace) -> int:
         agent = robot.parts.get("agent")
         if not isinstance(agent, Agent):
             raise ConfigError("this robot has no agent wired", path="atemr mission run")
-        result = run_mission(agent, robot.scheduler.step, mission, timeout_s=args.timeout)
+        watch = TruthWatch(robot, kidnap=args.kidnap)
+        result = run_mission(agent, watch.wrap(robot.scheduler.step), mission, timeout_s=args.timeout)
+        result.update(watch.report())
     result["world"] = config.sim.world
     result["seed"] = config.sim.seed
     writer = robot.extras.get("trace")
@@ -196,3 +215,7 @@ def print_summary(result: dict[str, Any]) -> None:
     if pose is not None:
         print(f"  final pose ({pose['x_m']:.2f}, {pose['y_m']:.2f}, {pose['yaw_rad']:.2f}); "
               f"state {result['state']}")
+    error = result.get("pose_error") or {}
+    if error.get("rmse_m") is not None:
+        print(f"  pose error against ground truth: RMSE {error['rmse_m']:.3f} m, max {error['max_m']:.3f} m; "
+              f"collisions {result['collisions']}")

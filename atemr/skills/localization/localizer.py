@@ -91,14 +91,21 @@ class Localizer:
         self._static_updates = 0
 
     # -- operator ----------------------------------------------------------------------------------
-    def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None) -> None:
-        """The operator's click: AMCL starts round ``pose``; refused (`NavigationError`) off the map's free space."""
+    def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None, *,
+                         odom: Pose2D | None = None) -> None:
+        """The operator's click: AMCL starts round ``pose``; refused (`NavigationError`) off the map's free space.
+
+        ``odom``: the odometry pose at ``now``. With it the map pose holds from this moment; without it, from the
+        next scan (until then the map→odom correction is the one before the click, and so is the map pose).
+        """
         if not is_finite_pose(pose):
             raise NavigationError(f"initial pose must be finite, got {pose}")
         row, col = self.map.world_to_cell(pose.x_m, pose.y_m)
         if not self.map.contains(row, col) or not self.map.free[int(row), int(col)]:
             raise NavigationError(f"initial pose ({pose.x_m:.2f}, {pose.y_m:.2f}) is not in free space of the map")
         self.amcl.initialize(pose, covariance, now=now)
+        if odom is not None and is_finite_pose(odom):
+            self._odom = odom
         self._start_tracking(now, self.amcl.estimate)
         self._event(now, "initial_pose", f"initial pose ({pose.x_m:.2f}, {pose.y_m:.2f}, {pose.yaw_rad:.2f})")
 

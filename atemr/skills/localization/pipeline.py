@@ -80,7 +80,7 @@ class LocalizationPipeline:
 
     def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None) -> None:
         """The operator's pose on the map (`NavigationError` if it is not in free space)."""
-        self._need().set_initial_pose(now, pose, covariance)
+        self._need().set_initial_pose(now, pose, covariance, odom=self.odometry.estimate.pose)
 
     def start_global(self, now: float) -> None:
         """Global localization (the pose is unknown)."""

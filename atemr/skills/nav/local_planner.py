@@ -65,14 +65,26 @@ class LocalPlannerParams:
     #: 10 Hz scan (0.035 m) and a grid cell (0.05 m). A path the ramp would end in an emergency stop is no
     #: path (a turn round a door jamb); a 0.8 m doorway still passes (its jambs enter the cone at 0.46 m).
     stop_cone_m: float = 0.40
+    #: The motion pipeline's stop zone (`atemr.skills.ramp.MotionLimits`): it halts the base when the nearest
+    #: return ahead (behind, reversing) minus speed × ``brake_latency_s`` falls below ``stop_distance_m``, and
+    #: holds until the way is clear. A plan it would veto is no plan: speed is capped so the base can brake
+    #: in time, to a stop ``stop_margin_m`` short of the zone (`zone_speed_cap`). The assembly copies the
+    #: configured values.
+    stop_distance_m: float = 0.28
+    brake_latency_s: float = 0.12
+    stop_margin_m: float = 0.03
 
     def __post_init__(self) -> None:
         for name in ("max_linear_mps", "max_angular_radps", "linear_accel_mps2", "angular_accel_radps2",
                      "control_period_s", "sim_time_s", "sim_step_s", "lookahead_m", "rotate_threshold_rad",
-                     "rotate_gain", "escape_reverse_mps", "stop_cone_m"):
+                     "rotate_gain", "escape_reverse_mps", "stop_cone_m", "brake_latency_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise NavigationError(f"local planner: {name} must be a finite number > 0, got {value!r}")
+        for name in ("stop_distance_m", "stop_margin_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise NavigationError(f"local planner: {name} must be a finite number >= 0, got {value!r}")
         if self.linear_samples < 2 or self.angular_samples < 3:
             raise NavigationError("local planner: need at least 2 linear and 3 angular samples")
 
@@ -125,6 +137,19 @@ def stop_cone_clearance(costmap: Costmap, xs: FloatArray, ys: FloatArray, yaw: F
     half = 0.5 * radius_m * direction
     probe = costmap.distance_at(xs + half * np.cos(yaw), ys + half * np.sin(yaw))
     return np.where(direction == 0, np.inf, probe / (math.sqrt(0.75) * radius_m))
+
+
+def zone_speed_cap(clearance_m: float, params: LocalPlannerParams) -> float:
+    """Highest speed towards a return ``clearance_m`` away (from the base origin, in the ramp's sector) at which the
+    motion pipeline's stop zone never fires: the room left before the zone and margin must cover the latency
+    (a control period plus the ramp's ``brake_latency_s``) and the braking at ``linear_accel_mps2``."""
+    room = clearance_m - params.stop_distance_m - params.stop_margin_m
+    if room <= 0:
+        return 0.0
+    if not math.isfinite(room):
+        return math.inf
+    return min(room / (params.brake_latency_s + params.control_period_s),
+               math.sqrt(2 * params.linear_accel_mps2 * room))
 
 
 def path_progress(path: FloatArray, x: float, y: float) -> tuple[int, FloatArray]:
@@ -186,8 +211,12 @@ class LocalPlanner:
         return Twist(v, w)
 
     def compute(self, pose: Pose2D, velocity: Twist, path: FloatArray, goal_xy: tuple[float, float],
-                dt_s: float | None = None) -> LocalPlan:
-        """The twist that best follows ``path`` (world points, start to goal) from ``pose``."""
+                dt_s: float | None = None, *, zone: tuple[float, float] | None = None) -> LocalPlan:
+        """The twist that best follows ``path`` (world points, start to goal) from ``pose``.
+
+        ``zone``: the nearest returns (front, rear) as the motion pipeline's stop zone sees them
+        (`atemr.skills.hexpattern.HexSectors.nearest_by_direction`); speed either way is capped by
+        `zone_speed_cap`, so the plan is one the pipeline will drive (None: no scan, no cap)."""
         p = self.params
         if len(path) == 0:
             raise NavigationError("local planner: empty path")
@@ -213,7 +242,11 @@ class LocalPlanner:
 
         # Slow down for the goal: able to stop there (√(2·a·d)), and creeping over the last decimetres.
         v_cap = min(p.max_linear_mps, math.sqrt(2 * p.linear_accel_mps2 * d_goal), max(0.08, 1.2 * d_goal))
+        front_cap, rear_cap = (math.inf, math.inf) if zone is None else (zone_speed_cap(zone[0], p),
+                                                                        zone_speed_cap(zone[1], p))
+        v_cap = min(v_cap, front_cap)
         vs, ws = self.targets(velocity, v_cap, reverse=escaping)
+        vs = np.maximum(vs, -rear_cap)
         xs, ys, th = self._rollout(pose, velocity, vs, ws, p.sim_time_s)
         clear = cm.distance_at(xs, ys)
         # Valid: never inside the inscribed radius; from inside it (pushed against something, or something
@@ -257,6 +290,7 @@ class LocalPlanner:
         best = int(np.argmin(score))
         traj = np.vstack([here, np.column_stack([xs[best], ys[best]])])
         twist = self.first_command(velocity, float(vs[best]), float(ws[best]), dt)
+        twist = Twist(min(max(twist.linear_mps, -rear_cap), front_cap), twist.angular_radps)
         # A stop chosen because every move is ruled out is a blocked robot, not progress.
         moving = abs(twist.linear_mps) > 1e-3 or abs(twist.angular_radps) > 1e-3 or abs(vs[best]) > 1e-3
         return LocalPlan(twist, traj, moving, len(vs), n_valid)

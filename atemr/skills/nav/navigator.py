@@ -19,10 +19,12 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from atemr.errors import NavigationError
 from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import ZERO_TWIST, LaserScan, Pose2D, Twist
+from atemr.skills.hexpattern import HEX90, hex_pattern
 from atemr.skills.nav.costmap import INSCRIBED, Costmap, CostmapParams
 from atemr.skills.nav.global_planner import GlobalPath, GlobalPlanner, PlannerParams
 from atemr.skills.nav.goal_check import GoalCheck, check_goal
@@ -68,6 +70,10 @@ class NavParams:
     #: Progress that proves a recovery worked (the sequence starts again from the first behaviour).
     recovered_after_m: float = 1.0
     localization_timeout_s: float = 10.0
+    #: When the recoveries are used up and there is still no path, but the map alone has one, the way is blocked
+    #: by what the live scan sees (a pet lying in the only passage, people in a doorway): they move on, so wait
+    #: this much longer (stepping out of their way, planning again every ``path_retry_s``) before failing.
+    obstacle_wait_s: float = 60.0
     timeout_s: float = 600.0
 
     def __post_init__(self) -> None:
@@ -75,7 +81,7 @@ class NavParams:
             raise NavigationError(f"navigator: arrive_m ({self.arrive_m}) must not exceed xy_tolerance_m")
         for name in ("xy_tolerance_m", "yaw_tolerance_rad", "arrive_m", "replan_period_s", "blocked_lookahead_m",
                      "blocked_timeout_s", "path_wait_s", "path_retry_s", "stuck_timeout_s", "progress_m",
-                     "recovered_after_m", "localization_timeout_s", "timeout_s"):
+                     "recovered_after_m", "localization_timeout_s", "obstacle_wait_s", "timeout_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise NavigationError(f"navigator: {name} must be a finite number > 0, got {value!r}")
@@ -126,6 +132,9 @@ class Navigator:
         self.local = LocalPlanner(self.costmap, p.local)
         self.tracker = ObstacleTracker(p.tracker)
         self._path: GlobalPath | None = None
+        # Connected parts of the map's own free space (4-connected: the planner cuts no corners), to tell "no
+        # path on the map" from "no path past what the scan sees now".
+        self._static_parts, _ = ndimage.label(self.costmap.static_cost < INSCRIBED)
 
     def _reset(self) -> None:
         self._path = None
@@ -133,6 +142,7 @@ class Navigator:
         self._t_plan = -math.inf
         self._t_last = math.nan
         self._last_scan_t = math.nan
+        self._zone: tuple[float, float] | None = None
         self._velocity = ZERO_TWIST
         self._blocked_since: float | None = None
         self._no_path_since: float | None = None
@@ -144,6 +154,7 @@ class Navigator:
         self._recovery: RecoveryBehaviour | None = None
         self._recovery_d_goal = math.inf
         self._last_failure: FailReason = "stuck"
+        self._waiting_since: float | None = None
         self._xy_reached = False
         self._creeping = False
         self._trajectory = _EMPTY
@@ -207,6 +218,9 @@ class Navigator:
         if scan is not None and scan.t != self._last_scan_t:
             self.costmap.update_from_scan(scan, pose)
             self._last_scan_t = scan.t
+            # What the motion pipeline's stop zone will judge the next commands by (nearest return ahead, behind).
+            front, rear, _ = hex_pattern(scan, HEX90).nearest_by_direction()
+            self._zone = (front, rear)
             if p.predict_movers:
                 self.tracker.update(scan.t, self.costmap.unmapped_points)
                 self.costmap.set_predicted(self.tracker.predicted_points(self.costmap.resolution_m))
@@ -266,11 +280,12 @@ class Navigator:
         # costmap shortens the plan without moving anything); then the sequence may start over.
         if self._recovery_index and d_goal < self._recovery_d_goal - p.recovered_after_m:
             self._recovery_index = 0
+            self._waiting_since = None
         if now - self._t_progress > p.stuck_timeout_s:
             return self._begin_recovery(now, pose, "stuck", d_goal)
 
         end = (float(path[-1, 0]), float(path[-1, 1]))  # the goal, or the nearest enterable cell to it
-        plan = self.local.compute(pose, self._velocity, path, end, dt)
+        plan = self.local.compute(pose, self._velocity, path, end, dt, zone=self._zone)
         self._trajectory = plan.trajectory
         if not plan.ok:
             if self._blocked_since is None:
@@ -326,9 +341,26 @@ class Navigator:
         i, s = path_progress(path, pose.x_m, pose.y_m)
         return float(s[-1] - s[i] + math.hypot(path[i, 0] - pose.x_m, path[i, 1] - pose.y_m))
 
+    def _map_has_path(self, pose: Pose2D) -> bool:
+        """Whether start and goal lie in one connected part of the map's free space (ignoring the live layers)."""
+        assert self.goal is not None
+        xs, ys = np.array([pose.x_m, self.goal.x_m]), np.array([pose.y_m, self.goal.y_m])
+        rows, cols, inside = self.costmap.cells(xs, ys)
+        if not inside.all():
+            return False
+        here, there = (int(v) for v in self._static_parts[rows, cols])
+        return here != 0 and here == there
+
     def _begin_recovery(self, now: float, pose: Pose2D, why: FailReason, d_goal: float) -> NavStatus:
         seq = self.params.recovery.sequence
         self._last_failure = why
+        if self._recovery_index >= len(seq) and why == "no path" and self._map_has_path(pose):
+            if self._waiting_since is None:
+                self._waiting_since = now
+                self.events.append(NavEvent(now, "waiting", "the way is blocked by obstacles not in the map"))
+            if now - self._waiting_since <= self.params.obstacle_wait_s:
+                self._no_path_since = now  # plan again every path_retry_s, look at this again after path_wait_s
+                return self._running(ZERO_TWIST, "no path: waiting for the way to clear", d_goal)
         if self._recovery_index >= len(seq):
             detail = {"no path": "no path to the goal", "stuck": "the robot is stuck"}.get(why, why)
             return self._fail(now, why, f"{detail} after recoveries ({', '.join(seq)})")
