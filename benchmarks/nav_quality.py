@@ -147,10 +147,10 @@ def command(pair: Pair, *, data_dir: Path, timeout_s: float, kidnap: str | None 
         return f"{p.x_m},{p.y_m},{p.yaw_rad}"
 
     out = [sys.executable, "-m", "atemr", "mission", "run", "--world", pair.world, "--headless",
-           "--seed", str(pair.seed), "--json", "--start", pose(pair.start), "--goal", pose(pair.goal),
+           "--seed", str(pair.seed), "--json", f"--start={pose(pair.start)}", f"--goal={pose(pair.goal)}",
            "--data-dir", str(data_dir), "--timeout", f"{timeout_s:g}"]
     if kidnap is not None:
-        out += ["--kidnap", kidnap]
+        out.append(f"--kidnap={kidnap}")  # "=": a negative number must not read as an option
     return out
 
 

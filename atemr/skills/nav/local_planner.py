@@ -251,7 +251,12 @@ class LocalPlanner:
         clear = cm.distance_at(xs, ys)
         # Valid: never inside the inscribed radius; from inside it (pushed against something, or something
         # came close), never closer than now and ending farther away: the way out, never a creep inwards.
-        valid = clear.min(axis=1) >= min(r_in, clearance_here)
+        # Within a cell of where the base stands the grid cannot tell better than a cell: a base resting on the
+        # edge of the inscribed zone reads the next cell a cell closer whichever way it moves, and would never
+        # move again (seen with a cat lying right behind the robot).
+        floor = min(r_in, clearance_here)
+        first_cell = np.hypot(xs - pose.x_m, ys - pose.y_m) < cm.resolution_m
+        valid = np.where(first_cell, clear >= floor - cm.resolution_m, clear >= floor).all(axis=1)
         if clearance_here < r_in:
             valid &= clear[:, -1] > clearance_here
             # Out of a person's way, but never towards a wall: the clearance from the map may not fall below
