@@ -17,6 +17,7 @@ from typing import Any, Literal
 
 from atemr.errors import ConfigError
 from atemr.skills.localization.config import LocalizationConfig
+from atemr.skills.nav.config import NavConfig
 from atemr.skills.ramp import MotionLimits
 from atemr.typed import Source, field_paths, merge_into, nest
 from atemr.yamlsafe import load_yaml
@@ -184,6 +185,7 @@ class Config:
     #: changes them at run time through `MotionPipeline.set_limits`.
     motion: MotionLimits = field(default_factory=MotionLimits)
     localization: LocalizationConfig = field(default_factory=LocalizationConfig)
+    nav: NavConfig = field(default_factory=NavConfig)
 
 
 def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:

@@ -169,6 +169,7 @@ def _add_agent(robot: Robot) -> None:
     navigation = RobotNavigation(
         robot.extras["maps"], robot.extras["localization"],
         scan=(lambda: sim.lidar_source.latest) if sim is not None else (lambda: None), velocity=measured,
+        params=cfg.nav.nav_params(robot.extras["pipeline"].limits),
     )
     link = robot.parts["secondary_link"]
     agent = Agent.from_config(cfg, port, SecondaryLinkPort(link),  # type: ignore[arg-type]

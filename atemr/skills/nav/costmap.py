@@ -60,6 +60,11 @@ class CostmapParams:
     obstacle_padding_m: float = 0.1
     #: Returns farther than this do not mark (noise grows with range); beams clear up to their return.
     obstacle_range_m: float = 4.0
+    #: A return this close to a mapped obstacle (plus ``wall_match_per_m`` per metre of range: a heading error of
+    #: a degree moves a far return by that much) is that obstacle, seen from a pose a few centimetres off. Marked,
+    #: it would stay for good (the beams that could clear it end on it) and narrow doorways.
+    wall_match_m: float = 0.08
+    wall_match_per_m: float = 0.02
     raytrace_range_m: float = 6.0
 
     def __post_init__(self) -> None:
@@ -67,7 +72,7 @@ class CostmapParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise NavigationError(f"costmap: {name} must be a finite number > 0, got {value!r}")
-        for name in ("footprint_padding_m", "obstacle_padding_m"):
+        for name in ("footprint_padding_m", "obstacle_padding_m", "wall_match_m", "wall_match_per_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise NavigationError(f"costmap: {name} must be a finite number >= 0, got {value!r}")
@@ -288,13 +293,14 @@ class Costmap:
         before = self.obstacles.copy() if self.obstacles.any() else None
         self.obstacles[row[inside], col[inside]] = False
         # Marking: the cells the returns end in, unless they are a mapped wall: a return within a cell and a
-        # half of a static obstacle is that obstacle seen with range noise, and marking it would narrow
-        # every doorway by a cell.
+        # half (or ``wall_match_m`` and more with range) of a static obstacle is that obstacle seen with range
+        # noise and pose error, and marking it would narrow every doorway by a cell.
         near = r <= p.obstacle_range_m
         mx, my = sx + ux[near] * r[near], sy + uy[near] * r[near]
         row, col, inside = self.cells(mx, my)
         row, col = row[inside], col[inside]
-        new = self._static_distance[row, col] > 1.5 * self.resolution_m
+        match = np.maximum(1.5 * self.resolution_m, p.wall_match_m + p.wall_match_per_m * r[near][inside])
+        new = self._static_distance[row, col] > match
         self.obstacles[row[new], col[new]] = True
         self.unmapped_points = np.column_stack([mx[inside][new], my[inside][new]])
         if before is None or not np.array_equal(before, self.obstacles):

@@ -66,6 +66,28 @@ def test_studio_doorway_blocked_for_good_fails_with_no_path(closed_loop):
     assert run.statuses[-1].twist.is_zero
 
 
+def test_studio_doorway_blocked_past_the_recoveries_waits_for_the_way_to_clear(closed_loop):
+    """The person stays in the doorway through every recovery: the map has a path, so the robot waits (up to
+    ``obstacle_wait_s``) instead of failing, and goes on when she leaves."""
+    sim = build_simulation("studio", 13)
+    person = sim.drop_obstacle(*DOORWAY, size_m=0.44, shape="circle", name="person", height_m=1.7)
+    nav = Navigator(sim.world.map, NavParams(path_wait_s=2.0, obstacle_wait_s=60.0))
+    left: list[float] = []
+
+    def leave_after_the_recoveries(now, s):
+        waiting = [e.t for e in nav.events if e.kind == "waiting" and "not in the map" in e.detail]
+        if waiting and now >= waiting[0] + 10.0 and not left:
+            s.remove_obstacle(person)
+            left.append(now)
+
+    run = closed_loop(sim, nav, Pose2D(6.3, 0.8, 0.0), max_s=150.0, on_tick=leave_after_the_recoveries)
+    recoveries = [e.detail.split(" (")[0] for e in nav.events if e.kind == "recovery"]
+    assert recoveries == ["clear costmap", "rotate in place", "back off", "replan"]
+    assert left, [(e.t, e.kind) for e in nav.events]
+    assert run.status.state == "SUCCEEDED", run.status
+    assert run.collisions == []
+
+
 def test_studio_crossing_the_carers_walk(closed_loop):
     """The carer walks to and fro across the living room; the robot crosses her line to the kitchen."""
     sim = build_simulation("studio", 14)

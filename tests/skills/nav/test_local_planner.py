@@ -6,7 +6,13 @@ import pytest
 from atemr.errors import NavigationError
 from atemr.msgs import Pose2D, Twist
 from atemr.skills.nav.costmap import Costmap
-from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, ramped_rollout, stop_cone_clearance
+from atemr.skills.nav.local_planner import (
+    LocalPlanner,
+    LocalPlannerParams,
+    ramped_rollout,
+    stop_cone_clearance,
+    zone_speed_cap,
+)
 
 RES = 0.05
 
@@ -151,3 +157,24 @@ def test_bad_params_are_navigation_errors():
         LocalPlannerParams(max_linear_mps=0.0)
     with pytest.raises(NavigationError, match="samples"):
         LocalPlannerParams(angular_samples=1)
+
+
+def test_speed_is_capped_by_the_motion_pipelines_stop_zone(make_map, make_room):
+    """A plan the pipeline would veto is no plan: towards a return just beyond the stop zone the planner only
+    turns; with room it may drive, faster the more room there is."""
+    params = LocalPlannerParams()
+    edge = params.stop_distance_m + params.stop_margin_m
+    assert zone_speed_cap(edge, params) < 1e-9 and zone_speed_cap(edge - 0.1, params) == 0.0
+    caps = [zone_speed_cap(edge + d, params) for d in (0.02, 0.1, 0.3)]
+    assert 1e-3 < caps[0] < caps[1] < caps[2]
+    assert zone_speed_cap(math.inf, params) == math.inf
+    cm = Costmap(make_map(make_room(), 0.05))
+    planner = LocalPlanner(cm, params)
+    pose = Pose2D(1.0, 1.5, 0.0)
+    path = np.array([[1.0, 1.5], [2.0, 1.5], [3.0, 1.5]])
+    free = planner.compute(pose, Twist(0.0, 0.0), path, (3.0, 1.5), 0.1, zone=(math.inf, math.inf))
+    assert free.ok and free.twist.linear_mps > 0
+    walled = planner.compute(pose, Twist(0.0, 0.0), path, (3.0, 1.5), 0.1, zone=(edge, math.inf))
+    assert walled.twist.linear_mps <= 1e-9
+    near = planner.compute(pose, Twist(0.3, 0.0), path, (3.0, 1.5), 0.1, zone=(edge + 0.02, math.inf))
+    assert 0.0 <= near.twist.linear_mps <= caps[0] + 1e-9
