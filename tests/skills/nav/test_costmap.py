@@ -145,3 +145,23 @@ def test_studio_scan_marks_the_unmapped_basket_and_not_the_walls():
     assert (np.hypot(x - 3.0, y - 1.2) <= cm.params.obstacle_range_m + 0.2).all()
     # The basket makes the cells around it inscribed for planning.
     assert cm.cost_at(3.9 - 0.4, 1.1) >= INSCRIBED
+
+
+def test_a_wall_seen_from_a_slightly_wrong_pose_is_not_marked():
+    """A far wall seen with the heading a degree off lands returns a few cells beside it: that is the wall,
+    not something new (marked, it would never clear: the beams that could clear it end on it)."""
+    sim = build_simulation("studio", 5)
+    sim.kidnap(Pose2D(2.6, 2.6, 0.0))  # living room centre: walls 2.4-2.9 m away, nothing unmapped in between
+    scan = sim.read_lidar(0.0)
+    cm = Costmap(sim.world.map)
+    off = Pose2D(2.6, 2.6, math.radians(1.0))
+    cm.update_from_scan(scan, off)
+    rows, cols = np.nonzero(cm.obstacles)
+    x, y = sim.world.map.cell_to_world(rows, cols)
+    basket, plant = np.hypot(x - 3.9, y - 1.1) < 0.35, np.hypot(x - 4.9, y - 0.5) < 0.35
+    carer = np.hypot(x - sim.movers.items[0].x_m, y - sim.movers.items[0].y_m) < 0.35
+    assert not (~basket & ~plant & ~carer).any(), list(zip(x.round(2), y.round(2), strict=True))
+    # Without the range allowance (a cell and a half only), the same scan marks wall cells.
+    strict = Costmap(sim.world.map, CostmapParams(wall_match_m=0.0, wall_match_per_m=0.0))
+    strict.update_from_scan(scan, off)
+    assert strict.obstacles.sum() > cm.obstacles.sum()
