@@ -312,6 +312,13 @@ class Navigator:
             self._planned = True
             return False
         self._path = path
+        if before is None:
+            # A way again after none: progress is judged from now (waiting for it was not being stuck), and after
+            # a wait for the way to clear, the recoveries are all there again.
+            self._t_progress = now
+            if self._waiting_since is not None:
+                self._waiting_since = None
+                self._recovery_index = 0
         # Progress is judged along the current plan: a detour round a new obstacle is progress too.
         left = self._distance_left(pose, path.points)
         self._best_left = left
