@@ -116,7 +116,7 @@ def test_kidnapped_robot_is_noticed_and_recovered(capsys: pytest.CaptureFixture[
                                                   monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     # Sent across the living room; 2 s into the mission the simulator teleports it into the kitchen.
     result = mission_run(capsys, monkeypatch, tmp_path, "--world", "studio", "--seed", "2",
-                         "--start", "1.6,3.6,0", "--goal", "4.2,1.6,0", "--kidnap", "5.3,3.6,5.5,3.1")
+                         "--start", "1.6,3.6,0", "--goal", "3.4,2.2,0", "--kidnap", "5.3,3.6,5.5,3.1")
     assert result["kidnapped_s"] is not None
     events = [(e["t"], e["kind"]) for e in result["localization_events"]]
     lost = [t for t, kind in events if kind == "lost" and t >= result["kidnapped_s"]]
@@ -124,6 +124,6 @@ def test_kidnapped_robot_is_noticed_and_recovered(capsys: pytest.CaptureFixture[
     found = [t for t, kind in events if kind in ("relocalized", "localized") and t > lost[0]]
     assert found, events
     assert result["outcome"] == "reached", result.get("reason")
-    truth, goal = result["true_pose"], (4.2, 1.6)
+    truth, goal = result["true_pose"], (3.4, 2.2)
     assert math.hypot(truth["x_m"] - goal[0], truth["y_m"] - goal[1]) <= 0.25
     assert result["collisions"] == 0
