@@ -54,8 +54,8 @@ class MissionCommand:
         run.add_argument("--headless", action="store_true",
                          help="run in a fresh simulation without the dashboard, instead of on the running robot")
         run.add_argument("--kidnap", type=kidnap_argument, metavar="T,X,Y,YAW",
-                         help="--headless only: teleport the robot to X,Y,YAW T robot seconds after the start (the localizer must "
-                              "notice and find it again)")
+                         help="--headless only: teleport the robot to X,Y,YAW T robot seconds after the start "
+                              "(the localizer must notice and find it again)")
         run.add_argument("--json", action="store_true", help="print the full result as JSON")
         run.add_argument("--trace", type=Path, metavar="FILE",
                          help="--headless only: record the agent (transitions, node statuses, blackboard, pose) "

@@ -39,7 +39,7 @@ def socket_of(args: argparse.Namespace) -> Path:
 def start_request(args: argparse.Namespace) -> dict[str, Any]:
     """The ``start`` request, the mission checked here first (the robot checks it again)."""
     headless_only = (("--world", args.world), ("--seed", args.seed), ("--start", args.start),
-                     ("--trace", args.trace), ("--kidnap", getattr(args, "kidnap", None)))
+                     ("--trace", args.trace), ("--kidnap", args.kidnap))
     given = ", ".join(option for option, value in headless_only if value is not None)
     if given:
         raise ConfigError(f"{given}: only for a fresh simulation (add --headless); the running robot already has "
