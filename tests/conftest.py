@@ -3,6 +3,7 @@ the agent's document and fake ports for the agent tests."""
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -32,6 +33,23 @@ def clean_blackboard() -> Iterator[None]:
     clear_blackboard()
     yield
     clear_blackboard()
+
+
+@pytest.fixture(autouse=True)
+def root_logger_restored() -> Iterator[None]:
+    """An in-process ``atemr`` ``main()`` configures logging as the command line does: a stderr handler on
+    the root logger (this test's captured stream, closed afterwards) and the root level from ``--log-level``.
+    Put both back, and the ``transitions`` logger's level, so no later test logs into a closed stream or
+    loses its warnings to an ``ERROR`` level left behind (``caplog`` only sees records the level lets by)."""
+    root = logging.getLogger()
+    transitions = logging.getLogger("transitions")
+    handlers, level, transitions_level = list(root.handlers), root.level, transitions.level
+    yield
+    for handler in list(root.handlers):
+        if handler not in handlers and getattr(handler, "_atemr", False):
+            root.removeHandler(handler)
+    root.setLevel(level)
+    transitions.setLevel(transitions_level)
 
 
 @pytest.fixture(scope="session")

@@ -8,7 +8,6 @@ its own thread, as ``./run`` does, on simulated time faster than real time.
 from __future__ import annotations
 
 import json
-import logging
 import os
 import signal
 import subprocess
@@ -48,17 +47,6 @@ TWO_WAITS = """mission:
     - wait: {duration_s: 1}
     - wait: {duration_s: 1}
 """
-
-
-@pytest.fixture(autouse=True)
-def cli_logging_released() -> Iterator[None]:
-    """An in-process ``main()`` points the root logger at this test's captured stderr, closed afterwards: drop
-    that handler so the next test's robot does not log into a closed stream."""
-    yield
-    root = logging.getLogger()
-    for handler in list(root.handlers):
-        if getattr(handler, "_atemr", False):
-            root.removeHandler(handler)
 
 
 class Running:
