@@ -14,6 +14,7 @@ localization lost, timeout). Time comes only from ``now``; nothing here reads a 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -31,6 +32,7 @@ from atemr.skills.nav.goal_check import GoalCheck, check_goal
 from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, path_progress, wrap
 from atemr.skills.nav.moving_obstacles import ObstacleTracker, TrackerParams
 from atemr.skills.nav.recovery import RecoveryBehaviour, RecoveryParams
+from atemr.skills.nav.route import JOIN_M, Route
 
 FloatArray = NDArray[np.float64]
 NavState = Literal["IDLE", "RUNNING", "SUCCEEDED", "FAILED", "CANCELED"]
@@ -120,6 +122,7 @@ class Navigator:
         self.events: list[NavEvent] = []
         self.set_map(occupancy)
         self.goal: Pose2D | None = None
+        self.route: Route | None = None
         self.state: NavState = "IDLE"
         self._reset()
 
@@ -165,19 +168,36 @@ class Navigator:
         return check_goal(goal, self.costmap, localized=localized, mode=mode,
                           allow_unknown=self.params.planner.allow_unknown)
 
-    def start(self, goal: Pose2D, now: float, *, localized: bool = True, mode: str = "AUTO") -> GoalCheck:
+    def start(self, goal: Pose2D, now: float, *, localized: bool = True, mode: str = "AUTO",
+              route: Sequence[Sequence[float]] | None = None) -> GoalCheck:
         """Accept ``goal`` and begin; a refused goal raises `NavigationError` with the reason (the agent turns
-        it into its Error state) and leaves the navigator idle."""
+        it into its Error state) and leaves the navigator idle.
+
+        ``route``: points ``[x_m, y_m]`` to drive through, in order, on the way to the goal (a `Route`, in
+        place of the planner's shortest way); refused when a point is not finite or the map rules it out.
+        """
         verdict = self.check(goal, localized=localized, mode=mode)
+        planned_route = None
+        if verdict.ok and route is not None:
+            try:
+                planned_route = Route.through(route, goal, self.costmap.resolution_m)
+            except ValueError as exc:
+                verdict = GoalCheck(False, None, str(exc))
+            else:
+                why = planned_route.refusal(self.costmap)
+                if why is not None:
+                    verdict = GoalCheck(False, None, why)
         if not verdict.ok:
             self.events.append(NavEvent(now, "refused", verdict.reason))
             verdict.raise_if_refused()
         self._reset()
         self.goal = goal
+        self.route = planned_route
         self.state = "RUNNING"
         self._t_start = now
         self._t_progress = now
-        self.events.append(NavEvent(now, "goal", f"({goal.x_m:.2f}, {goal.y_m:.2f}, {goal.yaw_rad:.2f})"))
+        self.events.append(NavEvent(now, "goal", f"({goal.x_m:.2f}, {goal.y_m:.2f}, {goal.yaw_rad:.2f})"
+                                    + (f" along a {planned_route.length_m:.2f} m route" if planned_route else "")))
         return verdict
 
     def cancel(self, now: float | None = None) -> NavStatus:
@@ -302,8 +322,11 @@ class Navigator:
     def _plan(self, now: float, pose: Pose2D) -> bool:
         assert self.goal is not None
         before = self._path
-        tolerance = max(self.params.xy_tolerance_m - 0.05, 0.0)
-        path = self.planner.plan((pose.x_m, pose.y_m), (self.goal.x_m, self.goal.y_m), tolerance_m=tolerance)
+        if self.route is not None:
+            path = self._follow_route(pose)
+        else:
+            tolerance = max(self.params.xy_tolerance_m - 0.05, 0.0)
+            path = self.planner.plan((pose.x_m, pose.y_m), (self.goal.x_m, self.goal.y_m), tolerance_m=tolerance)
         self._t_plan = now
         if path is None:
             if before is not None or not self._planned:
@@ -328,11 +351,32 @@ class Navigator:
         self._planned = True
         return True
 
+    def _follow_route(self, pose: Pose2D) -> GlobalPath | None:
+        """The path along the route from the robot's progress (an A* approach first when it is off the
+        route), or None while a stretch just ahead is blocked (waited for like no path; never bypassed)."""
+        assert self.route is not None
+        off_by = self.route.advance(pose.x_m, pose.y_m)
+        rest = self.route.rest
+        if self._blocked_ahead(pose, rest):
+            return None
+        expanded = 0
+        if off_by > JOIN_M:
+            approach = self.planner.plan((pose.x_m, pose.y_m), (float(rest[0, 0]), float(rest[0, 1])))
+            if approach is None:
+                return None
+            rest = np.concatenate([approach.points[:-1], rest])
+            expanded = approach.expanded
+        length = float(np.hypot(*np.diff(rest, axis=0).T).sum()) if len(rest) > 1 else 0.0
+        return GlobalPath(rest, np.zeros(0, dtype=np.intp), length, 0.0, expanded)
+
     def _path_blocked(self, pose: Pose2D) -> bool:
         """Whether a stretch of the current path just ahead now lies in the inscribed zone."""
         if self._path is None:
             return True
-        pts = self._path.points
+        return self._blocked_ahead(pose, self._path.points)
+
+    def _blocked_ahead(self, pose: Pose2D, pts: FloatArray) -> bool:
+        """Whether the stretch of ``pts`` within the look-ahead of the robot lies in the inscribed zone."""
         i, s = path_progress(pts, pose.x_m, pose.y_m)
         j = int(np.searchsorted(s, s[i] + self.params.blocked_lookahead_m))
         ahead = pts[i:j + 1]
