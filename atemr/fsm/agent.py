@@ -476,7 +476,7 @@ class Agent:
         if record.state_changed:
             if self._progress is not None:
                 outcome = _OUTCOMES.get(record.trigger, record.trigger)
-                self._progress.finish(outcome, self.context.now, self.context.port.pose())
+                self._progress.finish(outcome, self.context.now, self.context.port.pose(), record.reason)
                 self.task_reports.append(self._progress.report())
                 self._progress = None
             self._enter_state()

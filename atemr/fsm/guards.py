@@ -9,7 +9,6 @@ callbacks act, through the ports.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -19,6 +18,7 @@ from atemr.msgs import Pose2D
 from atemr.registry import Registry
 from atemr.trees.behaviours import behaviours
 from atemr.trees.context import AgentContext
+from atemr.trees.leaves.mapping import finish_mapping, map_name_problem, start_mapping
 from atemr.trees.ports import HARDWARE_COMPONENTS
 
 
@@ -40,7 +40,8 @@ callbacks: Registry[Callback] = Registry("callbacks")
 
 #: Navigation's goal step; a goal can be executed only once a behaviour of this name is registered.
 GO_TO_POSE = "GoToPose"
-_MAP_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+#: The steps that drive the base through navigation (a mission with one needs navigation on the robot).
+DRIVES = (GO_TO_POSE, "FollowPath")
 
 
 # -- guards ----------------------------------------------------------------------------------------
@@ -76,7 +77,7 @@ def mission_runnable(g: GuardInput) -> str | None:
     missing = mission.missing_behaviours()
     if missing:
         return f"mission '{mission.name}' cannot run in this build: no behaviour {', '.join(missing)}"
-    drives = [s.index for s in mission.steps if GO_TO_POSE in s.behaviours]
+    drives = [s.index for s in mission.steps if set(DRIVES) & set(s.behaviours)]
     if drives and g.context.navigation is None:
         return (f"mission '{mission.name}' drives to poses (steps {', '.join(map(str, drives))}) and "
                 "navigation is not available on this robot")
@@ -100,41 +101,38 @@ def level1_ok(g: GuardInput) -> str | None:
 @guards.register("map_name_valid")
 def map_name_valid(g: GuardInput) -> str | None:
     """A map name that is safe as a file name (it becomes ``name.pgm`` + ``name.yaml``)."""
-    name = g.kwargs.get("name")
-    if not isinstance(name, str) or not _MAP_NAME.match(name):
-        return f"map name must be 1-64 letters, digits, '_', '.' or '-' (not starting with one), got {name!r}"
-    return None
+    return map_name_problem(g.kwargs.get("name"))
 
 
 # -- callbacks -------------------------------------------------------------------------------------
 @callbacks.register("begin_mapping")
 def begin_mapping(g: GuardInput) -> None:
     """Start SLAM (raises if mapping is not available: the transition is then refused)."""
-    g.context.port.begin_mapping()
-    g.context.mapping_active = True
+    start_mapping(g.context)
 
 
 @callbacks.register("save_map")
 def save_map(g: GuardInput) -> None:
     """Stop SLAM and save the map under the event's ``name``."""
-    g.context.port.end_mapping(str(g.kwargs["name"]))
-    g.context.mapping_active = False
+    finish_mapping(g.context, str(g.kwargs["name"]))
 
 
 @callbacks.register("discard_map")
 def discard_map(g: GuardInput) -> None:
     """Stop SLAM and drop the map."""
-    g.context.port.end_mapping(None)
-    g.context.mapping_active = False
+    finish_mapping(g.context, None)
 
 
 @callbacks.register("abandon_mapping")
 def abandon_mapping(g: GuardInput) -> None:
-    """Leaving Mapping any other way (fault, shutdown, power-off) drops the unsaved map: SLAM never keeps
-    running behind a state that does not know about it."""
+    """Leaving Mapping (or Exec, whose mission may map) any other way than a save (fault, shutdown,
+    power-off, a failed or cancelled mission) drops the unsaved map: SLAM never keeps running behind a state
+    that does not know about it."""
     if g.context.mapping_active:
-        g.context.mapping_active = False
-        g.context.port.end_mapping(None)
+        try:
+            finish_mapping(g.context, None)
+        finally:
+            g.context.mapping_active = False
 
 
 @callbacks.register("stop_motors")

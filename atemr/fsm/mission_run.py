@@ -221,7 +221,7 @@ class MissionRun:
             result["outcome"] = outcome
         if self._timed_out and report is not None:
             result["outcome"] = "timeout"
-        result["reason"] = reason or self._stop_reason
+        result["reason"] = reason or self._stop_reason or result.get("reason")
         pose = agent.context.port.pose()
         result["final_pose"] = asdict(pose) if pose is not None else None
         result["state"] = agent.state

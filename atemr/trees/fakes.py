@@ -7,7 +7,7 @@ map would answer) and record every call the agent makes, so a test asserts on wh
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from atemr.errors import HardwareError, NavigationError
@@ -17,8 +17,10 @@ from atemr.trees.ports import HARDWARE_COMPONENTS, ComponentHealth, Mode, NavPro
 
 
 def all_healthy() -> dict[str, ComponentHealth]:
-    """Every hardware component of 0x153 reported healthy, plus connectivity."""
-    return {**{name: ComponentHealth(True) for name in HARDWARE_COMPONENTS}, "connectivity": ComponentHealth(True)}
+    """Every hardware component of 0x153 reported healthy, plus connectivity and the CAN bus (``can_bus``, which
+    the default agent's Monitor watches)."""
+    return {**{name: ComponentHealth(True) for name in HARDWARE_COMPONENTS}, "connectivity": ComponentHealth(True),
+            "can_bus": ComponentHealth(True)}
 
 
 @dataclass
@@ -128,11 +130,13 @@ class RecordingLink:
 
 @dataclass
 class StraightLineNavigation:
-    """A `NavigationPort` that drives ``port``'s pose straight to the goal at ``speed_mps`` per second of
-    ``update`` time, then turns to the goal heading: no map, no obstacles, just the contract.
+    """A `NavigationPort` that drives ``port``'s pose in straight lines (through the route's points, if any)
+    to the goal at ``speed_mps`` per second of ``update`` time, then turns to the goal heading: no map, no
+    obstacles, just the contract.
 
     ``refuse`` makes `check_goal`/`start` refuse with that reason; ``fail_after_s`` makes a goal fail with
-    ``"stuck"`` after that long. Records every goal started and every cancel.
+    ``"stuck"`` after that long. Records every goal started (``goals``), its route (``routes``) and every
+    cancel.
     """
 
     port: RecordingPort
@@ -141,8 +145,10 @@ class StraightLineNavigation:
     refuse: str | None = None
     fail_after_s: float | None = None
     goals: list[Pose2D] = field(default_factory=list)
+    routes: list[list[tuple[float, float]] | None] = field(default_factory=list)
     cancels: list[float] = field(default_factory=list)
     _goal: Pose2D | None = field(default=None, init=False)
+    _via: list[tuple[float, float]] = field(default_factory=list, init=False)
     _t: float = field(default=0.0, init=False)
     _started: float = field(default=0.0, init=False)
     _state: NavState = field(default="IDLE", init=False)
@@ -150,10 +156,13 @@ class StraightLineNavigation:
     def check_goal(self, goal: Pose2D) -> str | None:
         return self.refuse
 
-    def start(self, goal: Pose2D, now: float) -> None:
+    def start(self, goal: Pose2D, now: float, route: Sequence[Sequence[float]] | None = None) -> None:
         if self.refuse is not None:
             raise NavigationError(self.refuse)
+        via = None if route is None else [(float(p[0]), float(p[1])) for p in route]
         self.goals.append(goal)
+        self.routes.append(via)
+        self._via = list(via or [])
         self._goal, self._t, self._started, self._state = goal, now, now, "RUNNING"
 
     def update(self, now: float) -> NavProgress:
@@ -164,13 +173,18 @@ class StraightLineNavigation:
             return NavProgress("FAILED", reason="stuck")
         dt, self._t = now - self._t, now
         p, g = self.port.current_pose, self._goal
-        dx, dy = g.x_m - p.x_m, g.y_m - p.y_m
+        tx, ty = self._via[0] if self._via else (g.x_m, g.y_m)
+        dx, dy = tx - p.x_m, ty - p.y_m
         left = math.hypot(dx, dy)
         step = min(left, self.speed_mps * dt)
         if left > self.tolerance_m:
             x, y = p.x_m + dx / left * step, p.y_m + dy / left * step
             self.port.current_pose = Pose2D(x, y, p.yaw_rad)
             return NavProgress("RUNNING", Twist(self.speed_mps, 0.0), left - step, (left - step) / self.speed_mps)
+        if self._via:
+            self._via.pop(0)
+            self.port.current_pose = Pose2D(tx, ty, p.yaw_rad)
+            return NavProgress("RUNNING", Twist(self.speed_mps, 0.0), math.nan, math.nan)
         self.port.current_pose = Pose2D(g.x_m, g.y_m, g.yaw_rad)
         self._state = "SUCCEEDED"
         return NavProgress("SUCCEEDED", distance_left_m=0.0)

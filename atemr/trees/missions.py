@@ -18,11 +18,17 @@ A mission file (``trees/missions/*.yaml``)::
         - relocalize: {timeout_s: 30}      # global relocalization, wait until localized
         - visit: {waypoints: [{x_m: 1, y_m: 0}, {x_m: 1, y_m: 1}]}
         - patrol: {waypoints: [...], loops: 3}   # loops: 0 = forever
+        - follow_path: {points: [[1, 0], [1, 2], [3, 2]], yaw_rad: 0}   # along this route, in order
+        - start_mapping: {}                # SLAM from here on (a map of what the robot sees on its way)
+        - save_map: {name: flat-2026}      # stop SLAM, store the map (it becomes active)
+        - stop_mapping: {}                 # stop SLAM, drop the map
         - return_home: {}
 
 Step kinds are a fixed grammar (a typo is an error with the closest kinds); each kind names the
-behaviour it compiles to (``go_to``, ``visit``, ``patrol`` and ``return_home`` → ``GoToPose``; ``wait`` →
-``Wait``; ``capture_image`` → ``CaptureImage``; ``rotate`` → ``Rotate``; ``relocalize`` → ``Relocalize``).
+behaviour it compiles to (``go_to``, ``visit``, ``patrol`` and ``return_home`` → ``GoToPose``;
+``follow_path`` → ``FollowPath``; ``wait`` → ``Wait``; ``capture_image`` → ``CaptureImage``; ``rotate`` →
+``Rotate``; ``relocalize`` → ``Relocalize``; ``start_mapping``, ``save_map``, ``stop_mapping`` → the leaves
+of those names). A mission that ends without saving the map it started drops it (Exec's exit).
 A kind whose behaviour is not registered (a build without a leaf, a plugin removed) still validates, its
 parameters fully checked, and is reported as *not runnable here*: the file is right, the build is not
 ready for it. The agent refuses to start such a mission with that reason, and one that drives to poses on
@@ -42,11 +48,12 @@ from typing import Any
 from atemr.errors import ConfigError
 from atemr.fsm.guards import GO_TO_POSE
 from atemr.msgs import Pose2D
-from atemr.trees.behaviours import behaviours, parse_params
+from atemr.trees.behaviours import NoParams, behaviours, parse_params
 from atemr.trees.builder import NodeSpec, marked_subset
+from atemr.trees.leaves.mapping import SaveMapParams
 from atemr.trees.leaves.media import CaptureImageParams
 from atemr.trees.leaves.motion import RotateParams
-from atemr.trees.leaves.navigation import RelocalizeParams
+from atemr.trees.leaves.navigation import FollowPathParams, RelocalizeParams
 from atemr.trees.leaves.timing import WaitParams
 from atemr.trees.nodes import RepeatOptions, RetryOptions, SequenceOptions, TimeoutOptions
 from atemr.trees.params import PoseParams
@@ -230,6 +237,10 @@ STEP_KINDS: dict[str, tuple[StepCompiler, tuple[str, ...]]] = {
     "capture_image": (_simple(CaptureImageParams, "CaptureImage"), ("CaptureImage",)),
     "rotate": (_simple(RotateParams, "Rotate"), ("Rotate",)),
     "relocalize": (_simple(RelocalizeParams, "Relocalize"), ("Relocalize",)),
+    "follow_path": (_simple(FollowPathParams, "FollowPath"), ("FollowPath",)),
+    "start_mapping": (_simple(NoParams, "StartMapping"), ("StartMapping",)),
+    "save_map": (_simple(SaveMapParams, "SaveMap"), ("SaveMap",)),
+    "stop_mapping": (_simple(NoParams, "StopMapping"), ("StopMapping",)),
 }
 
 

@@ -9,7 +9,7 @@ hands the agent's `GoToPose` leaf a `NavProgress`. It keeps the navigator's last
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.skills.nav.navigator import Navigator, NavStatus
@@ -36,8 +36,8 @@ class NavigatorPort:
         verdict = self.navigator.check(goal, localized=self._localized(), mode="AUTO")
         return None if verdict.ok else verdict.reason
 
-    def start(self, goal: Pose2D, now: float) -> None:
-        self.navigator.start(goal, now, localized=self._localized(), mode="AUTO")
+    def start(self, goal: Pose2D, now: float, route: Sequence[Sequence[float]] | None = None) -> None:
+        self.navigator.start(goal, now, localized=self._localized(), mode="AUTO", route=route)
 
     def update(self, now: float) -> NavProgress:
         pose = self._pose()

@@ -13,7 +13,7 @@ are refused with that reason; with it, its goal check is the one the agent uses.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
@@ -144,8 +144,9 @@ class NavigationPort(Protocol):
         """None when ``goal`` would be accepted now (finite, localized, in the map, in free space), else why."""
         ...
 
-    def start(self, goal: Pose2D, now: float) -> None:
-        """Begin driving to ``goal``; raises `NavigationError` with the reason when it is refused."""
+    def start(self, goal: Pose2D, now: float, route: Sequence[Sequence[float]] | None = None) -> None:
+        """Begin driving to ``goal`` (through the points ``[x_m, y_m]`` of ``route`` in order, when given);
+        raises `NavigationError` with the reason when it is refused."""
         ...
 
     def update(self, now: float) -> NavProgress:

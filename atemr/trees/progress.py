@@ -15,7 +15,9 @@ from typing import Any
 import py_trees
 
 from atemr.msgs import Pose2D
+from atemr.trees.behaviours import Leaf
 from atemr.trees.leaves.motion import wrap_angle
+from atemr.trees.leaves.navigation import FollowPathParams
 from atemr.trees.missions import Mission
 from atemr.trees.params import PoseParams
 
@@ -37,6 +39,7 @@ class StepRecord:
     position_error_m: float | None = None
     heading_error_rad: float | None = None
     distance_left_m: float | None = None
+    reason: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -46,8 +49,17 @@ class StepRecord:
 
 
 def _target(step_spec: Any) -> Pose2D | None:
-    poses = [n.options for n in step_spec.walk() if isinstance(n.options, PoseParams)]
+    poses = [n.options for n in step_spec.walk() if isinstance(n.options, (PoseParams, FollowPathParams))]
     return poses[-1].pose() if poses else None
+
+
+def _why_failed(node: py_trees.behaviour.Behaviour) -> str | None:
+    """The reason of the deepest failed node of a step (a leaf's own words, e.g. the navigator's), else the
+    step's feedback (a timeout decorator's)."""
+    for n in node.iterate():  # children before their parents
+        if n.status == Status.FAILURE and isinstance(n, Leaf) and n.reason:
+            return n.reason
+    return node.feedback_message or None
 
 
 def step_record(step: Any) -> StepRecord:
@@ -64,6 +76,7 @@ class TaskProgress:
         self.started_s = started_s
         self.finished_s: float | None = None
         self.outcome = "running"
+        self.reason: str | None = None
         self.steps = [step_record(s) for s in mission.steps]
         self._nodes = list(root.children) if len(root.children) == len(self.steps) else [root]
 
@@ -84,6 +97,8 @@ class TaskProgress:
                     record.started_s = now
                 record.finished_s = now
                 record.status = "reached" if node.status == Status.SUCCESS else "failed"
+                if node.status == Status.FAILURE:
+                    record.reason = _why_failed(node)
                 self._measure(record, pose)
 
     def _measure(self, record: StepRecord, pose: Pose2D | None) -> None:
@@ -92,9 +107,11 @@ class TaskProgress:
             record.position_error_m = record.distance_left_m = pose.distance_to(record.target)
             record.heading_error_rad = abs(wrap_angle(pose.yaw_rad - record.target.yaw_rad))
 
-    def finish(self, outcome: str, now: float, pose: Pose2D | None) -> None:
-        """The task ended (``reached``, ``failed``, ``cancelled``, or the trigger that interrupted it)."""
+    def finish(self, outcome: str, now: float, pose: Pose2D | None, reason: str | None = None) -> None:
+        """The task ended (``reached``, ``failed``, ``cancelled``, or the trigger that interrupted it) and why
+        (the reason of the transition that ended it; kept unless it was reached)."""
         self.outcome, self.finished_s = outcome, now
+        self.reason = None if outcome == "reached" else (reason or None)
         for record in self.steps:
             if record.status == "running":
                 record.status, record.finished_s = "interrupted", now
@@ -109,6 +126,7 @@ class TaskProgress:
             "mission": self.mission.name,
             "file": self.mission.file,
             "outcome": self.outcome,
+            "reason": self.reason,
             "started_s": self.started_s,
             "finished_s": end,
             "duration_s": None if end is None else end - self.started_s,

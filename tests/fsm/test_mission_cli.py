@@ -4,11 +4,13 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
 
 from atemr.cli.main import main
+from atemr.io.map_store import MapStore
 
 LOOK_AROUND = Path(__file__).resolve().parents[2] / "trees" / "missions" / "look-around.yaml"
 
@@ -64,3 +66,47 @@ def test_bad_invocations(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> 
     with pytest.raises(SystemExit):
         main(["mission", "run", "--goal", "1,nan,0", "--headless"])
     assert "three finite numbers" in capsys.readouterr().err
+
+
+REMAP = """
+mission:
+  name: living-room-remap
+  description: map the living room again while driving a round of it along a set route
+  world: studio
+  home: {x_m: 2.6, y_m: 2.6, yaw_rad: 0.0}
+  steps:
+    - start_mapping: {}
+    - name: round
+      follow_path: {points: [[4.0, 2.0], [4.0, 3.4], [2.4, 3.4]]}
+      timeout_s: 120
+    - save_map: {name: living-room-remap}
+"""
+
+
+def test_a_mission_maps_along_a_route_and_saves_the_map(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    mission = tmp_path / "remap.yaml"
+    mission.write_text(REMAP)
+    code, result = run(capsys, str(mission), "--headless", "--seed", "0", "--start", "2.6,2.6,0", "--json",
+                       "--data-dir", str(tmp_path))
+    assert code == 0 and result["outcome"] == "reached", result.get("reason")
+    assert [s["status"] for s in result["steps"]] == ["reached"] * 3 and result["reason"] is None
+    follow = result["steps"][1]
+    assert follow["kind"] == "follow_path" and follow["position_error_m"] <= 0.25
+    assert follow["target"]["x_m"] == 2.4 and abs(follow["target"]["yaw_rad"] - math.pi) < 1e-9
+    assert follow["duration_s"] > 8.0, "a 4.5 m route, not the 0.9 m straight line"
+    maps = tmp_path / "maps"
+    assert (maps / "living-room-remap.pgm").is_file() and (maps / "living-room-remap.yaml").is_file()
+    assert MapStore(tmp_path).active_name() == "living-room-remap", "a saved map becomes the active map"
+
+
+def test_a_failed_mapping_mission_says_why_and_drops_its_map(capsys: pytest.CaptureFixture[str],
+                                                              tmp_path: Path) -> None:
+    mission = tmp_path / "through-the-wall.yaml"
+    mission.write_text(REMAP.replace("[2.4, 3.4]]", "[4.0, 40.0], [2.4, 3.4]]"))  # y = 40 m: off the map
+    code, result = run(capsys, str(mission), "--headless", "--seed", "0", "--start", "2.6,2.6,0", "--json",
+                       "--data-dir", str(tmp_path))
+    assert code == 1 and result["outcome"] == "failed"
+    assert [s["status"] for s in result["steps"]] == ["reached", "failed", "not run"]
+    assert "route" in result["steps"][1]["reason"] and "near (4.00" in result["steps"][1]["reason"]
+    assert result["reason"] and "route" in result["reason"], "the JSON says why the mission failed"
+    assert not list((tmp_path / "maps").glob("living-room-remap.*")), "the unsaved map was dropped"

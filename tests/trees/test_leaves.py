@@ -44,10 +44,14 @@ SAMPLES: dict[str, dict[str, Any]] = {
     "WatchHeartbeat": {},
     "WatchHealth": {"components": ["left_motor"]},
     "GoToPose": {"x_m": 1.0, "y_m": 0.5, "yaw_rad": 0.3},
+    "FollowPath": {"points": [[1.0, 0.0], [1.0, 1.0]]},
     "Relocalize": {"timeout_s": 0.3},
+    "StartMapping": {},
+    "SaveMap": {"name": "flat"},
+    "StopMapping": {},
 }
 #: Leaves that command a velocity, and on which mux input.
-DRIVING = {"DriveJoystick": "joystick", "Rotate": "agent", "GoToPose": "navigation"}
+DRIVING = {"DriveJoystick": "joystick", "Rotate": "agent", "GoToPose": "navigation", "FollowPath": "navigation"}
 
 
 class Bench:
@@ -71,7 +75,7 @@ class Bench:
         return self.leaf.status
 
 
-def make(name: str, **params: Any) -> Leaf:
+def make(name: str, /, **params: Any) -> Leaf:
     cls = behaviours.get(name)
     return cls(name, parse_params(cls.Params, params or SAMPLES[name], Source("argument"), "params"))
 
@@ -337,3 +341,85 @@ def test_relocalize_waits_for_localization() -> None:
     unable = Bench(make("Relocalize"), port=RecordingPort(is_localized=None))
     assert unable.tick() == Status.FAILURE
     assert unable.leaf.reason == "cannot relocalize: localization is not available in this build"
+
+
+def test_follow_path_drives_the_route_in_order_to_its_last_point() -> None:
+    bench = Bench(make("FollowPath", points=[[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]))
+    statuses = [bench.tick()]
+    while statuses[-1] == Status.RUNNING and len(statuses) < 100:
+        statuses.append(bench.tick())
+    assert statuses[-1] == Status.SUCCESS
+    # The last point is the goal, heading along the last stretch (-x); the others are the route.
+    assert bench.navigation.goals == [Pose2D(0.0, 1.0, math.pi)]
+    assert bench.navigation.routes == [[(1.0, 0.0), (1.0, 1.0)]]
+    assert len(statuses) > 60, "3 m of route at 0.5 m/s, not the 1 m straight line"
+    assert bench.port.commands[-1] == ("navigation", Twist(), pytest.approx(bench.ctx.now - 0.1))
+    one = Bench(make("FollowPath", points=[[2.0, 0.0]], yaw_rad=1.0))
+    one.tick()
+    assert one.navigation.goals == [Pose2D(2.0, 0.0, 1.0)] and one.navigation.routes == [[]]
+
+
+@pytest.mark.parametrize(("params", "message"), [
+    ({"points": []}, "at least one point"),
+    ({"points": [[1.0, 2.0, 3.0]]}, r"points\[0\] must be \[x_m, y_m\]"),
+    ({"points": [[1.0, "north"]]}, "params.points: expected a number, got 'north'"),
+    ({"points": [[1.0, 2e4]]}, "within 10 km"),
+    ({}, "needs at least one point"),
+])
+def test_follow_path_parameters_are_checked(params: dict[str, Any], message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        parse_params(behaviours.get("FollowPath").Params, params, Source("argument"), "params")
+
+
+def test_follow_path_refused_and_interrupted() -> None:
+    refused = Bench(make("FollowPath"))
+    refused.navigation.refuse = "route passes through or too close to an obstacle near (1.00, 0.50)"
+    assert refused.tick() == Status.FAILURE
+    assert refused.leaf.reason == "goal refused: route passes through or too close to an obstacle near (1.00, 0.50)"
+    moving = Bench(make("FollowPath"))
+    moving.tick(3)
+    moving.leaf.stop(Status.INVALID)
+    assert moving.navigation.cancels == [0.3] and moving.port.commands[-1][1] == Twist()
+
+
+def test_mapping_leaves_start_save_and_drop_a_session() -> None:
+    bench = Bench(make("StartMapping"), port=RecordingPort(dt_s=0.1, mapping_available=True))
+    assert bench.tick() == Status.SUCCESS and bench.port.mapping and bench.ctx.mapping_active
+    assert bench.tick() == Status.SUCCESS, "already mapping is fine"
+    save = make("SaveMap", name="flat-2")
+    py_trees.trees.setup(save, context=bench.ctx)
+    for _ in save.tick():
+        pass
+    assert save.status == Status.SUCCESS and bench.port.maps == ["flat-2"] and not bench.ctx.mapping_active
+    for _ in save.tick():
+        pass
+    assert save.status == Status.FAILURE and save.reason == "no mapping session to save"
+    stop = make("StopMapping")
+    py_trees.trees.setup(stop, context=bench.ctx)
+    for _ in stop.tick():
+        pass
+    assert stop.status == Status.SUCCESS and bench.port.maps == ["flat-2"], "nothing to drop"
+    bench.leaf.stop(Status.INVALID)
+    bench.tick()
+    for _ in stop.tick():
+        pass
+    assert stop.status == Status.SUCCESS and bench.port.maps == ["flat-2", None] and not bench.port.mapping
+
+
+def test_mapping_leaves_report_what_went_wrong() -> None:
+    unable = Bench(make("StartMapping"))  # the recording port cannot map unless told
+    assert unable.tick() == Status.FAILURE
+    assert unable.leaf.reason == "cannot start mapping: mapping is not available in this build"
+    assert not unable.ctx.mapping_active
+
+    class FullDisk(RecordingPort):
+        def end_mapping(self, save_as: str | None) -> None:
+            raise HardwareError("no space left on the data disk")
+
+    saving = Bench(make("SaveMap"), port=FullDisk())
+    saving.ctx.mapping_active = True
+    assert saving.tick() == Status.FAILURE
+    assert saving.leaf.reason == "saving map 'flat' failed: no space left on the data disk"
+    assert saving.ctx.mapping_active, "the session goes on: the map is not lost"
+    with pytest.raises(ConfigError, match="map name must be"):
+        parse_params(behaviours.get("SaveMap").Params, {"name": "../etc/passwd"}, Source("argument"), "params")

@@ -1,5 +1,5 @@
 """The agent's leaves; importing this package registers every one in `atemr.trees.behaviours.behaviours`."""
 
-from atemr.trees.leaves import checks, media, monitor, motion, navigation, power, timing
+from atemr.trees.leaves import checks, mapping, media, monitor, motion, navigation, power, timing
 
-__all__ = ["checks", "media", "monitor", "motion", "navigation", "power", "timing"]
+__all__ = ["checks", "mapping", "media", "monitor", "motion", "navigation", "power", "timing"]

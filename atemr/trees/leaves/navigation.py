@@ -1,5 +1,5 @@
-"""Navigation leaves: go to a pose through the `NavigationPort` (planners, costmap, recoveries live behind
-it), and relocalize through the robot port."""
+"""Navigation leaves: go to a pose or along a route through the `NavigationPort` (planners, costmap,
+recoveries live behind it), and relocalize through the robot port."""
 
 from __future__ import annotations
 
@@ -9,26 +9,25 @@ from dataclasses import dataclass, field
 import py_trees
 
 from atemr.errors import AtemrError
-from atemr.msgs import ZERO_TWIST
+from atemr.msgs import ZERO_TWIST, Pose2D
 from atemr.trees.behaviours import Leaf, behaviours
 from atemr.trees.params import PoseParams
+from atemr.trees.ports import NavigationPort
 
 Status = py_trees.common.Status
 
 
-@behaviours.register("GoToPose")
-class GoToPose(Leaf):
-    """Drive to ``(x_m, y_m, yaw_rad)`` in the map frame.
-
-    ``initialise`` starts the goal (a refusal is this leaf's FAILURE with the navigator's reason); each
-    ``update`` ticks navigation and commands its twist on the mux's navigation input; SUCCESS when the goal
-    is reached within the navigator's tolerances, FAILURE with the reason (no path, stuck, localization lost,
-    timeout). Interrupted (cancel, timeout decorator, a state change) it cancels the goal; it always leaves
-    a zero twist behind.
+class NavigationGoal(Leaf):
+    """What `GoToPose` and `FollowPath` share: hand navigation a goal in ``initialise`` (``start``; a refusal
+    is this leaf's FAILURE with the navigator's reason), then each ``update`` ticks navigation and commands
+    its twist on the mux's navigation input; SUCCESS when the goal is reached within the navigator's
+    tolerances, FAILURE with the reason (no path, stuck, localization lost, timeout). Interrupted (cancel,
+    timeout decorator, a state change) it cancels the goal; it always leaves a zero twist behind.
     """
 
-    Params = PoseParams
-    summary = "drive to a pose in the map with navigation"
+    def start(self, navigation: NavigationPort) -> None:
+        """Hand navigation the goal (raises its refusal)."""
+        raise NotImplementedError
 
     def initialise(self) -> None:
         self._started = False
@@ -38,7 +37,7 @@ class GoToPose(Leaf):
             self._refusal = "navigation is not available on this robot"
             return
         try:
-            navigation.start(self.params.pose(), self.ctx.now)
+            self.start(navigation)
         except AtemrError as exc:
             self._refusal = f"goal refused: {exc}"
             return
@@ -69,6 +68,58 @@ class GoToPose(Leaf):
             navigation.cancel(self.ctx.now)
             self._started = False
         self.ctx.port.command_velocity("navigation", ZERO_TWIST, self.ctx.now)
+
+
+@behaviours.register("GoToPose")
+class GoToPose(NavigationGoal):
+    """Drive to ``(x_m, y_m, yaw_rad)`` in the map frame by navigation's own plan (see `NavigationGoal`)."""
+
+    Params = PoseParams
+    summary = "drive to a pose in the map with navigation"
+
+    def start(self, navigation: NavigationPort) -> None:
+        navigation.start(self.params.pose(), self.ctx.now)
+
+
+@dataclass(frozen=True)
+class FollowPathParams:
+    """A route in the map frame: ``points`` ``[[x_m, y_m], ...]`` driven through in order, the last one the goal;
+    ``yaw_rad`` the heading to end with (default: the direction of the last stretch)."""
+
+    points: tuple[tuple[float, ...], ...] = field(default=(), metadata={"required": True})
+    yaw_rad: float | None = field(default=None, metadata={"min": -2 * math.pi, "max": 2 * math.pi})
+
+    def validate(self) -> None:
+        if not self.points:
+            raise ValueError("'points' needs at least one point [x_m, y_m]")
+        for i, point in enumerate(self.points):
+            if len(point) != 2:
+                raise ValueError(f"points[{i}] must be [x_m, y_m], got {list(point)!r}")
+            if not all(abs(v) <= 1e4 for v in point):
+                raise ValueError(f"points[{i}] must lie within 10 km of the map origin, got {list(point)!r}")
+
+    def pose(self) -> Pose2D:
+        """The goal: the last point, with ``yaw_rad`` or the last stretch's heading."""
+        x, y = self.points[-1]
+        yaw = self.yaw_rad
+        if yaw is None:
+            px, py = self.points[-2] if len(self.points) > 1 else (x, y)
+            yaw = math.atan2(y - py, x - px) if (x, y) != (px, py) else 0.0
+        return Pose2D(x, y, yaw)
+
+
+@behaviours.register("FollowPath")
+class FollowPath(NavigationGoal):
+    """Drive along a route: through ``points`` in order to the last one (Nav2's FollowPath; navigation
+    follows the route, not its own shortest way, and fails rather than take another way); see
+    `NavigationGoal`."""
+
+    Params = FollowPathParams
+    summary = "drive along a route of points, in order, to the last one"
+
+    def start(self, navigation: NavigationPort) -> None:
+        route = [(float(x), float(y)) for x, y in self.params.points[:-1]]
+        navigation.start(self.params.pose(), self.ctx.now, route=route)
 
 
 @dataclass(frozen=True)
