@@ -1,4 +1,5 @@
-"""The supervised receive side: listeners isolated, dead receivers, bus-off, send failures, silence."""
+"""The supervised receive side: listeners isolated, dead receivers, bus-off, send failures, silence, inboxes
+and recovery."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import can
 import pytest
 
 from atemr.errors import BusError, HardwareError
-from atemr.io.can.supervisor import BusSupervisor
+from atemr.io.can.supervisor import INBOX_FRAMES, BusSupervisor
 
 _names = itertools.count()
 
@@ -38,22 +39,25 @@ class FailingBus(can.BusABC):
         return None, False
 
 
-def test_polled_delivery_survives_a_failing_listener() -> None:
+def test_polled_delivery_survives_a_failing_listener_which_is_a_fault() -> None:
     ch = channel()
     got: list[int] = []
+    faults: list[HardwareError] = []
 
     def broken(m: can.Message) -> None:
         raise RuntimeError("listener bug")
 
     with can.Bus(interface="virtual", channel=ch) as tx, BusSupervisor(
-        can.Bus(interface="virtual", channel=ch), [broken, lambda m: got.append(m.arbitration_id)]
+        can.Bus(interface="virtual", channel=ch), [broken, lambda m: got.append(m.arbitration_id)],
+        on_fault=faults.append,
     ) as sup:
         tx.send(msg(0x150))
         tx.send(msg(0x151))
         sup.tick(0.0)
-        assert got == [0x150, 0x151]
+        assert got == [0x150, 0x151]  # the other listener still got every frame
         assert sup.listener_errors == 2 and "listener bug" in (sup.last_listener_error or "")
-        assert sup.healthy and sup.frames == 2
+        assert sup.frames == 2 and not sup.healthy
+        assert faults == [sup.fault] and "listener failed" in str(sup.fault) and "broken" in str(sup.fault)
 
 
 def test_threaded_delivery_and_listener_isolation() -> None:
@@ -76,7 +80,8 @@ def test_threaded_delivery_and_listener_isolation() -> None:
         tx.send(msg(0x151))
         assert done.wait(5.0)  # waits for the receive thread, not on a clock
         sup.tick(0.0)
-        assert got == [0x150, 0x151] and sup.listener_errors == 2 and sup.healthy
+        assert got == [0x150, 0x151] and sup.listener_errors == 2
+        assert "listener failed" in str(sup.fault)  # reported by tick, on the scheduler's thread
 
 
 def test_threaded_receive_error_is_a_fault() -> None:
@@ -90,7 +95,7 @@ def test_threaded_receive_error_is_a_fault() -> None:
         if sup.fault is not None:
             break
         threading.Event().wait(0.01)
-    assert isinstance(sup.fault, BusError) and "bus-off" in str(sup.fault) and sup.fault.critical
+    assert isinstance(sup.fault, BusError) and "bus-off" in str(sup.fault) and not sup.fault.critical
     assert faults == [sup.fault]
     sup.shutdown()
 
@@ -162,3 +167,168 @@ def test_silence_is_reported_on_the_injected_clock() -> None:
         assert sup.healthy
         sup.tick(2.0)
         assert "no frame received for 1.10 s" in str(sup.fault)
+
+
+# -- inboxes: one receive side shared by several consumers ------------------------------------------------------
+def test_inboxes_each_get_every_frame_and_a_polled_read_drains_the_bus_first() -> None:
+    ch = channel()
+    with can.Bus(interface="virtual", channel=ch) as tx, BusSupervisor(can.Bus(interface="virtual", channel=ch)) as sup:
+        motors, link = sup.inbox("motors"), sup.inbox("link")
+        tx.send(msg(0x141))
+        tx.send(msg(0x157))
+        # no tick in between: reading an empty inbox drains the bus, as a bus of the consumer's own would be read
+        assert [m.arbitration_id for m in iter(lambda: link.recv(timeout=0), None)] == [0x141, 0x157]
+        assert [m.arbitration_id for m in iter(lambda: motors.recv(timeout=0), None)] == [0x141, 0x157]
+        assert sup.frames == 0  # tick has not looked yet ...
+        sup.tick(0.0)
+        assert sup.frames == 2 and sup.healthy  # ... and counts what the reads delivered
+
+
+def test_an_inbox_sends_on_the_supervised_bus_and_shares_its_state() -> None:
+    ch = channel()
+    with can.Bus(interface="virtual", channel=ch) as rx, BusSupervisor(can.Bus(interface="virtual", channel=ch)) as sup:
+        inbox = sup.inbox("motors")
+        inbox.send(msg(0x141))
+        got = rx.recv(timeout=0)
+        assert got is not None and got.arbitration_id == 0x141
+        assert inbox.state is can.BusState.ACTIVE
+    bus = StatefulBus()
+    sup = BusSupervisor(bus)
+    inbox = sup.inbox("motors")
+    bus.state = can.BusState.ERROR
+    assert inbox.state is can.BusState.ERROR
+    inbox.shutdown()  # closing an inbox leaves the supervised bus to its owner
+    assert not bus._is_shutdown
+    sup.shutdown()
+    assert bus._is_shutdown
+
+
+def test_a_full_inbox_drops_its_oldest_frames_and_counts_them() -> None:
+    sup = BusSupervisor(StatefulBus())
+    inbox = sup.inbox("slow reader")
+    for i in range(INBOX_FRAMES + 3):
+        inbox.deliver(can.Message(arbitration_id=0x141, data=i.to_bytes(2, "little"), is_extended_id=False))
+    first = inbox.recv(timeout=0)
+    assert inbox.dropped == 3 and first is not None and int.from_bytes(first.data, "little") == 3
+    sup.shutdown()
+
+
+def test_threaded_inbox_recv_waits_for_a_frame() -> None:
+    ch = channel()
+    with can.Bus(interface="virtual", channel=ch) as tx, BusSupervisor(
+        can.Bus(interface="virtual", channel=ch), threaded=True
+    ) as sup:
+        inbox = sup.inbox("link")
+        tx.send(msg(0x157))
+        got = inbox.recv(timeout=5.0)  # the Notifier thread delivers it; the timeout only bounds a failure
+        assert got is not None and got.arbitration_id == 0x157
+
+
+# -- recovery -----------------------------------------------------------------------------------------------------
+class QueueBus(StatefulBus):
+    """A stateful bus that receives the frames a test puts in ``pending`` (and fails while ``fail_recv``)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.pending: list[can.Message] = []
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        super()._recv_internal(timeout)  # raises while fail_recv
+        return (self.pending.pop(0) if self.pending else None), False
+
+
+def test_bus_off_recovers_once_the_state_is_back_frames_arrive_and_it_settled() -> None:
+    bus = QueueBus()
+    sup = BusSupervisor(bus, settle_s=1.0)
+    bus.state = can.BusState.ERROR
+    sup.tick(0.0)
+    assert sup.problem == "bus-off (bus state ERROR)"
+    assert isinstance(sup.fault, BusError) and sup.fault.component == "can_bus" and not sup.fault.critical
+    sup.tick(0.5)
+    assert sup.recover() == "bus still off (bus state ERROR)"
+    bus.state = can.BusState.ACTIVE
+    assert sup.recover() == "no frame received since the fault"
+    bus.pending.append(msg())
+    sup.tick(1.0)
+    assert sup.recover() == "last error 0.50 s ago, waiting for 1.00 s without one"
+    sup.tick(1.5)
+    assert sup.recover() is None and sup.healthy and sup.problem is None
+    sup.shutdown()
+
+
+def test_a_listener_that_keeps_failing_holds_the_fault() -> None:
+    ch = channel()
+    failing = [True]
+
+    def tap(m: can.Message) -> None:
+        if failing[0]:
+            raise RuntimeError("tap bug")
+
+    with can.Bus(interface="virtual", channel=ch) as tx, BusSupervisor(can.Bus(interface="virtual", channel=ch),
+                                                                       [tap], settle_s=1.0) as sup:
+        for t in (0.0, 0.5, 1.0, 1.5):  # a frame every 0.5 s, each one failing
+            tx.send(msg())
+            sup.tick(t)
+            assert "tap bug" in str(sup.fault) and sup.recover() is not None, t
+        failing[0] = False
+        for t in (2.0, 2.4):
+            tx.send(msg())
+            sup.tick(t)
+            assert sup.recover() is not None, t
+        sup.tick(2.5)
+        assert sup.recover() is None and sup.healthy
+        sup.tick(2.6)
+        assert sup.healthy  # the errors before the recovery are not reported again
+
+
+def test_polled_receive_error_holds_until_recv_works_and_frames_arrive() -> None:
+    bus = QueueBus()
+    bus.fail_recv = True
+    sup = BusSupervisor(bus, settle_s=1.0)
+    for t in (0.0, 1.0, 2.0):
+        sup.tick(t)
+    assert "receive failed" in str(sup.fault)
+    assert sup.recover() == "no frame received since the fault"
+    bus.fail_recv = False
+    sup.tick(2.5)
+    assert sup.recover() == "no frame received since the fault"
+    bus.pending.append(msg())
+    sup.tick(3.0)
+    assert sup.recover() is None and sup.frames == 1
+    sup.shutdown()
+
+
+class ThreadKilled(BaseException):
+    """Not an `Exception`: python-can's Notifier does not catch it, so its receive thread dies."""
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")
+def test_a_dead_receive_thread_is_a_fault_and_recovery_restarts_it() -> None:
+    ch = channel()
+    done = threading.Event()
+    faults: list[HardwareError] = []
+    with can.Bus(interface="virtual", channel=ch) as tx, BusSupervisor(
+        can.Bus(interface="virtual", channel=ch), [lambda m: done.set()], threaded=True, on_fault=faults.append,
+        settle_s=0.5,
+    ) as sup:
+        bus = sup.bus
+        receive = bus._recv_internal
+
+        def die(timeout: float | None) -> tuple[can.Message | None, bool]:
+            raise ThreadKilled
+
+        bus._recv_internal = die  # type: ignore[method-assign]
+        for _ in range(500):  # until the thread has died
+            sup.tick(0.0)
+            if sup.fault is not None:
+                break
+            threading.Event().wait(0.01)
+        assert faults == [sup.fault] and "receive thread is dead" in str(sup.fault)
+        bus._recv_internal = receive  # type: ignore[method-assign]
+        assert sup.recover() == "receive thread restarted, waiting for frames" and sup.restarts == 1
+        tx.send(msg())
+        assert done.wait(5.0)  # the new thread delivers
+        sup.tick(0.1)
+        assert sup.recover() == "last error 0.10 s ago, waiting for 0.50 s without one"
+        sup.tick(0.5)
+        assert sup.recover() is None and sup.healthy
