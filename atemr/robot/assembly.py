@@ -4,10 +4,12 @@ Order matters only for parts due at the same instant (the scheduler runs ties in
 added): the simulated world moves first, then the emulated hardware answers, then the primary side
 reads its inputs, decides (motion control) and sends (motor driver), then the agent looks at the result.
 
-In simulation every participant on the CAN bus (the primary's motor driver and link, each motor
-emulator, the secondary core) has its own python-can Bus on the robot's virtual channel, exactly as the
-separate devices share one wire on the robot. On the real robot (``simulation: false``) only the
-primary's parts are built, on socketcan.
+In simulation every participant on the CAN bus (the primary, each motor emulator, the secondary core)
+has its own python-can Bus on the robot's virtual channel, exactly as the separate devices share one wire
+on the robot. On the real robot (``simulation: false``) only the primary's parts are built, on socketcan.
+The primary has one Bus, received by a `BusSupervisor` (polled in simulation, a Notifier thread on the
+robot) that hands the frames to the motor driver and the secondary-core link through their inboxes and
+reports bus-off, a dead receive side and a failing listener as the ``can_bus`` fault.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from atemr.config import Config
 from atemr.errors import AtemrError, HardwareError
 from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.fsm.recording import AgentRecorder
+from atemr.io.can.supervisor import BusSupervisor
 from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.secondary_link import build_secondary_link
@@ -50,6 +53,7 @@ log = logging.getLogger(__name__)
 
 #: Tick rates of the primary's periodic work, in Hz (the simulator's own rates are in ``sim.*``).
 RATES = {
+    "can_bus": 50.0,
     "localization": 10.0,
     "motor_emulator": 100.0,
     "secondary_link": 50.0,
@@ -243,23 +247,61 @@ def _add_simulation(robot: Robot, health: HealthBoard) -> None:
         health.add("camera", lambda now: ComponentHealth(sim.camera_source.latest is not None, "no frame yet"))
 
 
+#: The safety-stop reason held while the CAN bus is faulted (`MotionInputs.set_safety_stop`).
+CAN_BUS_STOP = "CAN bus fault"
+
+
+def _add_can_bus(robot: Robot, inputs: MotionInputs, health: HealthBoard) -> BusSupervisor:
+    """The primary's CAN bus and its supervisor, the one receiver for the driver and the link (`inbox`).
+
+    A bus fault (bus-off, ``recv`` failing, the receive thread dead, a listener raising) holds a safety stop,
+    so both motors are commanded to zero at once (no ramp), and makes ``can_bus`` unhealthy, which the agent's
+    Monitor turns into a fault naming it (``trees/agent.yaml``). The fault is not critical (see
+    `atemr.io.can.supervisor`): the agent waits in Error until `BusSupervisor.recover` sees the bus carry frames
+    again with no error for its ``settle_s``, then the stop is released and the agent returns to Idle.
+    """
+    cfg = robot.config
+
+    def on_fault(fault: HardwareError) -> None:
+        inputs.set_safety_stop(CAN_BUS_STOP, True)
+        robot.event("can bus", f"{fault}: motors stopped")
+
+    supervisor = BusSupervisor(robot.open_bus(), threaded=not cfg.simulation, name="can_bus", on_fault=on_fault,
+                               close_bus=False)  # the robot closes the bus after every part has shut down
+    robot.add(supervisor, RATES["can_bus"])  # before the parts that read its inboxes
+    health.add("can_bus", lambda now: ComponentHealth(supervisor.fault is None, supervisor.problem or ""))
+
+    def clear_bus_fault() -> str | None:
+        why = supervisor.recover()
+        if why is None and CAN_BUS_STOP in inputs.safety_stops:
+            inputs.set_safety_stop(CAN_BUS_STOP, False)
+            robot.event("can bus", "cleared: frames arrive again")
+        return why
+
+    health.add_recovery("can_bus", clear_bus_fault)
+    return supervisor
+
+
 def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settings: SettingsStore) -> None:
-    """The primary core: secondary-core link, motion control, motor driver, odometry."""
+    """The primary core: CAN bus supervisor, secondary-core link, motion control, motor driver, odometry."""
     cfg = robot.config
     sim = robot.extras.get("sim")
+    can_bus = _add_can_bus(robot, inputs, health)
 
     def on_heartbeat(ok: bool) -> None:
         # DESIGN §10: both cores stop the motors when the heartbeat fails for 2 s.
         inputs.set_safety_stop("heartbeat lost", not ok)
         robot.event("heartbeat", "0x157 heartbeat " + ("restored" if ok else "lost: motors stopped"))
 
-    link = build_secondary_link(cfg, robot.open_bus(), on_heartbeat=on_heartbeat)
+    link_inbox, motors_inbox = can_bus.inbox("secondary_link"), can_bus.inbox("motors")
+    robot.buses += [link_inbox, motors_inbox]  # closed with the buses even if the supervisor never started
+    link = build_secondary_link(cfg, link_inbox, on_heartbeat=on_heartbeat)
     robot.add(link, RATES["secondary_link"])
 
     def on_fault(fault: HardwareError) -> None:
         robot.event("motor fault", str(fault))
 
-    driver = RmdDriver.from_config(robot.open_bus(), cfg.motors, on_fault=on_fault)
+    driver = RmdDriver.from_config(motors_inbox, cfg.motors, on_fault=on_fault)
     stored = settings.load()
     limits = cfg.motion
     if isinstance(stored.get("motion"), dict):
@@ -340,4 +382,4 @@ def _on_component_error(robot: Robot, component: Component, exc: BaseException) 
     robot.event("component error", f"{component.name}: {exc}")
 
 
-__all__ = ["RATES", "build_robot", "make_clock", "trace_path"]
+__all__ = ["CAN_BUS_STOP", "RATES", "build_robot", "make_clock", "trace_path"]

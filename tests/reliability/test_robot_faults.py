@@ -16,7 +16,7 @@ import pytest
 
 from atemr.clock import SimClock
 from atemr.config import load_config
-from atemr.errors import AtemrError
+from atemr.errors import AtemrError, HardwareError
 from atemr.fsm.machine import TransitionRecord
 from atemr.io.can.bus import unique_channel
 from atemr.io.motors.rmd_codec import MotorErrorFlags
@@ -279,3 +279,94 @@ def test_a_bus_off_primary_still_stops_the_motors(harness: Harness) -> None:
     fault_t = h.robot.clock.now()
     break_bus(h, "send")
     stop_time(h, fault_t, 1.0)
+
+
+# -- the CAN bus under its supervisor (one receive side for the driver and the link) -----------------------------
+def bus_error(entered: Entered) -> HardwareError:
+    """The error the agent classifies names the CAN bus, not the motors that went silent behind it."""
+    assert entered.reason.startswith("can_bus: "), entered.reason
+    error = entered.error
+    assert isinstance(error, HardwareError) and error.component == "can_bus", error
+    return error
+
+
+def test_bus_off_stops_both_motors_and_enters_error_naming_the_bus_until_it_is_back(
+        harness: Harness, monkeypatch: pytest.MonkeyPatch) -> None:
+    h = harness
+    supervised = h.robot.parts["can_bus"].bus  # type: ignore[attr-defined]
+    off = [False]
+    # the controller reports bus-off through python-can's bus.state (only the supervised bus does)
+    monkeypatch.setattr(type(supervised), "state", property(
+        lambda bus: can.BusState.ERROR if bus is supervised and off[0] else can.BusState.ACTIVE))
+    fault_t = h.robot.clock.now()
+    off[0] = True
+    took = stop_time(h, fault_t, 1.0)
+    assert took <= 0.1, took  # a safety stop: the next control tick, no ramp
+    error = bus_error(first_error(h, fault_t))
+    assert "bus-off" in str(error) and not error.critical
+    assert classified(h, fault_t) == "recover"
+    h.drive(fault_t + 3.0)
+    assert h.agent.state == "ERROR" and h.stopped()  # held while the bus is off; the operator still presses
+    off[0] = False
+    back_t = h.robot.clock.now()
+    h.drive(back_t + 0.8)
+    assert h.agent.state == "ERROR"  # the bus must stay good for the supervisor's settle_s (1 s) first
+    h.drive(back_t + 2.0)
+    assert h.agent.state == "IDLE.MANUAL", [(r.source, r.dest, r.reason) for r in h.records[-5:]]
+    assert not [e for e in h.errors if e.t > back_t]
+    h.drive(back_t + 3.0)
+    assert h.moving(), h.speeds()
+
+
+def test_a_dead_receive_side_stops_both_motors_and_enters_error_naming_the_bus(
+        harness: Harness, monkeypatch: pytest.MonkeyPatch) -> None:
+    h = harness
+    supervised = h.robot.parts["can_bus"].bus  # type: ignore[attr-defined]
+
+    def dead(timeout: float | None = None) -> can.Message | None:
+        raise can.CanOperationError("controller gone (simulated)")
+
+    fault_t = h.robot.clock.now()
+    monkeypatch.setattr(supervised, "recv", dead)
+    took = stop_time(h, fault_t, 1.0)
+    assert took <= 0.1, took
+    error = bus_error(first_error(h, fault_t))
+    assert "receive failed: controller gone" in str(error) and not error.critical
+    assert classified(h, fault_t) == "recover"
+    h.drive(fault_t + 1.5)
+    # nothing is received, so the motors went silent too: the driver latched that as well, the bus stays the cause
+    assert h.agent.state == "ERROR" and h.robot.extras["driver"].fault is not None and h.stopped()
+    monkeypatch.undo()
+    back_t = h.robot.clock.now()
+    h.drive(back_t + 2.5)
+    assert h.agent.state == "IDLE.MANUAL", [(r.source, r.dest, r.reason) for r in h.records[-5:]]
+    assert h.robot.extras["driver"].fault is None  # both latched faults cleared, not only the bus's
+    h.drive(back_t + 3.5)
+    assert h.moving(), h.speeds()
+
+
+def test_a_failing_listener_on_the_bus_is_an_error_naming_the_bus_while_it_fails(harness: Harness) -> None:
+    h = harness
+    failing = [True]
+
+    def tap(msg: can.Message) -> None:  # e.g. a diagnostic listener with a bug
+        if failing[0] and msg.arbitration_id == 0x157:
+            raise RuntimeError("tap bug")
+
+    fault_t = h.robot.clock.now()
+    h.robot.parts["can_bus"].add_listener(tap)  # type: ignore[attr-defined]
+    stop_time(h, fault_t, 1.0)
+    error = bus_error(first_error(h, fault_t))
+    assert "listener failed" in str(error) and "tap bug" in str(error)
+    states = []
+    for _ in range(20):  # fails on every 0x157 answer (2 Hz): held in ERROR, no flapping back to IDLE
+        h.drive(h.robot.clock.now() + 0.1)
+        states.append(h.agent.state)
+    assert set(states) == {"ERROR"} and h.stopped(), states
+    assert len([e for e in h.errors if e.t >= fault_t]) == 1
+    failing[0] = False
+    back_t = h.robot.clock.now()
+    h.drive(back_t + 2.0)
+    assert h.agent.state == "IDLE.MANUAL"
+    h.drive(back_t + 3.0)
+    assert h.moving(), h.speeds()

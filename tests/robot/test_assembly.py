@@ -129,3 +129,26 @@ def test_every_run_records_a_trace_rotated_by_size(tmp_path):
     end = timeline.frame(1e9)
     assert end["state"] == "IDLE.MANUAL" and end["tree"]["name"] == "manual" and end["pose"] is not None
     assert end["blackboard"]["/agent/state"]["by"] == "agent/agent"
+
+
+@pytest.mark.parametrize("simulation", [True, False])
+def test_the_primary_receives_through_one_supervisor_polled_in_simulation_threaded_on_the_robot(tmp_path, simulation):
+    config = load_config(environ={}, overrides={"data_dir": str(tmp_path), "can.channel": unique_channel("sup"),
+                                                "simulation": simulation, "secondary.portal_serve": False,
+                                                "ui.enabled": False})
+    robot = build_robot(config, realtime=False, clock=SimClock())  # built, not started: no thread runs
+    try:
+        supervisor = robot.parts["can_bus"]
+        assert supervisor.threaded is not simulation
+        assert robot.parts["motors"].bus.supervisor is supervisor
+        assert robot.parts["secondary_link"].bus.supervisor is supervisor
+        assert robot.extras["health"].collect()["can_bus"].ok
+    finally:
+        robot.shutdown()
+
+
+def test_the_supervisor_delivers_every_frame_of_the_running_robot(robot):
+    robot.run(until=3.0)
+    supervisor, link, driver = robot.parts["can_bus"], robot.parts["secondary_link"], robot.extras["driver"]
+    assert supervisor.healthy and supervisor.frames > 0 and link.frames_in > 0
+    assert all(state.last_reply_t is not None for state in driver.states.values())
