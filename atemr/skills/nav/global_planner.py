@@ -106,25 +106,29 @@ def edge_weights(cost: NDArray[np.uint8], passable: NDArray[np.bool_], resolutio
                  params: PlannerParams, potential: FloatArray | None = None) -> NDArray[np.float64]:
     """(N, 8) weight of every neighbour slot: the cost-aware length of the step into that neighbour.
 
-    With ``potential`` (A*'s heuristic per cell), the reduced weight ``w − h(u) + h(v)`` instead. Built from
-    shifted views of padded grids (eight slices, no gathers), so a 400x400 grid takes a few milliseconds.
+    With ``potential`` (A*'s heuristic per cell), the reduced weight ``w − h(u) + h(v)`` instead, clamped at a
+    tiny positive value. Each direction is computed in place on a contiguous plane from shifted views of
+    padded grids (no gathers), then the planes are interleaved into the CSR row layout in one copy: a
+    400x400 grid takes a few milliseconds.
     """
     rows, cols = cost.shape
     per_m = params.neutral_cost + params.cost_factor * np.minimum(cost, MAX_NON_OBSTACLE) / MAX_NON_OBSTACLE
     per_m_pad = np.pad(per_m, 1)
     ok_pad = np.pad(passable, 1, constant_values=False)
     h_pad = np.pad(potential, 1) if potential is not None else None
-    out = np.empty((rows, cols, 8), dtype=np.float64)
+    planes = np.empty((8, rows, cols), dtype=np.float64)
     for k, (dr, dc) in enumerate(_MOVES):
         ok = _shifted(ok_pad, dr, dc)
         if dr and dc:  # no corner cutting: both orthogonal cells passed between must be passable
             ok = ok & _shifted(ok_pad, dr, 0) & _shifted(ok_pad, 0, dc)
-        w = _shifted(per_m_pad, dr, dc) * (math.hypot(dr, dc) * resolution_m)
+        w = planes[k]
+        np.multiply(_shifted(per_m_pad, dr, dc), math.hypot(dr, dc) * resolution_m, out=w)
         if h_pad is not None and potential is not None:
-            w = w + _shifted(h_pad, dr, dc) - potential
+            w += _shifted(h_pad, dr, dc)
+            w -= potential
             np.maximum(w, 1e-12, out=w)
-        out[:, :, k] = np.where(ok, w, _BLOCKED)
-    return out.reshape(rows * cols, 8)
+        w[~ok] = _BLOCKED
+    return np.ascontiguousarray(planes.reshape(8, rows * cols).T)
 
 
 def octile_m(rows: NDArray[np.intp], cols: NDArray[np.intp], goal: tuple[int, int], resolution_m: float
@@ -141,8 +145,9 @@ class GlobalPlanner:
     def __init__(self, costmap: Costmap, params: PlannerParams | None = None) -> None:
         self.costmap = costmap
         self.params = params or PlannerParams()
-        self._cached: tuple[NDArray[np.uint8], NDArray[np.bool_], NDArray[np.float64]] | None = None
-        self._reduced: tuple[tuple[int, int], NDArray[np.float64]] | None = None
+        #: (goal the weights are reduced for, None: plain; the cost and passability they were built from; weights)
+        self._cached: tuple[tuple[int, int] | None, NDArray[np.uint8], NDArray[np.bool_], NDArray[np.float64]] | None \
+            = None
 
     def _passable(self) -> NDArray[np.bool_]:
         return self.costmap.traversable(allow_unknown=self.params.allow_unknown)
@@ -226,43 +231,35 @@ class GlobalPlanner:
 
     def _weights(self, cost: NDArray[np.uint8], passable: NDArray[np.bool_], potential: FloatArray | None,
                  goal: tuple[int, int]) -> NDArray[np.float64]:
-        """The (N, 8) edge weights (reduced by ``potential`` for A*). Both the plain and the reduced weights (for
-        the current goal) are cached and, when the costmap changed, patched only around the cells that changed
-        (the obstacle layer moves a few cells per scan), so a replan on a big map does not rebuild millions of
-        weights."""
+        """The (N, 8) edge weights, reduced by ``potential`` for A* (built in one pass for a new goal: a first
+        plan pays for one sweep of the grid, not two). They are cached with the costmap they were built from
+        and, when the costmap changed, patched only around the cells that changed (the obstacle layer moves a
+        few cells per scan), so a replan on a big map does not rebuild millions of weights."""
         cm = self.costmap
         rows, cols = cost.shape
-        box: tuple[int, int, int, int] | None = None
-        if self._cached is None or self._cached[0].shape != cost.shape:
-            self._cached = (cost.copy(), passable.copy(), edge_weights(cost, passable, cm.resolution_m, self.params))
-            self._reduced = None
-        old_cost, old_ok, base = self._cached
+        key = goal if potential is not None else None
+        if self._cached is None or self._cached[1].shape != cost.shape or self._cached[0] != key:
+            weights = edge_weights(cost, passable, cm.resolution_m, self.params, potential)
+            self._cached = (key, cost.copy(), passable.copy(), weights)
+            return weights
+        _, old_cost, old_ok, weights = self._cached
         changed = (cost != old_cost) | (passable != old_ok)
         if changed.any():
             rr = np.flatnonzero(changed.any(axis=1))
             cc = np.flatnonzero(changed.any(axis=0))
             # Edges of cells next to a change change too (entered cell, corner rule): patch the box grown by 1,
-            # computed on the box grown by 2 so every patched cell sees its true neighbours.
+            # computed on the box grown by 2 so every patched cell sees its true neighbours (and potentials).
             t0, t1 = max(int(rr[0]) - 1, 0), min(int(rr[-1]) + 2, rows)
             u0, u1 = max(int(cc[0]) - 1, 0), min(int(cc[-1]) + 2, cols)
             s0, s1 = max(t0 - 1, 0), min(t1 + 1, rows)
             v0, v1 = max(u0 - 1, 0), min(u1 + 1, cols)
-            sub = edge_weights(cost[s0:s1, v0:v1], passable[s0:s1, v0:v1], cm.resolution_m, self.params)
+            sub = edge_weights(cost[s0:s1, v0:v1], passable[s0:s1, v0:v1], cm.resolution_m, self.params,
+                               None if potential is None else potential[s0:s1, v0:v1])
             sub = sub.reshape(s1 - s0, v1 - v0, 8)[t0 - s0:t1 - s0, u0 - v0:u1 - v0]
-            base.reshape(rows, cols, 8)[t0:t1, u0:u1] = sub
+            weights.reshape(rows, cols, 8)[t0:t1, u0:u1] = sub
             old_cost[t0:t1, u0:u1] = cost[t0:t1, u0:u1]
             old_ok[t0:t1, u0:u1] = passable[t0:t1, u0:u1]
-            box = (t0, t1, u0, u1)
-        if potential is None:
-            return base  # every weight is > 0 (neutral cost > 0)
-        if self._reduced is None or self._reduced[0] != goal:
-            full = _reduce(base.reshape(rows, cols, 8), potential, (0, rows, 0, cols))
-            self._reduced = (goal, full.reshape(rows * cols, 8))
-        elif box is not None:
-            t0, t1, u0, u1 = box
-            self._reduced[1].reshape(rows, cols, 8)[t0:t1, u0:u1] = _reduce(base.reshape(rows, cols, 8), potential,
-                                                                            box)
-        return self._reduced[1]
+        return weights
 
     def _enterable(self, cell: tuple[int, int]) -> bool:
         c = int(self.costmap.cost[cell])
@@ -306,21 +303,6 @@ class GlobalPlanner:
         passable[r0:r1, c0:c1] |= window == INSCRIBED
         window[window == INSCRIBED] = MAX_NON_OBSTACLE
         return cost, passable
-
-
-def _reduce(grid: NDArray[np.float64], potential: FloatArray, box: tuple[int, int, int, int]) -> NDArray[np.float64]:
-    """Reduced weights ``w − h(u) + h(v)`` of the cells in ``box`` (rows r0:r1, cols c0:c1) as (rows, cols, 8):
-    the potential's differences to the eight neighbours from shifted views (contiguous, no gathers), added to
-    the weights in one pass; clamped at a tiny positive value."""
-    r0, r1, c0, c1 = box
-    h_pad = np.pad(potential, 1)
-    h = potential[r0:r1, c0:c1]
-    dh = np.empty((8, r1 - r0, c1 - c0), dtype=np.float64)
-    for k, (dr, dc) in enumerate(_MOVES):
-        np.subtract(h_pad[1 + r0 + dr:1 + r1 + dr, 1 + c0 + dc:1 + c1 + dc], h, out=dh[k])
-    out = grid[r0:r1, c0:c1] + dh.transpose(1, 2, 0)
-    np.maximum(out, 1e-12, out=out)
-    return out
 
 
 def _walk_back(pred: NDArray[np.int32], start: int, goal: int) -> NDArray[np.intp]:
