@@ -10,7 +10,7 @@ import re
 import pytest
 from PIL import Image
 
-from atemr.ui.control.mjpeg import BOUNDARY
+from atemr.ui.control.mjpeg import BOUNDARY, StreamCount, mjpeg_parts
 from atemr.ui.server import DashboardServer
 
 URL = "/api/camera.mjpeg"
@@ -177,3 +177,56 @@ def test_over_http_a_watcher_leaving_ends_its_stream_and_shutdown_ends_the_other
     assert _read_parts(staying_response, 1000) < 1000  # the stream ended with the server
     staying.close()
     assert streams.open == 0
+
+
+class FakeTime:
+    """Simulated seconds: ``wait`` (the generator's sleep) and the consumer move them on."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def is_set(self) -> bool:
+        return False
+
+    def wait(self, seconds: float) -> bool:
+        self.now += seconds
+        return False
+
+
+def test_a_ten_fps_camera_streams_every_frame_even_when_writing_a_part_takes_time() -> None:
+    # The camera makes a new frame every 0.1 s; writing each part to the client takes 20 ms. Every frame
+    # must go out (a look once per period, delayed by the writes, lost one frame in six: 8.3 fps).
+    fake = FakeTime()
+    made: dict[int, bytes] = {}
+
+    def camera() -> bytes:
+        index = int(fake.now / 0.1 + 1e-9)
+        return made.setdefault(index, f"frame {index}".encode())
+
+    sent = []
+    for chunk in mjpeg_parts(camera, fake, StreamCount(), clock=lambda: fake.now):  # type: ignore[arg-type]
+        sent.append(chunk)
+        fake.now += 0.02
+        if fake.now >= 10.0:
+            break
+    frames = [c.split(b"\r\n\r\n", 1)[1][:-2] for c in sent]
+    assert len(frames) == len(set(frames)), "no frame sent twice"
+    assert len(frames) >= 99, f"{len(frames)} frames in 10 s from a 10 fps camera"
+    numbers = [int(f.split()[1]) for f in frames]
+    assert numbers == list(range(numbers[0], numbers[0] + len(numbers))), "in order, none skipped"
+
+
+def test_a_faster_camera_is_thinned_to_the_stream_rate() -> None:
+    fake = FakeTime()
+    made: dict[int, bytes] = {}
+
+    def camera() -> bytes:  # 40 fps
+        index = int(fake.now / 0.025 + 1e-9)
+        return made.setdefault(index, f"frame {index}".encode())
+
+    count = 0
+    for _ in mjpeg_parts(camera, fake, StreamCount(), fps=10.0, clock=lambda: fake.now):  # type: ignore[arg-type]
+        count += 1
+        if fake.now >= 10.0:
+            break
+    assert 95 <= count <= 112, count
