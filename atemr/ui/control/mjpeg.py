@@ -3,7 +3,7 @@
 A stream reads frames only while its client is connected (the generator runs in that client's request
 thread) and ends when the client leaves (werkzeug's write fails and closes the generator) or the server
 stops (the ``stopping`` event). It looks for a new frame `POLLS_PER_FRAME` times per frame period and sends
-each new one at once, at most `STREAM_FPS` times a second, and repeats the last one every `REPEAT_S` so a
+each new one at once, at most `STREAM_FPS` times a second on average, and repeats the last one every `REPEAT_S` so a
 client that left unnoticed is found out. (Looking once per period, as the camera's own rate, lost a frame
 whenever writing a part delayed the next look past the next frame: 8-9 fps from a 10 fps camera.)
 """
@@ -63,18 +63,25 @@ def mjpeg_parts(
 ) -> Iterator[bytes]:
     """Parts of the newest frame from ``frames`` (None: no frame now) until ``stopping`` is set or the
     consumer closes the generator. Frames are compared by identity: a camera that hands out the same
-    bytes object again has no new frame. ``clock`` (seconds) spaces the parts: a new frame goes out once
-    0.9 frame periods have passed since the last part (jitter allowed; a faster camera is thinned to ``fps``)."""
+    bytes object again has no new frame. The rate is held to ``fps`` by a token bucket on ``clock``
+    (seconds) with room for two parts, so a frame sent late (the thread was kept waiting) does not hold the
+    next one back, while a faster camera is thinned to ``fps``."""
     period = 1.0 / fps
     with count:
         last: bytes | None = None
-        sent_at = -float("inf")
+        sent_at = checked_at = clock()
+        tokens = 1.0
         while not stopping.is_set():
             frame = frames()
             now = clock()
-            if frame is not None and ((frame is not last and now - sent_at >= 0.9 * period)
-                                      or now - sent_at >= repeat_s):
+            tokens = min(2.0, tokens + (now - checked_at) * fps)
+            checked_at = now
+            if frame is not None and frame is not last and tokens >= 1.0:
+                tokens -= 1.0
                 yield part(frame)
+                last, sent_at = frame, now
+            elif frame is not None and now - sent_at >= repeat_s:
+                yield part(frame)  # the same frame again: tells a client that left unnoticed
                 last, sent_at = frame, now
             if stopping.wait(period / POLLS_PER_FRAME):
                 return
