@@ -342,20 +342,11 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
     def clear_motor_fault() -> str | None:
         # The agent's Error state calls this while it waits: the latched fault is reset only once both motors
         # answer again (the driver keeps polling them) and report no error flag; until then why not.
-        if driver.fault is None:
-            return None
-        now = robot.clock.now()
-        for side, state in driver.states.items():
-            if state.last_reply_t is None or now - state.last_reply_t > cfg.motors.silence_timeout_s:
-                return f"{side} motor (id {state.motor_id}) not answering"
-        flagged = [f"{side} motor reports {state.errors.name or f'0x{int(state.errors):02X}'}"
-                   for side, state in driver.states.items() if state.errors]
-        if flagged:
-            driver.request_error_clear()  # a flag whose cause is gone clears; the next status 1 shows the rest
-            return "; ".join(flagged)
-        driver.clear_motor_errors()
-        robot.event("motor fault", "cleared: both motors answer with no error flag")
-        return None
+        latched = driver.fault is not None
+        why = driver.recover(robot.clock.now())
+        if latched and why is None:
+            robot.event("motor fault", "cleared: both motors answer with no error flag")
+        return why
 
     health.add_recovery("motors", clear_motor_fault)
 

@@ -372,6 +372,27 @@ class RmdDriver(DriveMotors):
         for side in SIDES:
             self.bus.send(RmdRequest(self.ids[side], RmdCommand.CLEAR_ERRORS).encode())
 
+    def recover(self, now: float) -> str | None:
+        """Clear the latched fault once its cause is gone (the agent's Error state calls this every tick while it
+        waits): None when nothing is latched any more, else why not yet.
+
+        The fault is reset only once both motors have answered within ``silence_timeout_s`` (the driver keeps
+        polling them while faulted) and report no error flag; a motor still reporting a flag is sent
+        CLEAR_ERRORS (a flag whose cause is gone clears, and its next status-1 reply shows what remains).
+        """
+        if self.fault is None:
+            return None
+        for side, state in self.states.items():
+            if state.last_reply_t is None or now - state.last_reply_t > self.silence_timeout_s:
+                return f"{side} motor (id {state.motor_id}) not answering"
+        flagged = [f"{side} motor reports {state.errors.name or f'0x{int(state.errors):02X}'}"
+                   for side, state in self.states.items() if state.errors]
+        if flagged:
+            self.request_error_clear()
+            return "; ".join(flagged)
+        self.clear_motor_errors()
+        return None
+
     def clear_motor_errors(self) -> None:
         """Send CLEAR_ERRORS to both motors (their replies refresh the error flags), then `reset_fault`."""
         for side in SIDES:

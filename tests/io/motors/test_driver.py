@@ -121,6 +121,28 @@ def test_injected_error_flag_stops_both(rig: Rig) -> None:
     assert rig.left.model.speed_radps == pytest.approx(1.0, abs=0.02)
 
 
+def test_recover_clears_the_fault_only_once_both_motors_answer_without_a_flag(rig: Rig) -> None:
+    command_for(rig, WheelSpeeds(2.0, 2.0), 0.5)
+    assert rig.driver.recover(rig.clock.now()) is None  # nothing latched
+    rig.right.model.unplug()
+    rig.run(0.5)
+    assert rig.driver.fault is not None
+    assert rig.driver.recover(rig.clock.now()) == "right motor (id 2) not answering"
+    rig.right.model.plug()
+    rig.left.model.inject_error(MotorErrorFlags.OVER_TEMPERATURE)
+    rig.run(0.3)  # both answer again; the left one's status 1 carries the flag
+    assert rig.driver.recover(rig.clock.now()) == "left motor reports OVER_TEMPERATURE"
+    rig.run(0.3)  # the CLEAR_ERRORS it sent cannot clear a flag whose cause is still there
+    assert rig.driver.recover(rig.clock.now()) == "left motor reports OVER_TEMPERATURE"
+    assert rig.driver.fault is not None
+    rig.left.model.clear_injected()  # the cause goes; the flag stays latched in the motor until CLEAR_ERRORS
+    rig.run(0.3)
+    assert rig.left.model.error_flags == MotorErrorFlags.NONE  # cleared by the CLEAR_ERRORS sent above
+    assert rig.driver.recover(rig.clock.now()) is None and rig.driver.fault is None
+    command_for(rig, WheelSpeeds(1.0, 1.0), 1.0)
+    assert rig.left.model.speed_radps == pytest.approx(1.0, abs=0.02)
+
+
 def test_under_voltage_is_reported(rig: Rig) -> None:
     command_for(rig, WheelSpeeds(1.0, 1.0), 0.3)
     rig.right.model.voltage_v = 16.0
