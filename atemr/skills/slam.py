@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from atemr.errors import ConfigError
 from atemr.io.sim.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap
@@ -228,3 +229,29 @@ class OccupancyGridSlam:
 
 
 __all__ = ["OccupancyGridSlam", "SlamParams", "logodds"]
+
+
+def map_agreement(built: OccupancyMap, truth: OccupancyMap) -> tuple[float, float]:
+    """How well a built map matches a true one, within one cell: (precision, recall).
+
+    Precision: the share of the built map's occupied cells that lie within one cell of a true occupied cell
+    (what it drew is really there). Recall: the share of the true surfaces it saw (true occupied cells next to
+    space the built map knows is free) that have a built occupied cell within one cell. The maps may differ in
+    origin and size; cells are matched by their world position.
+    """
+    near = np.ones((3, 3), bool)
+    rows, cols = np.nonzero(built.occupied)
+    r, c = truth.world_to_cell(*built.cell_to_world(rows, cols))
+    inside = truth.contains(r, c)
+    true_near = ndimage.binary_dilation(truth.occupied, near)
+    precision = float(np.mean(inside & true_near[np.where(inside, r, 0), np.where(inside, c, 0)])) if len(r) else 0.0
+    fr, fc = np.nonzero(built.free)
+    tr, tc = truth.world_to_cell(*built.cell_to_world(fr, fc))
+    ok = truth.contains(tr, tc)
+    seen = np.zeros(truth.data.shape, bool)
+    seen[tr[ok], tc[ok]] = True
+    surface = truth.occupied & ndimage.binary_dilation(seen, near)
+    built_occupied = np.zeros(truth.data.shape, bool)
+    built_occupied[r[inside], c[inside]] = True
+    recall = float((ndimage.binary_dilation(built_occupied, near) & surface).sum() / max(1, surface.sum()))
+    return precision, recall

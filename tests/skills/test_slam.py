@@ -10,12 +10,11 @@ from types import ModuleType
 
 import numpy as np
 import pytest
-from scipy import ndimage
 
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import OccupancyMap, load_map, save_map
+from atemr.io.sim.maps import load_map, save_map
 from atemr.msgs import LaserScan, Pose2D
-from atemr.skills.slam import OccupancyGridSlam, SlamParams
+from atemr.skills.slam import OccupancyGridSlam, SlamParams, map_agreement
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -70,27 +69,6 @@ def test_bad_input_is_refused() -> None:
         OccupancyGridSlam(start=Pose2D(math.inf, 0.0, 0.0))
 
 
-def map_quality(built: OccupancyMap, truth: OccupancyMap) -> tuple[float, float]:
-    """(precision, recall) within one cell: built occupied cells near a true one; true surfaces (next to space
-    the built map saw free) near a built occupied cell."""
-    near = np.ones((3, 3), bool)
-    rows, cols = np.nonzero(built.occupied)
-    r, c = truth.world_to_cell(*built.cell_to_world(rows, cols))
-    inside = truth.contains(r, c)
-    precision = float(np.mean(inside & ndimage.binary_dilation(truth.occupied, near)[
-        np.where(inside, r, 0), np.where(inside, c, 0)]))
-    fr, fc = np.nonzero(built.free)
-    tr, tc = truth.world_to_cell(*built.cell_to_world(fr, fc))
-    ok = truth.contains(tr, tc)
-    seen = np.zeros(truth.data.shape, bool)
-    seen[tr[ok], tc[ok]] = True
-    surface = truth.occupied & ndimage.binary_dilation(seen, near)
-    built_occ = np.zeros(truth.data.shape, bool)
-    built_occ[r[inside], c[inside]] = True
-    recall = float((ndimage.binary_dilation(built_occ, near) & surface).sum() / max(1, surface.sum()))
-    return precision, recall
-
-
 def test_mapping_the_studio_matches_the_ground_truth_map(tmp_path: Path) -> None:
     """Two laps of the living room (scans from the simulator, noisy odometry with wheel slip), mapped and saved:
     ≥ 90 % of the saved map's occupied cells lie within one cell of an occupied cell of the world's map
@@ -104,11 +82,11 @@ def test_mapping_the_studio_matches_the_ground_truth_map(tmp_path: Path) -> None
     path = save_map(slam.to_map("studio_slam"), tmp_path / "studio_slam.yaml")
     saved = load_map(path)
     truth = load_map(ROOT / "atemr" / "worlds" / "studio" / "studio.yaml")
-    precision, recall = map_quality(saved, truth)
+    precision, recall = map_agreement(saved, truth)
     assert saved.occupied.sum() > 500
     assert precision >= 0.90, precision
     assert recall >= 0.80, recall
     odometry_only = OccupancyGridSlam(SlamParams(match_scans=False), start=rec.truth[0])
     for i, scan in enumerate(rec.scans):
         odometry_only.update(rec.odom[i], scan)
-    assert map_quality(odometry_only.to_map(), truth)[0] < precision  # scan matching is what makes it good
+    assert map_agreement(odometry_only.to_map(), truth)[0] < precision  # scan matching is what makes it good
