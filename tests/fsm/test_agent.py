@@ -475,3 +475,26 @@ def test_kitchen_check_runs_with_navigation(agent_spec: AgentSpec, link: Recordi
     assert port.images == ["images/kitchen-0.jpg", "images/dining-1.jpg"]
     home = report["steps"][-1]
     assert home["kind"] == "return_home" and home["position_error_m"] == 0.0 and home["heading_error_rad"] == 0.0
+
+
+def test_the_live_snapshot_has_every_node_of_a_big_tree(rig: Rig) -> None:
+    """No node limit (Groot2's free tier stops at 20): a 150-step mission is in the snapshot whole, each node
+    with its status and tick count, and it stays JSON-able."""
+    idle(rig)
+    rig.command("set_auto")
+    steps = "".join(f"    - {{name: pause {i}, wait: {{duration_s: 0.1}}}}\n" for i in range(150))
+    mission = parse_mission(load_yaml("big.yaml", text=f"mission:\n  name: big\n  steps:\n{steps}"), "big.yaml")
+    rig.command("start_mission", mission=mission)
+    rig.run(1.05)
+    snap = json.loads(json.dumps(rig.agent.snapshot()))
+
+    def walk(node: dict) -> list[dict]:
+        return [node, *(n for child in node.get("children", []) for n in walk(child))]
+
+    nodes = walk(snap["tree"])
+    pauses = [n for n in nodes if n["name"].startswith("pause ")]
+    assert len(pauses) == 150 and len(nodes) > 150
+    assert all({"status", "ticks", "type"} <= set(n) for n in nodes)
+    done = [n for n in pauses if n["status"] == "SUCCESS"]
+    assert 5 <= len(done) < 150 and all(n["ticks"] >= 1 for n in done)
+    assert [n["ticks"] for n in pauses[-10:]] == [0] * 10, "not run yet"
