@@ -1,8 +1,8 @@
 """The agent under random input: a hypothesis state machine fires valid and invalid triggers, dashboard-style
-commands (with good and absurd arguments), joystick commands, component failures and random CAN frames on
-every ID at the real agent, wired to the real secondary-core link and the emulated secondary core on a
-virtual bus (`secondary_core.harness.LinkBench`) and to the in-test fakes of `atemr.trees.fakes` for the
-rest (fast: no simulator).
+commands (with good and absurd arguments), joystick commands, component failures, stalls of either end of the
+secondary-core link and random CAN frames on every ID at the real agent, wired to the real secondary-core
+link and the emulated secondary core on a virtual bus (`secondary_core.harness.LinkBench`) and to the
+in-test fakes of `atemr.trees.fakes` for the rest (fast: no simulator).
 
 Invariants after every step:
 
@@ -10,6 +10,11 @@ Invariants after every step:
 * the 0x153 state code the link sends matches it (allowing the one agent tick, 0.1 s, in which a transition
   that happened after the Monitor's publish is sent on the next tick);
 * no motion commanded in SHUTDOWN or ERROR (every velocity the agent commands there is zero);
+* no motion commanded while the secondary core holds its soft emergency (`SecondaryCore.soft_emergency`:
+  starting up, primary not running or off, heartbeat lost; it brakes both motors), the board being alive
+  (a paused, hung board brakes nothing). Stalls of either end of the link put it there. The speed ramp's
+  stop-zone emergency is not on this harness (the fake port has no motion pipeline): the pipeline's own
+  tests and `test_can_fault_schedules.py` check that no forward command leaves it inside the stop zone;
 * never an unhandled exception: the scheduler has no error handler, so any exception from a tick fails the
   run; and the agent records no internal error that is not an `AtemrError` it chose to report.
 
@@ -67,10 +72,16 @@ class AgentUnderRandomInput(RuleBasedStateMachine):
         self.transitions: list[TransitionRecord] = []
         self.agent.listeners.append(self.transitions.append)
         self.motion_in: list[tuple[str, Twist]] = []
+        #: motion commanded while the secondary core held its soft emergency: (time, state, reason, twist)
+        self.motion_in_emergency: list[tuple[float, str, str | None, Twist]] = []
         command = self.port.command_velocity
 
         def watched(source: VelocitySource, twist: Twist, now: float) -> None:
             self.motion_in.append((self.agent.state, twist))
+            core = self.bench.core
+            # a hung board (paused) brakes nothing: its flag is stale
+            if core.soft_emergency and not self.bench.gates["core"].paused and not twist.is_zero:
+                self.motion_in_emergency.append((now, self.agent.state, core.emergency_reason, twist))
             command(source, twist, now)
 
         self.port.command_velocity = watched  # type: ignore[method-assign]
@@ -135,6 +146,15 @@ class AgentUnderRandomInput(RuleBasedStateMachine):
         self.bench.run(2.5)  # longer than the 2 s heartbeat watchdog
         self.bench.resume("core")
 
+    @precondition(lambda self: not self.agent.halted)
+    @rule(seconds=st.sampled_from([0.5, 2.5]))
+    def primary_link_hiccup(self, seconds: float) -> None:
+        """The primary's end of the link stalls (no 0x157 sent): past 2 s the secondary core's soft emergency
+        brakes the motors while the agent goes on ticking."""
+        self.bench.pause("link")
+        self.bench.run(seconds)
+        self.bench.resume("link")
+
     # -- invariants ------------------------------------------------------------------------------------------------
     @invariant()
     def exactly_one_known_state(self) -> None:
@@ -151,6 +171,10 @@ class AgentUnderRandomInput(RuleBasedStateMachine):
     def no_motion_in_error_or_shutdown(self) -> None:
         bad = [(s, t) for s, t in self.motion_in if top_level(s) in NO_MOTION and (t.linear_mps or t.angular_radps)]
         assert not bad, bad[:3]
+
+    @invariant()
+    def no_motion_in_emergency(self) -> None:
+        assert not self.motion_in_emergency, self.motion_in_emergency[:3]
 
     @invariant()
     def no_internal_error(self) -> None:
