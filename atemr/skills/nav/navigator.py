@@ -120,15 +120,17 @@ class Navigator:
     def __init__(self, occupancy: OccupancyMap, params: NavParams | None = None) -> None:
         self.params = params or NavParams()
         self.events: list[NavEvent] = []
-        self.set_map(occupancy)
         self.goal: Pose2D | None = None
         self.route: Route | None = None
         self.state: NavState = "IDLE"
+        self._route_refused: str | None = None
+        self.set_map(occupancy)
         self._reset()
 
     # -- set-up --------------------------------------------------------------------------------------------
     def set_map(self, occupancy: OccupancyMap) -> None:
-        """Use another map (the operator selected one); cancels nothing, but the next plan uses it."""
+        """Use another map (the operator selected one); cancels nothing, but the next plan uses it. A route being
+        driven that the new map rules out fails the goal at the next update, with the reason."""
         p = self.params
         self.costmap = Costmap(occupancy, p.costmap)
         self.planner = GlobalPlanner(self.costmap, p.planner)
@@ -138,9 +140,16 @@ class Navigator:
         # Connected parts of the map's own free space (4-connected: the planner cuts no corners), to tell "no
         # path on the map" from "no path past what the scan sees now".
         self._static_parts, _ = ndimage.label(self.costmap.static_cost < INSCRIBED)
+        if self.route is not None and self.state == "RUNNING":
+            why = self.route.refusal(self.costmap)
+            if why is not None:
+                self._route_refused = f"the route does not fit the new map: {why}"
 
     def _reset(self) -> None:
         self._path = None
+        self._route_refused = None
+        self._approach: GlobalPath | None = None
+        self._t_approach = -math.inf
         self._t_start = 0.0
         self._t_plan = -math.inf
         self._t_last = math.nan
@@ -221,6 +230,8 @@ class Navigator:
             self._velocity = velocity
         if now - self._t_start > p.timeout_s:
             return self._fail(now, "timeout", f"goal not reached within {p.timeout_s:.0f} s")
+        if self._route_refused is not None:
+            return self._fail(now, "no path", self._route_refused)
         pose_ok = all(math.isfinite(v) for v in (pose.x_m, pose.y_m, pose.yaw_rad))
         if not (localized and pose_ok):
             if self._lost_since is None:
@@ -250,7 +261,9 @@ class Navigator:
         # Final approach: once at the goal (latched, as move_base's latch_xy_goal_tolerance), turn to its
         # heading. "At the goal" is within ``arrive_m``, or within the tolerance when the local planner
         # cannot get closer, so the robot ends well inside the tolerance, not on its edge.
-        if d_goal <= p.arrive_m or self._xy_reached or (d_goal <= p.xy_tolerance_m and self._creeping):
+        route_driven = self.route is None or self.route.remaining_m <= p.xy_tolerance_m
+        if route_driven and (d_goal <= p.arrive_m or self._xy_reached
+                             or (d_goal <= p.xy_tolerance_m and self._creeping)):
             if not self._xy_reached:
                 self.events.append(NavEvent(now, "position reached", f"{d_goal:.2f} m from the goal"))
             self._xy_reached = True
@@ -277,8 +290,11 @@ class Navigator:
             self._blocked_since = None
             self._t_progress = now
 
-        # Global plan: periodic, at once when the path ahead became blocked; without one, wait and retry.
-        if self._path is None:
+        # Global plan: periodic, at once when the path ahead became blocked; without one, wait and retry. Along
+        # a route, every tick: the progress moves on and the local planner gets the stretch just ahead.
+        if self.route is not None:
+            due = True
+        elif self._path is None:
             due = now - self._t_plan >= p.path_retry_s
         else:
             due = now - self._t_plan >= p.replan_period_s or self._path_blocked(pose)
@@ -290,7 +306,7 @@ class Navigator:
             return self._running(self.local.evade(pose, self._velocity, dt), "no path: waiting", d_goal)
         self._no_path_since = None
         path = self._path.points
-        left = self._distance_left(pose, path)
+        left = self._left(pose, path)
 
         # Progress watchdog.
         if left < self._best_left - p.progress_m:
@@ -323,7 +339,7 @@ class Navigator:
         assert self.goal is not None
         before = self._path
         if self.route is not None:
-            path = self._follow_route(pose)
+            path = self._follow_route(now, pose)
         else:
             tolerance = max(self.params.xy_tolerance_m - 0.05, 0.0)
             path = self.planner.plan((pose.x_m, pose.y_m), (self.goal.x_m, self.goal.y_m), tolerance_m=tolerance)
@@ -342,6 +358,12 @@ class Navigator:
             if self._waiting_since is not None:
                 self._waiting_since = None
                 self._recovery_index = 0
+        if self.route is not None:  # progress is judged along the route itself (the window moves every tick)
+            if before is None:
+                self.events.append(NavEvent(now, "replan" if self._planned else "plan",
+                                            f"along the route, {self._left(pose, path.points):.2f} m"))
+            self._planned = True
+            return True
         # Progress is judged along the current plan: a detour round a new obstacle is progress too.
         left = self._distance_left(pose, path.points)
         self._best_left = left
@@ -351,23 +373,43 @@ class Navigator:
         self._planned = True
         return True
 
-    def _follow_route(self, pose: Pose2D) -> GlobalPath | None:
-        """The path along the route from the robot's progress (an A* approach first when it is off the
-        route), or None while a stretch just ahead is blocked (waited for like no path; never bypassed)."""
-        assert self.route is not None
-        off_by = self.route.advance(pose.x_m, pose.y_m)
-        rest = self.route.rest
-        if self._blocked_ahead(pose, rest):
+    def _follow_route(self, now: float, pose: Pose2D) -> GlobalPath | None:
+        """The stretch of the route just ahead (`Route.window`), with an A* approach in front when the robot is
+        off the route (re-planned at most every ``replan_period_s``), or None while the route just ahead is
+        blocked (waited for like no path; never bypassed). The goal's own tolerance zone does not count as
+        blocked: someone standing by the goal is handled as without a route."""
+        assert self.route is not None and self.goal is not None
+        route = self.route
+        off_by = route.advance(pose.x_m, pose.y_m)
+        rest = route.rest
+        away = np.hypot(rest[:, 0] - self.goal.x_m, rest[:, 1] - self.goal.y_m) > self.params.xy_tolerance_m
+        if self._blocked_ahead(pose, rest[away]) if away.any() else False:
             return None
+        window = route.window()
         expanded = 0
-        if off_by > JOIN_M:
-            approach = self.planner.plan((pose.x_m, pose.y_m), (float(rest[0, 0]), float(rest[0, 1])))
-            if approach is None:
+        if off_by <= JOIN_M:
+            self._approach = None
+            points = window
+        else:
+            target = (float(rest[0, 0]), float(rest[0, 1]))
+            stale = (self._approach is None or now - self._t_approach >= self.params.replan_period_s
+                     or math.dist(tuple(self._approach.points[-1]), target) > 1e-6)
+            if stale:
+                self._approach, self._t_approach = self.planner.plan((pose.x_m, pose.y_m), target), now
+            if self._approach is None:
                 return None
-            rest = np.concatenate([approach.points[:-1], rest])
-            expanded = approach.expanded
-        length = float(np.hypot(*np.diff(rest, axis=0).T).sum()) if len(rest) > 1 else 0.0
-        return GlobalPath(rest, np.zeros(0, dtype=np.intp), length, 0.0, expanded)
+            points = np.concatenate([self._approach.points[:-1], window])
+            expanded = self._approach.expanded
+        length = float(np.hypot(*np.diff(points, axis=0).T).sum()) if len(points) > 1 else 0.0
+        return GlobalPath(points, np.zeros(0, dtype=np.intp), length, 0.0, expanded)
+
+    def _left(self, pose: Pose2D, path: FloatArray) -> float:
+        """Distance left to the goal: along the route (from its progress point, plus the way back onto it), or
+        along the current plan."""
+        if self.route is None:
+            return self._distance_left(pose, path)
+        here = self.route.rest[0]
+        return self.route.remaining_m + math.hypot(here[0] - pose.x_m, here[1] - pose.y_m)
 
     def _path_blocked(self, pose: Pose2D) -> bool:
         """Whether a stretch of the current path just ahead now lies in the inscribed zone."""

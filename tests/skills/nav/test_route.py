@@ -9,7 +9,8 @@ import pytest
 from atemr.errors import NavigationError
 from atemr.io.sim.base import integrate_arc
 from atemr.msgs import Pose2D
-from atemr.skills.nav.navigator import Navigator
+from atemr.skills.nav.local_planner import LocalPlannerParams
+from atemr.skills.nav.navigator import Navigator, NavParams
 from atemr.skills.nav.route import Route
 
 RES = 0.05
@@ -70,7 +71,7 @@ def test_the_route_is_followed_not_the_shortest_way(make_map):
     assert int(np.argmax(near_left)) < int(np.argmax(near_right))
     assert "along a" in nav.events[0].detail
     following = [s for s in statuses if s.phase == "following the path"]
-    assert following[0].distance_left_m > 9.0, "distance left is along the route"
+    assert following[0].distance_left_m == pytest.approx(9.0, abs=0.1), "left along the route: 2.6 to it + 6.4"
 
 
 def test_a_robot_off_the_route_first_drives_to_it(make_map):
@@ -119,10 +120,79 @@ def test_route_points_are_dense_and_end_at_the_goal():
     assert np.allclose(route.points[0], [0.0, 0.0]) and np.allclose(route.points[-1], [1.0, 1.0])
     assert np.hypot(*np.diff(route.points, axis=0).T).max() <= 0.05 + 1e-12
     assert route.length_m == pytest.approx(2.0)
-    # Progress only moves forward, and only within the window ahead: a loop back is no shortcut.
-    loop = Route.through([[2.0, 0.0], [2.0, 0.2]], Pose2D(0.0, 0.2, 0.0), 0.05)
-    assert loop.advance(0.0, 0.19) > 1.0 and loop.index == 0, "off the route: progress stays"
-    assert loop.advance(2.0, 0.1) == pytest.approx(0.0) and loop.index == 2
-    assert loop.advance(0.0, 0.19) > 1.0 and loop.index == 2
-    assert loop.advance(1.5, 0.2) == pytest.approx(0.0) and loop.index == 14
+    # A hairpin: out along y = 0, back along y = 0.2 (legs closer than the join distance).
+    hairpin = Route.through([[0.0, 0.0], [2.0, 0.0], [2.0, 0.2]], Pose2D(0.0, 0.2, math.pi), 0.05)
+    assert hairpin.advance(1.0, 0.02) > 0.35 and hairpin.index == 0, "1 m on in one call: not yet"
+    for x in (0.3, 0.6, 0.9, 1.0):  # the robot drives along the first leg
+        hairpin.advance(x, 0.02)
+    assert hairpin.index == 20, "the first pass, not the return leg 0.18 m away"
+    assert hairpin.advance(1.5, 1.0) > 0.35 and hairpin.index == 20, "off the route: the progress stays"
+    window = hairpin.window()
+    assert math.dist(window[-1], (2.0, 0.2)) <= 0.15 and window[:, 0].min() >= 1.0 - 1e-9, \
+        "up to the turn, and not back along the return leg"
+    assert hairpin.remaining_m == pytest.approx(1.0 + 0.2 + 2.0)
+    for x in (1.4, 1.8, 2.0):
+        hairpin.advance(x, 0.01)
+    assert hairpin.advance(2.0, 0.2) == pytest.approx(0.0) and hairpin.index == 44
+    assert hairpin.window()[-1, 0] < 0.1, "at the apex: the return leg is next"
+    with pytest.raises(ValueError, match="route point 1 must be two finite numbers"):
+        Route.through([[0.0, 0.0], 5.0], Pose2D(0.0, 0.2, 0.0), 0.05)  # type: ignore[list-item]
+    with pytest.raises(ValueError, match="route point 0 must be two finite numbers"):
+        Route.through([[1.0, None]], Pose2D(0.0, 0.2, 0.0), 0.05)  # type: ignore[list-item]
+
+
+@pytest.mark.parametrize("gap_m", [0.4, 0.2])
+def test_a_hairpin_route_is_driven_to_its_turn_and_back(make_map, gap_m):
+    # Out 3.4 m along y = 0.6, back along y = 0.6 + gap: the return leg is close by all the way out (taken for
+    # "the way on", it made the robot turn back early, or shuttle for ever when the legs were 0.2 m apart).
+    nav = Navigator(hall(make_map))
+    back = 0.6 + gap_m
+    nav.start(Pose2D(0.6, back, math.pi), 0.0, route=[[4.0, 0.6], [4.0, back]])
+    xy, statuses = drive(nav, START, 120.0)
+    assert statuses[-1].state == "SUCCEEDED", statuses[-1]
+    assert xy[:, 0].max() > 3.6, "drove out to the turn (rounding its corner, as the local planner does)"
+    assert math.dist(xy[-1], (0.6, back)) <= 0.25
+
+
+def test_a_fast_robot_keeps_its_progress_and_never_turns_back(make_map):
+    params = NavParams(local=LocalPlannerParams(max_linear_mps=1.0))
+    nav = Navigator(hall(make_map), params)
+    nav.start(GOAL, 0.0, route=DETOUR)
+    xy, statuses = drive(nav, START, 120.0)
+    assert statuses[-1].state == "SUCCEEDED"
+    left = [s.distance_left_m for s in statuses if s.phase == "following the path"]
+    assert max(b - a for a, b in itertools.pairwise(left)) < 0.15, "the distance left never jumps back up"
+    assert xy[:, 1].max() > 3.0
+
+
+def test_a_route_back_to_its_start_is_driven_before_the_goal_counts(make_map):
+    nav = Navigator(hall(make_map))
+    nav.start(Pose2D(START.x_m, START.y_m, 0.0), 0.0, route=[[2.5, 0.6], [2.5, 2.0], [0.6, 2.0]])
+    xy, statuses = drive(nav, START, 120.0)
+    assert statuses[-1].state == "SUCCEEDED" and len(statuses) > 50, "not reached at once: it is a round"
+    assert np.hypot(*(xy - (2.5, 2.0)).T).min() < 0.5
+
+
+def test_someone_by_the_goal_does_not_block_a_route(make_map):
+    nav = Navigator(hall(make_map))
+    nav.start(GOAL, 0.0, route=[[2.5, 0.6]])
+    person = np.array([[GOAL.x_m + dx, GOAL.y_m + 0.35 + dy] for dx in (-0.05, 0.0, 0.05) for dy in (-0.05, 0.0, 0.05)])
+    nav.costmap.set_predicted(person)
+    xy, statuses = drive(nav, START, 60.0)
+    assert statuses[-1].state == "SUCCEEDED", statuses[-1]
+    assert math.dist(xy[-1], (GOAL.x_m, GOAL.y_m)) <= 0.25
+
+
+def test_a_new_map_that_rules_the_route_out_fails_the_goal(make_map):
+    nav = Navigator(hall(make_map))
+    nav.start(GOAL, 0.0, route=DETOUR)
+    drive(nav, START, 2.0)
+    walled = np.zeros((80, 100), dtype=np.int8)
+    walled[0, :] = walled[-1, :] = walled[:, 0] = walled[:, -1] = 100
+    walled[50:, 50:52] = 100  # a wall across the top stretch of the route
+    nav.set_map(make_map(walled, RES))
+    status = nav.update(2.1, Pose2D(0.6, 1.0, math.pi / 2))
+    assert status.state == "FAILED" and status.reason == "no path"
+    assert "the route does not fit the new map: route passes through" in status.message
+
 
