@@ -8,6 +8,7 @@ callbacks act, through the ports.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -37,6 +38,8 @@ Callback = Callable[[GuardInput], None]
 
 guards: Registry[Guard] = Registry("guards")
 callbacks: Registry[Callback] = Registry("callbacks")
+
+log = logging.getLogger(__name__)
 
 #: Navigation's goal step; a goal can be executed only once a behaviour of this name is registered.
 GO_TO_POSE = "GoToPose"
@@ -131,6 +134,9 @@ def abandon_mapping(g: GuardInput) -> None:
     if g.context.mapping_active:
         try:
             finish_mapping(g.context, None)
+            log.warning("an unsaved map was dropped on leaving %s", g.context.state)
+        except AtemrError as exc:  # never block the way out of a state (a fault, a shutdown) over a map
+            log.error("could not stop mapping on leaving %s: %s", g.context.state, exc)
         finally:
             g.context.mapping_active = False
 

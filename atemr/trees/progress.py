@@ -19,6 +19,7 @@ from atemr.trees.behaviours import Leaf
 from atemr.trees.leaves.motion import wrap_angle
 from atemr.trees.leaves.navigation import FollowPathParams
 from atemr.trees.missions import Mission
+from atemr.trees.nodes import ClockTimeout
 from atemr.trees.params import PoseParams
 
 Status = py_trees.common.Status
@@ -57,8 +58,12 @@ def _why_failed(node: py_trees.behaviour.Behaviour) -> str | None:
     """The reason of the deepest failed node of a step (a leaf's own words, e.g. the navigator's), else the
     step's feedback (a timeout decorator's)."""
     for n in node.iterate():  # children before their parents
-        if n.status == Status.FAILURE and isinstance(n, Leaf) and n.reason:
+        if n.status != Status.FAILURE:
+            continue
+        if isinstance(n, Leaf) and n.reason:
             return n.reason
+        if isinstance(n, ClockTimeout) and n.feedback_message:
+            return str(n.feedback_message)  # "timed out after N s" (its child was stopped, not failed)
     return node.feedback_message or None
 
 

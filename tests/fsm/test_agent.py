@@ -498,3 +498,35 @@ def test_the_live_snapshot_has_every_node_of_a_big_tree(rig: Rig) -> None:
     done = [n for n in pauses if n["status"] == "SUCCESS"]
     assert 5 <= len(done) < 150 and all(n["ticks"] >= 1 for n in done)
     assert [n["ticks"] for n in pauses[-10:]] == [0] * 10, "not run yet"
+
+
+class BrokenMapService(RecordingPort):
+    """A robot whose map service fails to stop (a session already gone, a disk gone)."""
+
+    def end_mapping(self, save_as: str | None) -> None:
+        raise HardwareError("the map service is gone")
+
+
+def test_leaving_exec_is_never_blocked_by_a_map_that_cannot_be_stopped(agent_spec: AgentSpec, link: RecordingLink,
+                                                                       caplog: pytest.LogCaptureFixture) -> None:
+    port = BrokenMapService(mapping_available=True)
+    rig = idle(Rig(agent_spec, port, link))
+    rig.command("set_auto")
+    text = "mission:\n  name: remap\n  steps:\n    - start_mapping: {}\n    - wait: {duration_s: 30}\n"
+    rig.command("start_mission", mission=parse_mission(load_yaml("m.yaml", text=text), "m.yaml"))
+    rig.run(1.0)
+    assert rig.agent.state == "EXEC" and rig.agent.context.mapping_active
+    assert rig.command("cancel").dest == "IDLE.AUTO"  # type: ignore[attr-defined]
+    assert not rig.agent.context.mapping_active
+    assert any("could not stop mapping on leaving EXEC" in r.getMessage() for r in caplog.records)
+
+
+def test_a_timed_out_step_with_retries_says_it_timed_out(rig: Rig) -> None:
+    idle(rig)
+    rig.command("set_auto")
+    text = "mission:\n  name: slow\n  steps:\n    - wait: {duration_s: 5}\n      timeout_s: 1\n      retries: 1\n"
+    rig.command("start_mission", mission=parse_mission(load_yaml("s.yaml", text=text), "s.yaml"))
+    rig.run(2.5)
+    report = rig.agent.task_reports[-1]
+    assert report["outcome"] == "failed" and report["steps"][0]["reason"] == "timed out after 1 s"
+    assert "timed out after 1 s" in report["reason"]

@@ -423,3 +423,14 @@ def test_mapping_leaves_report_what_went_wrong() -> None:
     assert saving.ctx.mapping_active, "the session goes on: the map is not lost"
     with pytest.raises(ConfigError, match="map name must be"):
         parse_params(behaviours.get("SaveMap").Params, {"name": "../etc/passwd"}, Source("argument"), "params")
+
+
+def test_follow_path_goal_heading() -> None:
+    params = behaviours.get("FollowPath").Params
+    def pose(**raw: Any) -> Pose2D:
+        return parse_params(params, raw, Source("argument"), "params").pose()
+    assert pose(points=[[0.0, 0.0], [1.0, 1.0]]) == Pose2D(1.0, 1.0, math.pi / 4)
+    assert pose(points=[[0.0, 0.0], [1.0, 1.0], [1.0, 1.0]]).yaw_rad == pytest.approx(math.pi / 4), \
+        "a repeated last point: the heading of the last real stretch"
+    assert pose(points=[[2.0, 0.0]]).yaw_rad == 0.0
+    assert pose(points=[[0.0, 0.0], [1.0, 1.0]], yaw_rad=-1.0).yaw_rad == -1.0

@@ -74,7 +74,8 @@ class SaveMapParams:
 @behaviours.register("SaveMap")
 class SaveMap(Leaf):
     """Stop SLAM and store the map as ``name`` (it becomes the active map); FAILURE when no session runs or
-    the save fails (the session then goes on, the map is not lost)."""
+    the save fails. A failed save leaves the session running (a tree may retry, e.g. under a Retry decorator);
+    a mission that fails here ends Exec, whose exit drops the unsaved map (logged)."""
 
     Params = SaveMapParams
     summary = "stop mapping and save the map under a name (it becomes active)"

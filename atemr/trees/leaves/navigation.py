@@ -99,12 +99,13 @@ class FollowPathParams:
                 raise ValueError(f"points[{i}] must lie within 10 km of the map origin, got {list(point)!r}")
 
     def pose(self) -> Pose2D:
-        """The goal: the last point, with ``yaw_rad`` or the last stretch's heading."""
+        """The goal: the last point, facing ``yaw_rad``, else along the last stretch (from the last point
+        before it that differs); a route of one point (or of one place) without ``yaw_rad`` ends facing 0 rad."""
         x, y = self.points[-1]
-        yaw = self.yaw_rad
-        if yaw is None:
-            px, py = self.points[-2] if len(self.points) > 1 else (x, y)
-            yaw = math.atan2(y - py, x - px) if (x, y) != (px, py) else 0.0
+        if self.yaw_rad is not None:
+            return Pose2D(x, y, self.yaw_rad)
+        before = [p for p in self.points[:-1] if (p[0], p[1]) != (x, y)]
+        yaw = math.atan2(y - before[-1][1], x - before[-1][0]) if before else 0.0
         return Pose2D(x, y, yaw)
 
 
