@@ -46,6 +46,9 @@ log = logging.getLogger(__name__)
 FrameListener = Callable[[can.Message], object]
 #: Frames handled per tick at most in polled mode, so a flooded bus cannot stall the scheduler.
 MAX_FRAMES_PER_TICK = 1000
+#: The controller's bus-off flag in a SocketCAN error frame's ID (Linux include/uapi/linux/can/error.h,
+#: CAN_ERR_BUSOFF). python-can's socketcan bus reports no ``state``: bus-off reaches it as such a frame.
+CAN_ERR_BUSOFF = 0x40
 #: Frames an `Inbox` holds for a consumer that does not read; older ones are dropped (and counted).
 INBOX_FRAMES = 1000
 
@@ -58,6 +61,8 @@ class SafeListener(can.Listener):
         self.report = on_error
 
     def on_message_received(self, msg: can.Message) -> None:
+        if msg.is_error_frame:
+            return  # the controller's report, not traffic: the supervisor's probe reads it
         try:
             self.listener(msg)
         except Exception as exc:
@@ -72,10 +77,20 @@ class _ReceiveProbe(can.Listener):
         self.frames = 0
         self.listener_errors = 0
         self.receive_errors = 0
+        #: Error frames with the bus-off flag (SocketCAN); error frames are not counted as traffic.
+        self.bus_off_frames = 0
         self.error: Exception | None = None
 
     def on_message_received(self, msg: can.Message) -> None:
         with self.lock:
+            self.count(msg)
+
+    def count(self, msg: can.Message) -> None:
+        """Count ``msg`` (the caller holds the lock): a data frame is traffic, an error frame may say bus-off."""
+        if msg.is_error_frame:
+            if msg.arbitration_id & CAN_ERR_BUSOFF:
+                self.bus_off_frames += 1
+        else:
             self.frames += 1
 
     def on_error(self, exc: Exception) -> None:
@@ -165,6 +180,7 @@ class BusSupervisor:
         self._listeners: list[FrameListener] = list(listeners)
         self._inboxes: list[Inbox] = []
         self._probe = _ReceiveProbe()
+        self._bus_off_frames_seen = 0
         self._notifier: can.Notifier | None = None
         self._last_activity_t: float | None = None
         self._reported_listener_errors = 0
@@ -218,6 +234,12 @@ class BusSupervisor:
         if self._bus_off():
             self._last_error_t = now
             self._fail("bus-off (bus state ERROR)")
+        with self._probe.lock:
+            bus_off_frames = self._probe.bus_off_frames
+        if bus_off_frames != self._bus_off_frames_seen:
+            self._bus_off_frames_seen = bus_off_frames
+            self._last_error_t = now
+            self._fail("bus-off (the controller's error frame)")
         if self.max_silence_s is not None and now - self._last_activity_t > self.max_silence_s:
             self._fail(f"no frame received for {now - self._last_activity_t:.2f} s")
 
@@ -237,7 +259,9 @@ class BusSupervisor:
             if msg is None:
                 return
             with self._probe.lock:
-                self._probe.frames += 1
+                self._probe.count(msg)
+            if msg.is_error_frame:
+                continue
             for listener in self._listeners:
                 try:
                     listener(msg)

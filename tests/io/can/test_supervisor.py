@@ -332,3 +332,39 @@ def test_a_dead_receive_thread_is_a_fault_and_recovery_restarts_it() -> None:
         assert sup.recover() == "last error 0.10 s ago, waiting for 0.50 s without one"
         sup.tick(0.5)
         assert sup.recover() is None and sup.healthy
+
+
+def error_frame(flags: int) -> can.Message:
+    """A SocketCAN error frame as python-can delivers it (the error class in the ID)."""
+    return can.Message(arbitration_id=flags, is_error_frame=True, data=bytes(8), is_extended_id=False)
+
+
+@pytest.mark.parametrize("threaded", [False, True])
+def test_a_bus_off_error_frame_is_a_fault_not_traffic(threaded: bool) -> None:
+    # python-can's socketcan bus has no `state`: bus-off arrives as an error frame with CAN_ERR_BUSOFF (0x40).
+    ch = channel()
+    got: list[can.Message] = []
+    with can.Bus(interface="virtual", channel=ch) as tx, BusSupervisor(
+        can.Bus(interface="virtual", channel=ch), [got.append], threaded=threaded, settle_s=1.0
+    ) as sup:
+        tx.send(error_frame(0x04))  # a controller problem other than bus-off: not a fault by itself
+        tx.send(error_frame(0x40))
+        tx.send(msg(0x151))
+        if threaded:
+            for _ in range(500):  # the receive thread's pace, not a clock
+                if sup._probe.counts()[0] == 1 and sup._probe.bus_off_frames == 1:
+                    break
+                threading.Event().wait(0.01)
+        sup.tick(0.0)
+        assert [m.arbitration_id for m in got] == [0x151], "error frames never reach the consumers"
+        assert sup.frames == 1, "and they are not traffic"
+        assert sup.problem == "bus-off (the controller's error frame)" and not sup.healthy
+        tx.send(error_frame(0x40))  # still off: the error is refreshed
+        tx.send(msg(0x151))
+        if threaded:
+            for _ in range(500):
+                if sup._probe.bus_off_frames == 2 and sup._probe.counts()[0] == 2:
+                    break
+                threading.Event().wait(0.01)
+        sup.tick(0.8)
+        assert sup.recover() == "last error 0.00 s ago, waiting for 1.00 s without one"
