@@ -126,27 +126,35 @@ class CameraReader:
                     while True:  # the part's headers, up to the blank line
                         line = raw.readline()
                         if not line:
-                            return
+                            raise ConnectionError("the stream ended")
                         if line.lower().startswith(b"content-length:"):
                             length = int(line.split(b":", 1)[1])
                         elif line in (b"\r\n", b"\n") and length is not None:
                             break
                     jpeg = raw.read(length)
+                    if len(jpeg) != length:
+                        raise ConnectionError(f"a part cut short: {len(jpeg)} of {length} bytes")
                     raw.readline()  # the part's closing CRLF
                     with self.lock:
                         self.last_jpeg = jpeg
                         if self.counting:
                             self.frames += 1
         except Exception as exc:  # a failed stream is a figure of the check, not a crash of it
-            self.error = f"{type(exc).__name__}: {exc}"
+            if not self.stop.is_set():  # the server going away at the end is not a failure
+                self.error = f"{type(exc).__name__}: {exc}"
 
     def count(self, on: bool) -> None:
         with self.lock:
             self.counting = on
 
     def close(self) -> None:
+        """Stop counting and reading; the reading thread ends when the server closes the stream (at its
+        shutdown, right after) or at once if it is between parts."""
         self.stop.set()
         self.session.close()
+
+    def join(self, timeout_s: float = 10.0) -> None:
+        self.thread.join(timeout=timeout_s)
 
     def frame_size(self) -> tuple[int, int] | None:
         import io
@@ -232,6 +240,8 @@ def load_check(window_s: float, clients: int = CLIENTS) -> dict[str, Any]:
             robot.stop()
             thread.join(timeout=10)
             robot.shutdown()
+            if camera is not None:
+                camera.join()
         latencies = [lat for w in watchers for lat in w.latencies_s]
         assert camera is not None
         return {"clients": clients, "elapsed_s": elapsed, "pushes": pushes, "received": len(latencies),
