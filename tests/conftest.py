@@ -4,14 +4,22 @@ the agent's document and fake ports for the agent tests."""
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from atemr.fsm.spec import AgentSpec, load_agent
 from atemr.trees.context import clear_blackboard
 from atemr.trees.fakes import RecordingLink, RecordingPort
+
+# Property tests are deterministic like the rest of the suite: the same examples on every run (CI's and a
+# newcomer's alike). ATEMR_HYPOTHESIS=explore draws fresh random examples to hunt for new counterexamples.
+settings.register_profile("deterministic", derandomize=True, print_blob=True)
+settings.register_profile("explore", derandomize=False, print_blob=True)
+settings.load_profile("explore" if os.environ.get("ATEMR_HYPOTHESIS") == "explore" else "deterministic")
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared"

@@ -2,7 +2,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from atemr.errors import ConfigError, ProtocolError, RegistryError
@@ -170,6 +170,9 @@ def loop_reference(ranges, layout, radius):
 @settings(max_examples=40, deadline=None)
 @given(ranges=ranges_st, layout=st.sampled_from([HEX, HEX90]), radius=st.floats(0.3, 3.0))
 def test_matches_a_per_beam_loop(ranges, layout, radius):
+    # A return exactly at the radius is in or out by one ulp of the base-frame range (hypot of the transformed
+    # point): no meaningful boundary to compare at.
+    assume(all(abs(r - radius) > 1e-9 for r in ranges if math.isfinite(r)))
     h = hex_pattern(LaserScan(0.0, np.array(ranges), A0, INC, 0.15, 8.0), layout, radius)
     means, counts = loop_reference(ranges, layout, radius)
     assert h.count.tolist() == counts

@@ -30,7 +30,9 @@ def test_every_snorm_is_an_snorm(name: str, a: float, b: float) -> None:
     v = float(s(np.array(a), np.array(b)))
     assert float(s(np.array(a), np.array(0.0))) == pytest.approx(a)
     assert v == pytest.approx(float(s(np.array(b), np.array(a))))
-    assert v >= max(a, b) - 1e-12
+    # 1e-9, not 1e-12: HamacherSum's (a + b - 2ab) / (1 - ab) cancels near (1, 1) (fuzzylite computes it the
+    # same way): S(1.0, 0.99999) comes out 1.1e-11 below 1.
+    assert v >= max(a, b) - 1e-9
 
 
 @pytest.mark.parametrize(
