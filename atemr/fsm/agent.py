@@ -50,7 +50,7 @@ from atemr.trees.builder import build, setup_tree
 from atemr.trees.context import AGENT_NS, AgentContext, Event
 from atemr.trees.missions import Mission
 from atemr.trees.ports import LinkPort, NavigationPort, RobotPort
-from atemr.trees.progress import TaskProgress
+from atemr.trees.progress import TaskProgress, deepest_failure
 
 log = logging.getLogger(__name__)
 Status = py_trees.common.Status
@@ -622,9 +622,9 @@ class Agent:
 
 
 def failure_reason(root: py_trees.behaviour.Behaviour) -> str:
-    """The deepest failed node's reason (py_trees iterates children before parents)."""
-    for node in root.iterate():
-        if node.status == Status.FAILURE:
-            text = getattr(node, "reason", "") or node.feedback_message
-            return f"{node.name}: {text}" if text else f"{node.name} failed"
-    return f"{root.name} failed"
+    """The deepest failed node's name and words (`deepest_failure`), for a transition's reason."""
+    found = deepest_failure(root)
+    if found is None:
+        return f"{root.name} failed"
+    node, text = found
+    return f"{node.name}: {text}" if text else f"{node.name} failed"

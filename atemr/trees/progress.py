@@ -19,7 +19,6 @@ from atemr.trees.behaviours import Leaf
 from atemr.trees.leaves.motion import wrap_angle
 from atemr.trees.leaves.navigation import FollowPathParams
 from atemr.trees.missions import Mission
-from atemr.trees.nodes import ClockTimeout
 from atemr.trees.params import PoseParams
 
 Status = py_trees.common.Status
@@ -54,17 +53,21 @@ def _target(step_spec: Any) -> Pose2D | None:
     return poses[-1].pose() if poses else None
 
 
+def deepest_failure(root: py_trees.behaviour.Behaviour) -> tuple[py_trees.behaviour.Behaviour, str] | None:
+    """The deepest failed node under ``root`` (py_trees iterates children before parents) and its words: a
+    leaf's reason, else the node's feedback (a timeout decorator's "timed out after N s", its child having been
+    stopped, not failed); None when nothing failed."""
+    for node in root.iterate():
+        if node.status == Status.FAILURE:
+            return node, node.reason if isinstance(node, Leaf) and node.reason else str(node.feedback_message or "")
+    return None
+
+
 def _why_failed(node: py_trees.behaviour.Behaviour) -> str | None:
-    """The reason of the deepest failed node of a step (a leaf's own words, e.g. the navigator's), else the
-    step's feedback (a timeout decorator's)."""
-    for n in node.iterate():  # children before their parents
-        if n.status != Status.FAILURE:
-            continue
-        if isinstance(n, Leaf) and n.reason:
-            return n.reason
-        if isinstance(n, ClockTimeout) and n.feedback_message:
-            return str(n.feedback_message)  # "timed out after N s" (its child was stopped, not failed)
-    return node.feedback_message or None
+    """Why a step failed: its deepest failed node's words (a leaf's own, e.g. the navigator's), else the
+    step's feedback."""
+    found = deepest_failure(node)
+    return (found[1] if found is not None else "") or node.feedback_message or None
 
 
 def step_record(step: Any) -> StepRecord:

@@ -16,7 +16,8 @@ have read from a bus of its own, whatever the tick order.
 
 Either way a listener that raises is caught (python-can's Notifier would otherwise stop delivering)
 and the supervisor notices a dead receive side, an error from ``recv``, a listener that raised, bus-off
-(``bus.state`` ERROR), failed sends made through `send`, and (optionally) total silence for
+(``bus.state`` ERROR, or a SocketCAN error frame with `CAN_ERR_BUSOFF`: error frames are never traffic
+and never reach the listeners), failed sends made through `send`, and (optionally) total silence for
 ``max_silence_s``. Each is latched as a `BusError`: `check` raises it, ``on_fault`` hears of it once,
 from `tick`'s thread — "never silence". `recover` clears it once the cause is gone: frames arrive and no
 error has been seen for ``settle_s`` (so a listener failing on a frame sent every 0.5 s holds the fault

@@ -152,12 +152,16 @@ def zone_speed_cap(clearance_m: float, params: LocalPlannerParams) -> float:
                math.sqrt(2 * params.linear_accel_mps2 * room))
 
 
+def arc_lengths(path: FloatArray) -> FloatArray:
+    """Cumulative length along ``path`` (N, 2) at each of its points (0 at the first)."""
+    seg = np.hypot(*np.diff(path, axis=0).T) if len(path) > 1 else np.zeros(0)
+    return np.concatenate([[0.0], np.cumsum(seg)])
+
+
 def path_progress(path: FloatArray, x: float, y: float) -> tuple[int, FloatArray]:
     """Index of the path point nearest (x, y) and the cumulative arc length of the path."""
-    seg = np.hypot(*np.diff(path, axis=0).T) if len(path) > 1 else np.zeros(0)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
     i = int(np.argmin(np.hypot(path[:, 0] - x, path[:, 1] - y)))
-    return i, s
+    return i, arc_lengths(path)
 
 
 class LocalPlanner:

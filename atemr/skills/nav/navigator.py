@@ -29,7 +29,7 @@ from atemr.skills.hexpattern import HEX90, hex_pattern
 from atemr.skills.nav.costmap import INSCRIBED, Costmap, CostmapParams
 from atemr.skills.nav.global_planner import GlobalPath, GlobalPlanner, PlannerParams
 from atemr.skills.nav.goal_check import GoalCheck, check_goal
-from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, path_progress, wrap
+from atemr.skills.nav.local_planner import LocalPlanner, LocalPlannerParams, arc_lengths, path_progress, wrap
 from atemr.skills.nav.moving_obstacles import ObstacleTracker, TrackerParams
 from atemr.skills.nav.recovery import RecoveryBehaviour, RecoveryParams
 from atemr.skills.nav.route import JOIN_M, Route
@@ -383,7 +383,7 @@ class Navigator:
         off_by = route.advance(pose.x_m, pose.y_m)
         rest = route.rest
         away = np.hypot(rest[:, 0] - self.goal.x_m, rest[:, 1] - self.goal.y_m) > self.params.xy_tolerance_m
-        if self._blocked_ahead(pose, rest[away]) if away.any() else False:
+        if away.any() and self._blocked_ahead(pose, rest[away]):
             return None
         window = route.window()
         expanded = 0
@@ -400,8 +400,7 @@ class Navigator:
                 return None
             points = np.concatenate([self._approach.points[:-1], window])
             expanded = self._approach.expanded
-        length = float(np.hypot(*np.diff(points, axis=0).T).sum()) if len(points) > 1 else 0.0
-        return GlobalPath(points, np.zeros(0, dtype=np.intp), length, 0.0, expanded)
+        return GlobalPath(points, np.zeros(0, dtype=np.intp), float(arc_lengths(points)[-1]), 0.0, expanded)
 
     def _left(self, pose: Pose2D, path: FloatArray) -> float:
         """Distance left to the goal: along the route (from its progress point, plus the way back onto it), or

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from atemr.msgs import Pose2D
 from atemr.skills.nav.costmap import INSCRIBED, Costmap
+from atemr.skills.nav.local_planner import arc_lengths
 
 FloatArray = NDArray[np.float64]
 
@@ -37,11 +38,6 @@ WINDOW_M = 2.0
 REVISIT_M = JOIN_M + 0.1
 #: ... at least this much earlier along it (a hairpin, a loop): the later pass must not look like the way on.
 REVISIT_ARC_M = 0.5
-
-
-def _arc(points: FloatArray) -> FloatArray:
-    seg = np.hypot(*np.diff(points, axis=0).T) if len(points) > 1 else np.zeros(0)
-    return np.concatenate([[0.0], np.cumsum(seg)])
 
 
 @dataclass
@@ -63,9 +59,10 @@ class Route:
         for i, point in enumerate(points):
             try:
                 x, y = (float(v) for v in point)
+                finite = math.isfinite(x) and math.isfinite(y)
             except (TypeError, ValueError):
-                raise ValueError(f"route point {i} must be two finite numbers [x_m, y_m], got {point!r}") from None
-            if not (math.isfinite(x) and math.isfinite(y)):
+                finite = False
+            if not finite:
                 raise ValueError(f"route point {i} must be two finite numbers [x_m, y_m], got {point!r}")
             raw.append((x, y))
         end = (goal.x_m, goal.y_m)
@@ -77,7 +74,7 @@ class Route:
             n = max(1, math.ceil(float(np.hypot(*(b - a))) / step_m))
             dense.append(a + (b - a) * (np.arange(1, n + 1)[:, None] / n))
         dense_points = np.concatenate(dense)
-        return cls(dense_points, _arc(dense_points))
+        return cls(dense_points, arc_lengths(dense_points))
 
     def refusal(self, costmap: Costmap) -> str | None:
         """Why the map itself rules the route out (it leaves the map, or runs through or too close to a wall

@@ -2,10 +2,11 @@
 
 A stream reads frames only while its client is connected (the generator runs in that client's request
 thread) and ends when the client leaves (werkzeug's write fails and closes the generator) or the server
-stops (the ``stopping`` event). It looks for a new frame `POLLS_PER_FRAME` times per frame period and sends
-each new one at once, at most `STREAM_FPS` times a second on average, and repeats the last one every `REPEAT_S` so a
-client that left unnoticed is found out. (Looking once per period, as the camera's own rate, lost a frame
-whenever writing a part delayed the next look past the next frame: 8-9 fps from a 10 fps camera.)
+stops (the ``stopping`` event). It looks for a new frame `POLLS_PER_FRAME` times per frame period and
+sends each new one at once, at most `STREAM_FPS` times a second on average, and repeats the last one every
+`REPEAT_S` so a client that left unnoticed is found out. (Looking once per period, as the camera's own
+rate, lost a frame whenever writing a part delayed the next look past the next frame: 8-9 fps from a
+10 fps camera.)
 """
 
 from __future__ import annotations
