@@ -60,6 +60,11 @@ def rig(agent_spec: AgentSpec, port: RecordingPort, link: RecordingLink) -> Rig:
     return Rig(agent_spec, port, link)
 
 
+def start_mission(rig: Rig, text: str) -> object:
+    """Send the mission written in ``text`` (a mission file's YAML) to the agent; the command's result."""
+    return rig.command("start_mission", mission=parse_mission(load_yaml("m.yaml", text=text), "m.yaml"))
+
+
 def idle(rig: Rig) -> Rig:
     rig.run(0.3)
     assert rig.agent.state == "IDLE.MANUAL"
@@ -222,7 +227,7 @@ def test_a_step_timeout_fails_the_mission_into_error(rig: Rig) -> None:
     idle(rig)
     rig.command("set_auto")
     text = "mission:\n  name: too-slow\n  steps:\n    - wait: {duration_s: 5}\n      timeout_s: 1\n"
-    rig.command("start_mission", mission=parse_mission(load_yaml("s.yaml", text=text), "s.yaml"))
+    start_mission(rig, text)
     rig.run(1.5)
     failed = next(r for r in rig.agent.trace if r.trigger == "failed")
     assert failed.dest == "ERROR" and "timed out after 1 s" in failed.reason
@@ -238,7 +243,7 @@ def test_cancel_stops_the_task(rig: Rig) -> None:
     rig.port.dt_s = 0.01
     rig.command("set_auto")
     text = "mission:\n  name: spin\n  steps:\n    - rotate: {angle_rad: 12}\n"
-    rig.command("start_mission", mission=parse_mission(load_yaml("r.yaml", text=text), "r.yaml"))
+    start_mission(rig, text)
     rig.run(0.5)
     assert rig.agent.state == "EXEC" and rig.port.commands[-1][1].angular_radps > 0
     progress = rig.agent.snapshot()["task_progress"]
@@ -254,7 +259,7 @@ def test_a_mission_needing_navigation_is_refused_with_the_reason(rig: Rig) -> No
     idle(rig)
     rig.command("set_auto")
     text = "mission:\n  name: go\n  steps:\n    - go_to: {x_m: 1, y_m: 2}\n"
-    result = rig.command("start_mission", mission=parse_mission(load_yaml("g.yaml", text=text), "g.yaml"))
+    result = start_mission(rig, text)
     assert not result.accepted  # type: ignore[attr-defined]
     assert "drives to poses (steps 0) and navigation is not available on this robot" in result.reason  # type: ignore
     assert rig.agent.state == "IDLE.AUTO"
@@ -379,7 +384,7 @@ def test_a_leaf_bug_fails_the_task_and_the_agent_carries_on(agent_spec: AgentSpe
     idle(rig)
     rig.command("set_auto")
     text = "mission:\n  name: photo\n  steps:\n    - capture_image: {label: x}\n"
-    rig.command("start_mission", mission=parse_mission(load_yaml("p.yaml", text=text), "p.yaml"))
+    start_mission(rig, text)
     rig.run(0.5)
     failed = next(r for r in rig.agent.trace if r.trigger == "failed")
     assert "driver bug" in failed.reason and rig.agent.state == "IDLE.MANUAL"
@@ -423,7 +428,7 @@ def test_a_fault_during_exec_ends_the_task(rig: Rig) -> None:
     idle(rig)
     rig.command("set_auto")
     text = "mission:\n  name: w\n  steps:\n    - wait: {duration_s: 5}\n"
-    rig.command("start_mission", mission=parse_mission(load_yaml("w.yaml", text=text), "w.yaml"))
+    start_mission(rig, text)
     rig.run(0.5)
     rig.port.components["left_motor"] = ComponentHealth(False, "over-temperature")
     rig.run(0.3)
@@ -513,7 +518,7 @@ def test_leaving_exec_is_never_blocked_by_a_map_that_cannot_be_stopped(agent_spe
     rig = idle(Rig(agent_spec, port, link))
     rig.command("set_auto")
     text = "mission:\n  name: remap\n  steps:\n    - start_mapping: {}\n    - wait: {duration_s: 30}\n"
-    rig.command("start_mission", mission=parse_mission(load_yaml("m.yaml", text=text), "m.yaml"))
+    start_mission(rig, text)
     rig.run(1.0)
     assert rig.agent.state == "EXEC" and rig.agent.context.mapping_active
     assert rig.command("cancel").dest == "IDLE.AUTO"  # type: ignore[attr-defined]
@@ -525,7 +530,7 @@ def test_a_timed_out_step_with_retries_says_it_timed_out(rig: Rig) -> None:
     idle(rig)
     rig.command("set_auto")
     text = "mission:\n  name: slow\n  steps:\n    - wait: {duration_s: 5}\n      timeout_s: 1\n      retries: 1\n"
-    rig.command("start_mission", mission=parse_mission(load_yaml("s.yaml", text=text), "s.yaml"))
+    start_mission(rig, text)
     rig.run(2.5)
     report = rig.agent.task_reports[-1]
     assert report["outcome"] == "failed" and report["steps"][0]["reason"] == "timed out after 1 s"
