@@ -39,6 +39,7 @@ class MapService:
         self.version = 0
         self.slam: OccupancyGridSlam | None = None
         self.collecting = False
+        self._registering = False
         self._lock = threading.RLock()
         self._listeners: list[Callable[[OccupancyMap], None]] = []
 
@@ -61,23 +62,34 @@ class MapService:
 
     # -- mapping -----------------------------------------------------------------------------------------
     def begin(self) -> None:
-        """Start a SLAM session at the current pose (map frame if localized, else where odometry is)."""
+        """Start a SLAM session at the current pose: in the active map's frame when localized (the first scan
+        is registered to the active map, so the new map keeps its frame), else where odometry is."""
         with self._lock:
             if self.slam is not None:
                 raise NavigationError("a mapping session is already running")
-            start = self.localization.map_pose() or Pose2D()
-            self.slam = OccupancyGridSlam(self.slam_params, start=start)
+            start = self.localization.map_pose()
+            anchor = self.active if start is not None else None
+            self.slam = OccupancyGridSlam(self.slam_params, start=start or Pose2D(), anchor=anchor)
+            self._registering = anchor is not None
             self.collecting = True
             self.version += 1
-        self.on_event("mapping", "mapping started")
+        where = f"in the frame of map {self.active_name}" if anchor is not None else "at the odometry pose"
+        self.on_event("mapping", f"mapping started {where}")
 
     def on_scan(self, scan: LaserScan) -> None:
         """Lidar subscription: integrate the scan while a session collects."""
+        unregistered = False
         with self._lock:
             if self.slam is None or not self.collecting:
                 return
             if self.slam.update(self.localization.odom_at(scan.t), scan) and self.slam.updates % REDRAW_EVERY == 0:
                 self.version += 1
+            if self._registering and self.slam.trajectory:
+                self._registering = False
+                unregistered = not self.slam.anchored
+        if unregistered:
+            self.on_event("mapping", f"the first scan does not fit map {self.active_name}: the new map's frame is "
+                          "the localized start pose, unrefined")
 
     def pause(self) -> None:
         """Stop adding scans (END MAP); the map waits for save or discard."""

@@ -18,8 +18,16 @@ Front end (every time the robot has moved ``update_min_d_m`` or turned ``update_
    moving person or a door that opened can be overwritten later.
 
 The map's frame is the pose given at the start (the robot's start pose by default, as in ROS
-slam_toolbox); `to_map` exports the known part as an `OccupancyMap` that `save_map` writes in the
-map_server format.
+slam_toolbox). When the robot is localized on a map already (a remap of a changed flat, or mapping
+rooms the old map missed), that map can be given as the ``anchor``: the first scan is registered to it
+(correlative search and ICP around the start pose, `ScanToMapMatcher`), so the new map shares the old
+map's frame to a fraction of a cell and a fraction of a degree. That matters for more than looks: the
+grid is axis-aligned with its frame, so a start heading off by a third of a degree (a good AMCL
+estimate) staircases every long wall and moves the far end of the flat by centimetres, and poses and
+missions written on the old map would not carry over. Only the first scan uses the anchor; the map is
+built from the scans alone, so a moved sofa is mapped where it now stands.
+
+`to_map` exports the known part as an `OccupancyMap` that `save_map` writes in the map_server format.
 """
 
 from __future__ import annotations
@@ -66,10 +74,15 @@ class SlamParams:
     min_inlier_fraction: float = 0.5
     #: False: map from odometry alone (a baseline to compare with, or for a robot whose scans cannot be matched).
     match_scans: bool = True
+    #: Search window of the first scan's registration to an anchor map around the start pose (m, rad), and the
+    #: least agreement (share of beams ending on the anchor's walls) for the registration to be used.
+    anchor_window_m: float = 0.2
+    anchor_window_rad: float = 0.1
+    anchor_min_agreement: float = 0.6
 
     def __post_init__(self) -> None:
         for name in ("resolution_m", "size_m", "clamp_logodds", "max_range_m", "max_correction_m",
-                     "max_correction_rad"):
+                     "max_correction_rad", "anchor_window_m", "anchor_window_rad"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"must be a finite number > 0, got {value!r}", path=f"mapping.{name}")
@@ -78,14 +91,22 @@ class SlamParams:
                               path="mapping.p_occ")
         if self.size_m / self.resolution_m > 8000:
             raise ConfigError(f"grid of {self.size_m} m at {self.resolution_m} m is too large", path="mapping.size_m")
+        if not 0.0 <= self.anchor_min_agreement <= 1.0:
+            raise ConfigError(f"must be within [0, 1], got {self.anchor_min_agreement!r}",
+                              path="mapping.anchor_min_agreement")
         if self.rematch_every < 1:
             raise ConfigError(f"must be >= 1, got {self.rematch_every}", path="mapping.rematch_every")
 
 
 class OccupancyGridSlam:
-    """The map being built and the robot's pose in it. Feed it scans with the odometry of their time."""
+    """The map being built and the robot's pose in it. Feed it scans with the odometry of their time.
 
-    def __init__(self, params: SlamParams | None = None, *, start: Pose2D | None = None) -> None:
+    ``anchor``: a map the robot is localized on at ``start``; the first scan is registered to it (see the
+    module docstring). ``anchored`` says whether that registration was used.
+    """
+
+    def __init__(self, params: SlamParams | None = None, *, start: Pose2D | None = None,
+                 anchor: OccupancyMap | None = None) -> None:
         self.params = p = params or SlamParams()
         start = start or Pose2D()
         if not is_finite_pose(start):
@@ -100,6 +121,8 @@ class OccupancyGridSlam:
         self.refused = 0
         self.rematched = 0
         self._odom: FloatArray | None = None
+        self._anchor = anchor
+        self.anchored = False
         self._l_occ = logodds(p.p_occ)
         self._l_free = logodds(p.p_free)
 
@@ -113,6 +136,8 @@ class OccupancyGridSlam:
         o = as_array(odom)
         if self._odom is None:
             self._odom = o
+            if self._anchor is not None:
+                self._register_to_anchor(scan)
             self._integrate(scan)
             return True
         inc = relative(self._odom, o)
@@ -125,6 +150,25 @@ class OccupancyGridSlam:
         self.pose = self._match(points, predicted) if p.match_scans else predicted
         self._integrate(scan)
         return True
+
+    def _register_to_anchor(self, scan: LaserScan) -> None:
+        """Move the start pose onto the anchor map (the first scan only); kept as given when the scan does not
+        fit there well enough (the flat changed, or the start pose was wrong)."""
+        p = self.params
+        anchor, self._anchor = self._anchor, None
+        assert anchor is not None
+        if not anchor.occupied.any():
+            return
+        points = scan_points(scan)
+        points = points[np.hypot(points[:, 0], points[:, 1]) <= p.max_range_m]
+        if points.shape[0] < 20:
+            return
+        match = ScanToMapMatcher(LikelihoodField(anchor)).match(points, as_pose(self.pose),
+                                                                window_xy_m=p.anchor_window_m,
+                                                                window_yaw_rad=p.anchor_window_rad)
+        if match.agreement >= p.anchor_min_agreement:
+            self.pose = as_array(match.pose)
+            self.anchored = True
 
     def _plausible(self, pose: FloatArray, predicted: FloatArray) -> bool:
         d = relative(predicted, pose)

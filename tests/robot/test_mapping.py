@@ -1,5 +1,7 @@
 """The map service: saving a map is all or nothing."""
 
+import math
+
 import pytest
 
 from atemr.clock import SimClock
@@ -44,3 +46,31 @@ def test_a_refused_save_keeps_the_session_and_stores_nothing(robot):
     stored = maps.end("living-room", robot.clock.now())
     assert stored == "living-room" and maps.active_name == "living-room" and maps.slam is None
     assert robot.extras["map_store"].active_name() == "living-room"
+
+
+def test_a_map_begun_while_localized_is_in_the_active_maps_frame(robot):
+    """Mapping from a localized pose registers the first scan to the active map, so the saved map shares its
+    frame: after the save the robot's pose on the new map is where it truly is in the world."""
+    maps, sim = robot.extras["maps"], robot.extras["sim"]
+    robot.run(until=6.0)
+    maps.begin()
+    drive(robot, 14.0)
+    assert maps.slam is not None and maps.slam.anchored
+    texts = [e.text for e in robot.events if e.kind == "mapping"]
+    assert "mapping started in the frame of map studio" in texts
+    maps.end("living-room", robot.clock.now())
+    robot.run(until=robot.clock.now() + 1.0)
+    pose, truth = robot.extras["localization"].map_pose(), sim.pose
+    assert pose is not None and pose.distance_to(truth) < 0.05, (pose, truth)
+    assert abs(math.remainder(pose.yaw_rad - truth.yaw_rad, math.tau)) < 0.01, (pose, truth)
+
+
+def test_a_map_begun_unlocalized_starts_at_the_odometry_pose(robot):
+    maps, localization = robot.extras["maps"], robot.extras["localization"]
+    robot.run(until=6.0)
+    localization.start_global(robot.clock.now())  # the pose is unknown now
+    assert localization.map_pose() is None
+    maps.begin()
+    drive(robot, 8.0)
+    assert maps.slam is not None and not maps.slam.anchored
+    assert "mapping started at the odometry pose" in [e.text for e in robot.events if e.kind == "mapping"]

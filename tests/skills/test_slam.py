@@ -7,12 +7,13 @@ import math
 import sys
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
 
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import load_map, save_map
+from atemr.io.sim.maps import OccupancyMap, load_map, save_map
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.slam import OccupancyGridSlam, SlamParams, map_agreement
 
@@ -69,11 +70,16 @@ def test_bad_input_is_refused() -> None:
         OccupancyGridSlam(start=Pose2D(math.inf, 0.0, 0.0))
 
 
-def test_mapping_the_studio_matches_the_ground_truth_map(tmp_path: Path) -> None:
-    """Two laps of the living room (scans from the simulator, noisy odometry with wheel slip), mapped and saved:
-    ≥ 90 % of the saved map's occupied cells lie within one cell of an occupied cell of the world's map
-    (the rest are the furniture the shipped map leaves out and people), and most surfaces seen are mapped."""
-    rec = simdrive().drive(seed=3, laps=2, max_s=90.0)
+@pytest.fixture(scope="module")
+def living_room_drive() -> object:
+    """Two laps of the living room: scans from the simulator, noisy odometry with wheel slip, the true poses."""
+    return simdrive().drive(seed=3, laps=2, max_s=90.0)
+
+
+def test_mapping_the_studio_matches_the_ground_truth_map(tmp_path: Path, living_room_drive: object) -> None:
+    """Two laps of the living room, mapped and saved: ≥ 90 % of the saved map's occupied cells lie within one
+    cell of an occupied cell of the world's map (the rest are people), and most surfaces seen are mapped."""
+    rec: Any = living_room_drive
     slam = OccupancyGridSlam(start=rec.truth[0])  # the map frame is the start pose, placed where the world has it
     errors = [slam.current_pose.distance_to(rec.truth[i]) for i, scan in enumerate(rec.scans)
               if slam.update(rec.odom[i], scan)]
@@ -90,3 +96,43 @@ def test_mapping_the_studio_matches_the_ground_truth_map(tmp_path: Path) -> None
     for i, scan in enumerate(rec.scans):
         odometry_only.update(rec.odom[i], scan)
     assert map_agreement(odometry_only.to_map(), truth)[0] < precision  # scan matching is what makes it good
+
+
+def test_a_map_started_while_localized_keeps_the_active_maps_frame(living_room_drive: object) -> None:
+    """The start pose is a localized estimate, off by 2 cm and a third of a degree (a good AMCL estimate). On its
+    own that heading tilts the whole axis-aligned grid (on the whole flat the far walls move by centimetres
+    and staircase: tests/fsm/test_mission_cli.py). Registered to the active map (the anchor), the new map
+    shares its frame."""
+    rec: Any = living_room_drive
+    truth = load_map(ROOT / "atemr" / "worlds" / "studio" / "studio.yaml")
+    t0 = rec.truth[0]
+    estimate = Pose2D(t0.x_m + 0.02, t0.y_m - 0.01, t0.yaw_rad + 0.006)
+
+    def build(anchor: object) -> OccupancyGridSlam:
+        slam = OccupancyGridSlam(start=estimate, anchor=anchor)  # type: ignore[arg-type]
+        for i, scan in enumerate(rec.scans):
+            slam.update(rec.odom[i], scan)
+        return slam
+
+    anchored, tilted = build(truth), build(None)
+    assert anchored.anchored and not tilted.anchored
+    first = anchored.trajectory[0]
+    assert abs(math.remainder(first.yaw_rad - t0.yaw_rad, math.tau)) < 0.002, first
+    assert first.distance_to(t0) < 0.04, first  # within a cell (the map's own cells are where its walls are)
+    assert tilted.trajectory[0].distance_to(estimate) < 1e-9  # no anchor: the frame is the estimate as given
+    precision = map_agreement(anchored.to_map(), truth)[0]
+    assert precision >= 0.90, precision
+
+
+def test_an_anchor_the_scan_does_not_fit_is_not_used() -> None:
+    """A first scan that does not fit the anchor (the robot is not where the estimate says, or the flat changed
+    beyond recognition) leaves the start pose as given, rather than snapping the new map onto the wrong walls."""
+    corridor = np.zeros((40, 200), dtype=np.int8)  # a 2 m × 10 m corridor: nothing like the square room
+    corridor[[0, -1], :] = 100
+    anchor = OccupancyMap(corridor, 0.05, Pose2D(-5.0, -1.0, 0.0), name="corridor")
+    start = Pose2D(0.0, 0.0, 0.0)
+    slam = OccupancyGridSlam(SlamParams(size_m=6.0), start=start, anchor=anchor)
+    assert slam.update(Pose2D(), box_room_scan())
+    assert not slam.anchored and slam.trajectory[0] == start
+    with pytest.raises(ConfigError, match="anchor_min_agreement"):
+        SlamParams(anchor_min_agreement=1.5)
