@@ -152,14 +152,13 @@ def test_the_whole_flat_is_mapped_on_a_tour(flat_run: FlatRun) -> None:
     for room, (x0, y0, x1, y1) in rooms.items():
         here = (x > x0) & (x < x1) & (y > y0) & (y < y1)
         assert seen[here].mean() >= 0.7, room
-    # A floor that catches a broken SLAM (an unmatched map is far below it); the issue's bar is the next test.
-    assert flat_run.precision >= 0.75 and flat_run.recall >= 0.75, (flat_run.precision, flat_run.recall)
+    assert flat_run.recall >= 0.75, flat_run.recall  # most surfaces seen are mapped; precision: the next test
 
 
-@pytest.mark.xfail(strict=True, reason="issue 8's bar on the whole flat: SLAM drifts through the narrow hall "
-                   "(80 % of occupied cells within one cell on this tour, 94 % on a tour a few seconds different; "
-                   "the living room alone: tests/skills/test_slam.py, 94 %)")
 def test_the_whole_flat_map_matches_the_ground_truth(flat_run: FlatRun) -> None:
+    """Issue 8's bar: ≥ 90 % of the saved map's occupied cells within one cell of the world's map. The tour starts
+    localized on the studio map, so the new map is registered to its frame (a third of a degree of start heading
+    left in the frame costs about 15 points here: tests/skills/test_slam.py)."""
     assert flat_run.precision >= 0.90, flat_run.precision
 
 
