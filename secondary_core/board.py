@@ -15,7 +15,11 @@ Board states and their screens::
 
 Soft emergency (MOTOR_STOP to motors 1 and 2, repeated every ``brake_period_s``) holds from power-up
 until the primary reports running, whenever no valid heartbeat exchange happened for
-``heartbeat_timeout_s`` (2 s), and after the primary acknowledged power-off.
+``heartbeat_timeout_s`` (2 s), and after the primary acknowledged power-off. A motor follows any speed
+command it gets after a MOTOR_STOP (that is the RMD protocol), so the brake is also a latch that does not
+rely on the primary behaving: while the emergency holds, every speed or MOTOR_RUN frame for a braked motor
+seen on the bus is answered by a MOTOR_STOP to that motor in the same tick, and the first one of an
+emergency is reported as an event.
 """
 
 from __future__ import annotations
@@ -48,7 +52,7 @@ from atemr.io.can import (
     encode_text,
     is_protocol_id,
 )
-from atemr.io.motors.rmd_codec import RmdCommand, RmdRequest
+from atemr.io.motors.rmd_codec import RMD_BASE_ID, RmdCommand, RmdRequest
 from atemr.io.network import credential_problems
 from atemr.io.secondary_link import ir_m_to_cm
 from atemr.msgs import CliffReadings
@@ -139,6 +143,8 @@ class _Counters:
     bus_errors: int = 0
     heartbeats_answered: int = 0
     brake_frames: int = 0
+    #: Speed or MOTOR_RUN frames for a braked motor seen during a soft emergency (each braked again at once).
+    overridden_brakes: int = 0
     wifi_sent: int = 0
     ip_requests: int = 0
     last_bad_frame: str | None = None
@@ -194,6 +200,9 @@ class SecondaryCore:
         self._t = _Timers()
         self._started = False
         self._send_failing = False
+        #: A drive command was braked again during the current soft emergency (reported once per emergency).
+        self._overridden = False
+        self._rebrake: set[int] = set()
         self._lock = threading.Lock()
         self._commands: deque[tuple[str, tuple[str, ...]]] = deque()
         self.machine = Machine(
@@ -301,6 +310,7 @@ class SecondaryCore:
         if not self._started:
             self._power_up(now)
         self._receive(now)
+        self._send_rebrakes()
         self._run_commands(now)
         for event in self.button.poll(now):
             self._on_button(event)
@@ -382,6 +392,8 @@ class SecondaryCore:
             if frame is None:
                 return
             if not is_protocol_id(frame.arbitration_id):
+                if self.soft_emergency:
+                    self._hold_brake(frame, now)
                 continue  # motor traffic and anything else on the shared bus
             self.counters.frames_in += 1
             try:
@@ -392,6 +404,30 @@ class SecondaryCore:
                 log.debug("%s: bad frame ignored: %s", self.name, exc)
                 continue
             self._on_message(msg, now)
+
+    def _hold_brake(self, frame: can.Message, now: float) -> None:
+        """Brake a motor again at once when a frame on its ID would set it driving (see the module docstring).
+
+        A motor's reply shares its request's ID and command byte, so a speed reply counts too: the stop it
+        adds is harmless, and the motor's answer to MOTOR_STOP (0x81) is never taken for a drive command.
+        """
+        motor_id = frame.arbitration_id - RMD_BASE_ID
+        if motor_id not in self.config.motor_ids or not frame.data:
+            return
+        if frame.data[0] not in (RmdCommand.SPEED_CONTROL, RmdCommand.MOTOR_RUN):
+            return
+        self.counters.overridden_brakes += 1
+        if not self._overridden:
+            self._overridden = True
+            self.events.emit(now, "emergency", f"motor {motor_id} commanded during the soft emergency: braked again")
+        self._rebrake.add(motor_id)
+
+    def _send_rebrakes(self) -> None:
+        """One MOTOR_STOP per motor per tick, however many drive frames the tick read."""
+        for motor_id in sorted(self._rebrake):
+            if self._send(RmdRequest(motor_id, RmdCommand.MOTOR_STOP).encode()):
+                self.counters.brake_frames += 1
+        self._rebrake.clear()
 
     def _on_message(self, msg: object, now: float) -> None:
         if isinstance(msg, Heartbeat):
@@ -510,6 +546,7 @@ class SecondaryCore:
                 self._t.next_brake = now
             elif reason is None:
                 self.events.emit(now, "emergency", f"soft emergency OFF (was: {self.emergency_reason})")
+                self._overridden = False
             self.soft_emergency = reason is not None
             self.emergency_reason = reason
         if self.soft_emergency and _due(now, self._t.next_brake):

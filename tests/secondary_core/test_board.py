@@ -23,7 +23,7 @@ from atemr.io.can import (
     PowerState,
     StateCode,
 )
-from atemr.io.motors.rmd_codec import RMD_BASE_ID, RmdCommand, decode_request
+from atemr.io.motors.rmd_codec import RMD_BASE_ID, RmdCommand, RmdRequest, decode_request
 from atemr.io.secondary_link import IR_OUT_OF_RANGE_CM
 from atemr.msgs import CliffReadings
 from secondary_core.board import BoardConfig
@@ -388,3 +388,62 @@ def test_send_failures_are_counted_not_raised(caplog: pytest.LogCaptureFixture) 
         assert bench.core.state == "ready"
         assert bench.core.counters.bus_errors > 10 and bench.core.counters.frames_out == 0
         assert not bench.link.heartbeat_established, "the primary hears nothing from a board that cannot send"
+
+
+class RogueDriver:
+    """A primary whose motor driver keeps commanding 5 rad/s whatever happens (the link has hung, the driver has
+    not): the case the soft emergency's latch is for."""
+
+    name = "rogue_driver"
+
+    def __init__(self, bus: can.BusABC) -> None:
+        self.bus = bus
+
+    def start(self) -> None:
+        pass
+
+    def tick(self, now: float) -> None:
+        for motor_id in (1, 2):
+            self.bus.send(RmdRequest(motor_id, RmdCommand.SPEED_CONTROL, speed_radps=5.0).encode())
+
+    def shutdown(self) -> None:
+        self.bus.shutdown()
+
+
+def test_the_soft_emergency_brakes_again_each_drive_command_it_sees(bench: LinkBench) -> None:
+    """A motor follows a speed command sent after MOTOR_STOP. Braking only every 0.1 s, a driver commanding at
+    50 Hz kept the motors at 4.4 of 5 rad/s on average; braked again in the tick that saw each command, they
+    average 2.5 here. (A board can only talk CAN, so it cannot hold a motor still against such a driver: here
+    each command drives for the 10 ms until the board's next 50 Hz tick; the real board answers from its CAN
+    interrupt.) Reported once per emergency, counted every time."""
+    from atemr.io.motors.emulator import RmdMotorEmulator
+
+    motors = [RmdMotorEmulator(can.Bus(interface="virtual", channel=bench.channel), i) for i in (1, 2)]
+    rogue = RogueDriver(can.Bus(interface="virtual", channel=bench.channel))
+    try:
+        for motor in motors:
+            bench.scheduler.add(motor, 100.0)
+        bench.bring_up()
+        bench.scheduler.add(rogue, 50.0)
+        bench.run(1.0)
+        assert all(m.model.speed_radps == pytest.approx(5.0, abs=0.01) for m in motors)
+        bench.pause("link")
+        bench.run_until(lambda: bench.core.soft_emergency, timeout_s=3.0)
+        bench.run(0.3)  # the first brake has taken the speed down
+        since = bench.core.now
+        speeds = []
+        for _ in range(100):
+            bench.run(0.01)
+            speeds.extend(abs(m.model.speed_radps) for m in motors)
+        assert sum(speeds) / len(speeds) < 3.0, speeds
+        drives = [(t, decode_request(m).motor_id) for t, m in bench.frames if t >= since and t < bench.core.now - 0.05
+                  and m.arbitration_id in (RMD_BASE_ID + 1, RMD_BASE_ID + 2) and m.data[0] == RmdCommand.SPEED_CONTROL]
+        stops = brake_times(bench, since)
+        assert drives and all(any(t <= s <= t + 0.021 for s in stops[motor]) for t, motor in drives)
+        assert bench.core.counters.overridden_brakes > 100
+        messages = [e.message for e in bench.core.events.recent(20) if e.kind == "emergency"]
+        assert sum("commanded during the soft emergency" in m for m in messages) == 1, messages
+    finally:
+        rogue.shutdown()
+        for motor in motors:
+            motor.shutdown()
