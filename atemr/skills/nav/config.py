@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import cast
 
 from atemr.errors import ConfigError, NavigationError
 from atemr.skills.nav.costmap import CostmapParams
+from atemr.skills.nav.global_planner import Algorithm
 from atemr.skills.nav.local_planner import LocalPlannerParams
 from atemr.skills.nav.navigator import NavParams
 from atemr.skills.ramp import MotionLimits
@@ -37,6 +39,8 @@ class NavConfig:
     obstacle_wait_s: float = field(default=60.0, metadata={"min": 1.0, "max": 3600.0,
                                                            "help": "wait for a blocked way after the recoveries"})
     timeout_s: float = field(default=600.0, metadata={"min": 1.0, "max": 86_400.0, "help": "per goal"})
+    planner: str = field(default="astar", metadata={"choices": ("astar", "dijkstra"),
+                                                    "help": "global planner: the same paths, A* searches less"})
 
     def nav_params(self, motion: MotionLimits | None = None) -> NavParams:
         """The navigator's parameters, with the stop zone of ``motion`` (raises `ConfigError` on inconsistent
@@ -53,6 +57,7 @@ class NavConfig:
                 local=dataclasses.replace(LocalPlannerParams(), max_linear_mps=self.max_linear_mps,
                                           max_angular_radps=self.max_angular_radps,
                                           stop_distance_m=m.stop_distance_m, brake_latency_s=m.brake_latency_s),
+                planner=dataclasses.replace(base.planner, algorithm=cast(Algorithm, self.planner)),
                 xy_tolerance_m=self.xy_tolerance_m, yaw_tolerance_rad=self.yaw_tolerance_rad,
                 arrive_m=min(base.arrive_m, self.xy_tolerance_m),
                 obstacle_wait_s=self.obstacle_wait_s, timeout_s=self.timeout_s,

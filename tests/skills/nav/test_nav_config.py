@@ -25,6 +25,14 @@ def test_values_reach_the_params_and_the_stop_zone_comes_from_motion() -> None:
     assert (p.local.stop_distance_m, p.local.brake_latency_s) == (0.35, 0.2)
 
 
+def test_the_global_planner_is_chosen_by_name() -> None:
+    assert NavConfig().nav_params().planner.algorithm == "astar"
+    cfg = load_config(None, overrides={"nav.planner": "dijkstra"})
+    assert cfg.nav.nav_params().planner.algorithm == "dijkstra"
+    with pytest.raises(ConfigError, match=r"nav\.planner"):
+        load_config(None, overrides={"nav.planner": "rrt"})
+
+
 def test_bad_values_name_the_key() -> None:
     with pytest.raises(ConfigError, match="xy_tolerance_m"):
         merge_into(NavConfig(), {"xy_tolerance_m": 5.0}, Source("argument"))
