@@ -72,6 +72,27 @@ def test_no_path_runs_every_recovery_in_order_then_fails(make_map):
     assert again.state == "FAILED" and again.twist.is_zero
 
 
+def test_a_robot_that_does_not_move_is_stuck_runs_every_recovery_then_fails(make_map):
+    """The wheels turn but the robot stays put (caught on a rug): the progress watchdog calls it stuck, the
+    recoveries are tried in order (none moves it either), then the goal fails with the reason "stuck"."""
+    nav = Navigator(two_rooms(make_map))
+    nav.start(Pose2D(4.0, 1.5, 0.0), 0.0)
+    stay = Pose2D(0.8, 0.8, 0.0)
+    statuses = []
+    for k in range(3000):
+        statuses.append(nav.update(k * DT, stay))
+        if statuses[-1].state != "RUNNING":
+            break
+    final = statuses[-1]
+    assert final.state == "FAILED" and final.reason == "stuck", final
+    assert "stuck" in final.message and final.twist.is_zero
+    assert any(not s.twist.is_zero for s in statuses), "it did try to drive"
+    recoveries = [e.detail.split(" (")[0] for e in nav.events if e.kind == "recovery"]
+    assert recoveries == list(DEFAULT_SEQUENCE)
+    first = next(e for e in nav.events if e.kind == "recovery")
+    assert first.t >= nav.params.stuck_timeout_s
+
+
 def test_a_short_loss_of_localization_pauses_a_long_one_fails(make_map):
     nav = Navigator(two_rooms(make_map), NavParams(localization_timeout_s=3.0))
     nav.start(Pose2D(4.0, 1.5, 0.0), 0.0)
