@@ -98,12 +98,22 @@ def test_a_critical_component_missing_at_start_up_powers_off(rig: Rig) -> None:
 def test_a_trigger_invalid_in_the_state_is_refused_with_a_reason(rig: Rig) -> None:
     idle(rig)
     assert rig.agent.precheck("set_auto") is None
-    assert "'goal' is not valid in state IDLE.MANUAL" in str(rig.agent.precheck("goal"))
-    result = rig.command("goal", goal=Pose2D(1.0, 1.0, 0.0))
+    assert "'cancel' is not valid in state IDLE.MANUAL" in str(rig.agent.precheck("cancel"))
+    result = rig.command("cancel")
     assert not result.accepted and result.dest is None  # type: ignore[attr-defined]
-    assert "'goal' is not valid in state IDLE.MANUAL" in result.reason  # type: ignore[attr-defined]
+    assert "'cancel' is not valid in state IDLE.MANUAL" in result.reason  # type: ignore[attr-defined]
     assert rig.agent.state == "IDLE.MANUAL"
     assert rig.command("no_such_trigger").accepted is False  # type: ignore[attr-defined]
+
+
+def test_a_goal_in_manual_mode_is_an_invalid_goal(rig: Rig) -> None:
+    """DESIGN §3: a goal is valid in AUTO mode only; in MANUAL it goes to Error with the reason, then back."""
+    idle(rig)
+    result = rig.command("goal", goal=Pose2D(1.0, 1.0, 0.0))
+    assert result.accepted and result.dest == "ERROR"  # type: ignore[attr-defined]
+    assert "AUTO mode only" in result.reason and "MANUAL" in result.reason  # type: ignore[attr-defined]
+    rig.run(0.2)
+    assert rig.agent.state == "IDLE.MANUAL" and rig.agent.context.error is None
 
 
 def test_an_invalid_goal_goes_through_error_back_to_idle(rig: Rig) -> None:

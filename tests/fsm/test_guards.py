@@ -20,7 +20,7 @@ from atemr.trees.missions import parse_mission
 from atemr.trees.ports import ComponentHealth
 from atemr.yamlsafe import load_yaml
 
-TESTED_GUARDS = {"goal_valid", "mission_runnable", "level1_ok", "map_name_valid"}
+TESTED_GUARDS = {"goal_valid", "auto_mode", "mission_runnable", "level1_ok", "map_name_valid"}
 TESTED_CALLBACKS = {"begin_mapping", "save_map", "discard_map", "abandon_mapping", "stop_motors", "set_goal_task",
                     "set_mission_task", "clear_task", "record_error", "clear_error"}
 
@@ -63,6 +63,13 @@ def test_goal_valid_reasons(goal: object, refuse: str | None, reason: str) -> No
 def test_goal_valid_passes_when_navigation_accepts() -> None:
     port = RecordingPort()
     assert check("goal_valid", port, navigation=StraightLineNavigation(port), goal=Pose2D(1, 1, 0)) is None
+
+
+def test_auto_mode_names_the_mode() -> None:
+    port = RecordingPort()
+    assert "AUTO mode only (the robot is in MANUAL)" in str(check("auto_mode", port))
+    context = AgentContext(port=port, mode="AUTO")
+    assert guards.get("auto_mode")(GuardInput(context, {})) is None
 
 
 def test_level1_and_map_name_and_mission() -> None:

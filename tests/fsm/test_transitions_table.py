@@ -28,6 +28,7 @@ ROWS: list[tuple[str, str, str, dict[str, bool], str, StateCode]] = [
     ("IDLE.AUTO", "set_manual", "IDLE.MANUAL", {}, "IDLE.MANUAL", StateCode.IDLE),
     ("IDLE.AUTO", "goal", "EXEC", {"goal_valid": True}, "EXEC", StateCode.EXEC),
     ("IDLE.AUTO", "goal", "ERROR", {"goal_valid": False}, "ERROR", StateCode.ERROR),
+    ("IDLE.MANUAL", "goal", "ERROR", {"auto_mode": False}, "ERROR", StateCode.ERROR),
     ("IDLE.AUTO", "start_mission", "EXEC", {"mission_runnable": True}, "EXEC", StateCode.EXEC),
     ("IDLE.MANUAL", "begin_mapping", "MAPPING", {}, "MAPPING", StateCode.MAPPING),
     ("EXEC", "reached", "IDLE.AUTO", {}, "IDLE.AUTO", StateCode.IDLE),

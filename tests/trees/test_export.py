@@ -76,7 +76,7 @@ def test_state_selection_errors(agent_spec: AgentSpec) -> None:
 
 def test_cli_tree_validate_and_export(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     assert main(["tree", "validate", str(AGENT)]) == 0
-    assert "OK, agent: 10 states (8 leaf states), 20 transitions" in capsys.readouterr().out
+    assert "OK, agent: 10 states (8 leaf states), 21 transitions" in capsys.readouterr().out
     assert main(["tree", "export", str(AGENT), "--format", "mermaid", "--state", "IDLE.MANUAL"]) == 0
     assert capsys.readouterr().out.startswith("flowchart TD")
     out = tmp_path / "agent.json"

@@ -80,9 +80,10 @@ def test_a_goal_in_a_wall_is_refused_with_the_navigators_reason(agent_spec: Agen
     scheduler.run(duration=0.2)
     refused = next(r for r in agent.trace if r.trigger == "goal")
     assert refused.dest == "ERROR" and "obstacle" in refused.reason
-    agent.submit("goal", goal=Pose2D(7.0, 1.0, 0.0))  # IDLE.MANUAL after the error: refused at once
+    assert agent.state == "IDLE.MANUAL"  # the error handled
+    agent.submit("goal", goal=Pose2D(4.0, 1.5, 0.0))  # a good goal, but in MANUAL: an invalid goal as well
     scheduler.run(duration=0.2)
-    assert not agent.results[-1].accepted
+    assert agent.results[-1].dest == "ERROR" and "AUTO mode only" in agent.results[-1].reason
 
 
 def test_cancel_cancels_the_navigator(agent_spec: AgentSpec) -> None:
