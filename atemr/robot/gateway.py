@@ -347,6 +347,15 @@ class RobotGatewayImpl:
         self._queue("initial pose", lambda now: localization.set_initial_pose(now, pose))
         return CommandResult.accepted()
 
+    def localize_globally(self) -> CommandResult:
+        localization = self.robot.extras.get("localization")
+        if localization is None:
+            return CommandResult.refused("this robot has no localization")
+        if self.maps.active is None:
+            return CommandResult.refused("no active map: select or build a map first")
+        self._queue("global localization", lambda now: localization.start_global(now, "requested by the operator"))
+        return CommandResult.accepted()
+
     def cancel_goal(self) -> CommandResult:
         return self._submit("cancel")
 

@@ -155,6 +155,11 @@ class RobotGateway(Protocol):
         """Where the robot is, for the localization."""
         ...
 
+    def localize_globally(self) -> CommandResult:
+        """The robot finds its pose on the active map by itself (global localization), when the operator does
+        not know it either: after a map switch, or when the robot was carried elsewhere."""
+        ...
+
     def cancel_goal(self) -> CommandResult:
         ...
 

@@ -193,6 +193,10 @@ class KinematicGateway:
             self.pose = pose
         return CommandResult.accepted()
 
+    def localize_globally(self) -> CommandResult:
+        self._record("localize_globally")
+        return CommandResult.accepted()
+
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:
         self._record("set_limits", linear_mps, angular_radps)
         with self.lock:

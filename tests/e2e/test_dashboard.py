@@ -266,6 +266,11 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
     assert math.hypot(pose.x_m - target[0], pose.y_m - target[1]) < 0.1
     assert abs(pose.yaw_rad - math.pi / 2) < 0.3
     page.screenshot(path=str(shots / "control-kidnap.png"), full_page=True)
+    # Localization was not told: FIND POSE has the robot find itself, and the map shows it where it now is.
+    page.click("#localize-global")
+    wait_for(page, "document.getElementById('command-result').textContent === 'localize_globally: ok'")
+    wait_for(page, f"ATEMR.state.pose !== null && Math.hypot(ATEMR.state.pose.x_m - {pose.x_m}, "
+                   f"ATEMR.state.pose.y_m - {pose.y_m}) < 0.15", timeout=20_000)
 
 
 def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):

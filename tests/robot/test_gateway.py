@@ -353,3 +353,33 @@ def test_autonomy_level_confirm_and_reload_through_the_gateway(booted):
     assert gateway.reload_agent().ok
     run(robot, 1.2)
     assert gateway.agent_snapshot()["reloads"][-1]["status"] == "unchanged"
+
+
+def test_global_localization_finds_a_robot_carried_elsewhere(booted):
+    """The operator does not know where the robot is either: FIND POSE spreads the particles over the map and
+    the robot finds itself, standing still, where it truly is."""
+    robot, gateway = booted
+    sim = robot.extras["sim"]
+    sim.kidnap(Pose2D(2.0, 3.3, 1.0))  # carried into the other half of the living room; localization not told
+    assert gateway.localize_globally().ok
+    events: list[dict[str, Any]] = []
+    for _ in range(40):
+        run(robot, 0.5)
+        events = [e for e in robot.recent_events(30) if e["kind"].startswith("localization ")]
+        if events and events[-1]["kind"] == "localization localized":
+            break
+    started = [e for e in events if e["kind"] == "localization global_start"]
+    assert started and started[0]["text"] == "global localization: requested by the operator", events
+    assert events[-1]["kind"] == "localization localized", events
+    pose, truth = gateway.state()["pose"], sim.pose
+    assert pose is not None
+    assert math.hypot(pose["x_m"] - truth.x_m, pose["y_m"] - truth.y_m) < 0.15, (pose, truth)
+    assert abs(math.remainder(pose["yaw_rad"] - truth.yaw_rad, math.tau)) < 0.1
+
+
+def test_global_localization_needs_an_active_map(tmp_path):
+    robot, gateway = make_robot(tmp_path / "data")
+    with robot:
+        robot.extras["maps"].active = None
+        assert "no active map" in gateway.localize_globally().reason
+    gateway.close()

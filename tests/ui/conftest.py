@@ -76,6 +76,9 @@ class RecordingGateway:
     def set_initial_pose(self, pose: Pose2D) -> CommandResult:
         return self._cmd("set_initial_pose", pose)
 
+    def localize_globally(self) -> CommandResult:
+        return self._cmd("localize_globally")
+
     def cancel_goal(self) -> CommandResult:
         return self._cmd("cancel_goal")
 

@@ -39,6 +39,7 @@ EVENTS = [
     ("mode", {"mode": "MANUAL"}, ("set_mode", ("MANUAL",))),
     ("goal", {"x_m": 1.0, "y_m": 2.0, "yaw_rad": 0.5}, ("set_goal", (Pose2D(1.0, 2.0, 0.5),))),
     ("initial_pose", {"x_m": -1.0, "y_m": 0.0, "yaw_rad": 0.0}, ("set_initial_pose", (Pose2D(-1.0, 0.0, 0.0),))),
+    ("localize_globally", None, ("localize_globally", ())),
     ("cancel_goal", None, ("cancel_goal", ())),
     ("capture_image", None, ("capture_image", ())),
     ("record_video", {"on": True}, ("record_video", (True,))),

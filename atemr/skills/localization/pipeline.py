@@ -82,9 +82,9 @@ class LocalizationPipeline:
         """The operator's pose on the map (`NavigationError` if it is not in free space)."""
         self._need().set_initial_pose(now, pose, covariance, odom=self.odometry.estimate.pose)
 
-    def start_global(self, now: float) -> None:
-        """Global localization (the pose is unknown)."""
-        self._need().start_global(now, "requested")
+    def start_global(self, now: float, why: str = "requested") -> None:
+        """Global localization (the pose is unknown); ``why`` goes into the event."""
+        self._need().start_global(now, why)
 
     # -- inputs ------------------------------------------------------------------------------------
     def _remember(self) -> None:

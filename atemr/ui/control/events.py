@@ -48,6 +48,11 @@ def initial_pose(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.set_initial_pose(payload.pose("initial_pose", data))
 
 
+@on_event("localize_globally")
+def localize_globally(robot: RobotGateway, data: Any) -> CommandResult:
+    return robot.localize_globally()
+
+
 @on_event("cancel_goal")
 def cancel_goal(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.cancel_goal()

@@ -88,6 +88,7 @@
   const rec = $("record");
   rec.addEventListener("click", () => A.command("record_video", { on: !A.state.recording }));
   $("cancel-goal").addEventListener("click", () => A.command("cancel_goal"));
+  $("localize-global").addEventListener("click", () => A.command("localize_globally"));
   A.onState((s) => {
     rec.classList.toggle("on", !!s.recording);
     rec.textContent = s.recording ? "STOP RECORDING" : "RECORD VIDEO";
