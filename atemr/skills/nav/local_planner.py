@@ -13,6 +13,11 @@ emergency stop is no path) and scored (lower is better):
 * ``obstacle_weight`` × the highest inflation cost it crosses / 252 (keep away from walls),
 * ``heading_weight`` × its final heading error to the carrot, a path point ``lookahead_m`` ahead / π.
 
+Speed is scored by the progress term: every rollout lasts the same ``sim_time_s``, so the path length still to
+go from its end falls by ``goal_weight`` × (speed along the path) × ``sim_time_s``; on a clear path the
+fastest target wins (DWA's separate velocity bonus would count the same thing twice), and slower ones win
+only where the obstacle, path or heading terms say so.
+
 The command is one acceleration step towards the best target, so speed and acceleration limits hold
 tick by tick. Speed also falls with the distance left (``v ≤ √(2·a·d)``), so the base can always stop
 at the goal. When the path ahead is far to the side or behind, the base first turns on the spot (a round

@@ -49,6 +49,8 @@ def test_follows_a_straight_path_within_the_limits(open_room):
     v0 = Twist(0.3, 0.0)
     plan = lp.compute(Pose2D(1.0, 2.0, 0.0), v0, path, (5.0, 2.0), 0.1)
     assert plan.ok and plan.valid > 0
+    # Speed is scored (by progress over the rollout): on a clear path the fastest target wins, so the command
+    # is a full acceleration step towards it.
     assert plan.twist.linear_mps == pytest.approx(0.3 + params.linear_accel_mps2 * 0.1)
     assert abs(plan.twist.angular_radps) < 0.1
     # From rest it can only speed up by a * dt.
