@@ -15,6 +15,7 @@ import pytest
 from atemr.errors import ConfigError
 from atemr.io.sim.maps import OccupancyMap, load_map, save_map
 from atemr.msgs import LaserScan, Pose2D
+from atemr.skills.localization.geometry import as_array, as_pose, compose, relative
 from atemr.skills.slam import OccupancyGridSlam, SlamParams, map_agreement
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -136,3 +137,78 @@ def test_an_anchor_the_scan_does_not_fit_is_not_used() -> None:
     assert not slam.anchored and slam.trajectory[0] == start
     with pytest.raises(ConfigError, match="anchor_min_agreement"):
         SlamParams(anchor_min_agreement=1.5)
+
+
+def drifted(odometry: list[Pose2D], yaw_per_scan: float) -> list[Pose2D]:
+    """The odometry re-integrated with every increment turned ``yaw_per_scan`` further (a gyro bias): its heading
+    drifts, and so does every position after it."""
+    out = [odometry[0]]
+    for before, after in zip(odometry, odometry[1:], strict=False):
+        step = relative(as_array(before), as_array(after))
+        step[2] += yaw_per_scan
+        out.append(as_pose(compose(as_array(out[-1]), step)))
+    return out
+
+
+def test_matching_against_the_grid_closes_the_loop_on_drifting_odometry(living_room_drive: object) -> None:
+    """Odometry with a heading bias (0.6 rad, 34°, by the end of two laps): each scan is matched against the
+    whole grid mapped so far, so coming back into view of walls mapped on the first lap pulls the pose back onto
+    them; the pose error stays small and the map stays good. Odometry alone ends far off."""
+    rec: Any = living_room_drive
+    truth = load_map(ROOT / "atemr" / "worlds" / "studio" / "studio.yaml")
+    odometry = drifted(rec.odom, 0.6 / len(rec.scans))
+
+    def build(params: SlamParams) -> tuple[OccupancyGridSlam, float]:
+        slam = OccupancyGridSlam(params, start=rec.truth[0])
+        worst = 0.0
+        for i, scan in enumerate(rec.scans):
+            if slam.update(odometry[i], scan):
+                worst = max(worst, slam.current_pose.distance_to(rec.truth[i]))
+        return slam, worst
+
+    matched, worst = build(SlamParams())
+    assert worst < 0.08, worst
+    assert map_agreement(matched.to_map(), truth)[0] >= 0.90
+    odometry_only, worst_odometry = build(SlamParams(match_scans=False))
+    assert worst_odometry > 0.5, worst_odometry
+
+
+def test_a_scan_icp_refuses_is_placed_by_the_correlative_rematch(living_room_drive: object,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """When ICP refuses a scan (no convergence, too few inliers), the prediction is not simply kept: the scan is
+    matched over a window against the grid's likelihood field, which undoes a slip of 0.2 m and 0.1 rad in one
+    step. Without that rematch the slip stays in the pose and in the map."""
+    import atemr.skills.slam as slam_module
+    from atemr.skills.localization.icp import IcpResult
+    from atemr.skills.localization.scan_to_map import MapMatch
+
+    rec: Any = living_room_drive
+    slip_at = len(rec.scans) // 3
+    slip = Pose2D(0.2, -0.05, 0.1)
+    real_icp = slam_module.icp
+    state = {"refuse": False}
+
+    def icp_refusing(*args: Any, **kwargs: Any) -> IcpResult:
+        result = real_icp(*args, **kwargs)
+        if state["refuse"]:
+            state["refuse"] = False
+            return IcpResult(result.pose, result.rmse_m, 0.0, result.iterations, False, result.covariance)
+        return result
+
+    monkeypatch.setattr(slam_module, "icp", icp_refusing)
+
+    def error_after_slip() -> float:
+        slam = OccupancyGridSlam(start=rec.truth[0])
+        for i, scan in enumerate(rec.scans):
+            odom = rec.odom[i]
+            if i >= slip_at:  # the wheels slipped once: every later odometry pose carries it
+                odom = Pose2D(*compose(as_array(odom), as_array(slip)))
+            state["refuse"] = i == slip_at
+            if slam.update(odom, scan) and i >= slip_at:
+                return slam.current_pose.distance_to(rec.truth[i])
+        raise AssertionError("no update after the slip")
+
+    assert error_after_slip() < 0.06
+    monkeypatch.setattr(slam_module.ScanToMapMatcher, "match",
+                        lambda self, points, guess, **kw: MapMatch(guess, 0.0, -math.inf, False))
+    assert error_after_slip() > 0.15
