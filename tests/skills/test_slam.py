@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import itertools
 import math
 import sys
 from pathlib import Path
@@ -143,7 +144,7 @@ def drifted(odometry: list[Pose2D], yaw_per_scan: float) -> list[Pose2D]:
     """The odometry re-integrated with every increment turned ``yaw_per_scan`` further (a gyro bias): its heading
     drifts, and so does every position after it."""
     out = [odometry[0]]
-    for before, after in zip(odometry, odometry[1:], strict=False):
+    for before, after in itertools.pairwise(odometry):
         step = relative(as_array(before), as_array(after))
         step[2] += yaw_per_scan
         out.append(as_pose(compose(as_array(out[-1]), step)))
