@@ -17,9 +17,9 @@ Soft emergency (MOTOR_STOP to motors 1 and 2, repeated every ``brake_period_s``)
 until the primary reports running, whenever no valid heartbeat exchange happened for
 ``heartbeat_timeout_s`` (2 s), and after the primary acknowledged power-off. A motor follows any speed
 command it gets after a MOTOR_STOP (that is the RMD protocol), so the brake is also a latch that does not
-rely on the primary behaving: while the emergency holds, every speed or MOTOR_RUN frame for a braked motor
-seen on the bus is answered by a MOTOR_STOP to that motor in the same tick, and the first one of an
-emergency is reported as an event.
+rely on the primary behaving: while the emergency holds, every frame seen on the bus that asks a braked
+motor to move (a nonzero speed, MOTOR_RUN) is answered by a MOTOR_STOP to that motor in the same tick, and
+the first one of an emergency is reported as an event.
 """
 
 from __future__ import annotations
@@ -408,13 +408,18 @@ class SecondaryCore:
     def _hold_brake(self, frame: can.Message, now: float) -> None:
         """Brake a motor again at once when a frame on its ID would set it driving (see the module docstring).
 
-        A motor's reply shares its request's ID and command byte, so a speed reply counts too: the stop it
-        adds is harmless, and the motor's answer to MOTOR_STOP (0x81) is never taken for a drive command.
+        A speed frame counts only when it asks for (or, as a reply, reports) motion: the primary holds its
+        motors at zero speed with speed commands while it boots, and that is no reason to act. A motor's reply
+        shares its request's ID and command byte, so bytes 4–5 are read, which are the low half of a request's
+        speed (0.01 dps, nonzero for any speed below 655 dps) and a reply's speed (1 dps). MOTOR_RUN always
+        counts; the motor's answer to MOTOR_STOP (0x81) never does.
         """
         motor_id = frame.arbitration_id - RMD_BASE_ID
-        if motor_id not in self.config.motor_ids or not frame.data:
+        if motor_id not in self.config.motor_ids or len(frame.data) < 6:
             return
-        if frame.data[0] not in (RmdCommand.SPEED_CONTROL, RmdCommand.MOTOR_RUN):
+        command = frame.data[0]
+        moving = command == RmdCommand.SPEED_CONTROL and (frame.data[4] or frame.data[5])
+        if not (moving or command == RmdCommand.MOTOR_RUN):
             return
         self.counters.overridden_brakes += 1
         if not self._overridden:

@@ -396,15 +396,16 @@ class RogueDriver:
 
     name = "rogue_driver"
 
-    def __init__(self, bus: can.BusABC) -> None:
+    def __init__(self, bus: can.BusABC, speed_radps: float = 5.0) -> None:
         self.bus = bus
+        self.speed_radps = speed_radps
 
     def start(self) -> None:
         pass
 
     def tick(self, now: float) -> None:
         for motor_id in (1, 2):
-            self.bus.send(RmdRequest(motor_id, RmdCommand.SPEED_CONTROL, speed_radps=5.0).encode())
+            self.bus.send(RmdRequest(motor_id, RmdCommand.SPEED_CONTROL, speed_radps=self.speed_radps).encode())
 
     def shutdown(self) -> None:
         self.bus.shutdown()
@@ -445,5 +446,24 @@ def test_the_soft_emergency_brakes_again_each_drive_command_it_sees(bench: LinkB
         assert sum("commanded during the soft emergency" in m for m in messages) == 1, messages
     finally:
         rogue.shutdown()
+        for motor in motors:
+            motor.shutdown()
+
+
+def test_zero_speed_commands_during_the_soft_emergency_are_not_drive_commands(bench: LinkBench) -> None:
+    """While it boots the primary holds its motors with zero-speed commands: no extra brake, no event."""
+    from atemr.io.motors.emulator import RmdMotorEmulator
+
+    motors = [RmdMotorEmulator(can.Bus(interface="virtual", channel=bench.channel), i) for i in (1, 2)]
+    holding = RogueDriver(can.Bus(interface="virtual", channel=bench.channel), speed_radps=0.0)
+    try:
+        for motor in motors:
+            bench.scheduler.add(motor, 100.0)
+        bench.scheduler.add(holding, 50.0)
+        bench.run(2.0)  # the board boots: soft emergency "starting up"
+        assert bench.core.soft_emergency and bench.core.counters.overridden_brakes == 0
+        assert not any("commanded during" in e.message for e in bench.core.events.recent(20))
+    finally:
+        holding.shutdown()
         for motor in motors:
             motor.shutdown()
