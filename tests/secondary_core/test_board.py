@@ -3,9 +3,11 @@ heartbeat loss and recovery, soft emergency, IR, IP and bad frames. All in simul
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 from collections.abc import Iterator
+from typing import Any
 
 import can
 import pytest
@@ -23,6 +25,7 @@ from atemr.io.can import (
     PowerState,
     StateCode,
 )
+from atemr.io.motors.emulator import RmdMotorEmulator
 from atemr.io.motors.rmd_codec import RMD_BASE_ID, RmdCommand, RmdRequest, decode_request
 from atemr.io.secondary_link import IR_OUT_OF_RANGE_CM
 from atemr.msgs import CliffReadings
@@ -324,17 +327,25 @@ def test_same_run_twice_gives_same_frames() -> None:
     assert run() == run()
 
 
+@contextlib.contextmanager
+def emulated_motors(bench: LinkBench, **kwargs: Any) -> Iterator[list[RmdMotorEmulator]]:
+    """Motors 1 and 2 emulated on the bench's bus, ticked at 100 Hz by its scheduler; closed afterwards."""
+    motors = [RmdMotorEmulator(can.Bus(interface="virtual", channel=bench.channel), i, **kwargs) for i in (1, 2)]
+    try:
+        for motor in motors:
+            bench.scheduler.add(motor, 100.0)
+        yield motors
+    finally:
+        for motor in motors:
+            motor.shutdown()
+
+
 def test_soft_emergency_brakes_the_emulated_motors(bench: LinkBench) -> None:
-    from atemr.io.motors.emulator import RmdMotorEmulator
     from atemr.io.motors.model import MotorMode
 
     # the test sets the models' speed directly in place of the primary's driver, so the motors' own CAN
     # communication timeout is off: only the secondary core's brake can stop them here
-    motors = [RmdMotorEmulator(can.Bus(interface="virtual", channel=bench.channel), i, comm_timeout_s=0.0)
-              for i in (1, 2)]
-    try:
-        for motor in motors:
-            bench.scheduler.add(motor, 100.0)
+    with emulated_motors(bench, comm_timeout_s=0.0) as motors:
         bench.bring_up()
         bench.run(1.0)
         for motor in motors:  # the primary's driver had them driving at 5 rad/s
@@ -345,9 +356,6 @@ def test_soft_emergency_brakes_the_emulated_motors(bench: LinkBench) -> None:
         bench.run(2.5)
         assert bench.core.soft_emergency
         assert all(m.model.mode is MotorMode.STOPPED and abs(m.model.speed_radps) < 0.05 for m in motors)
-    finally:
-        for motor in motors:
-            motor.shutdown()
 
 
 def test_any_long_hold_in_ready_powers_on(bench: LinkBench) -> None:
@@ -410,6 +418,8 @@ class RogueDriver:
     def shutdown(self) -> None:
         self.bus.shutdown()
 
+    close = shutdown  # contextlib.closing
+
 
 def test_the_soft_emergency_brakes_again_each_drive_command_it_sees(bench: LinkBench) -> None:
     """A motor follows a speed command sent after MOTOR_STOP. Braking only every 0.1 s, a driver commanding at
@@ -417,13 +427,8 @@ def test_the_soft_emergency_brakes_again_each_drive_command_it_sees(bench: LinkB
     average 2.5 here. (A board can only talk CAN, so it cannot hold a motor still against such a driver: here
     each command drives for the 10 ms until the board's next 50 Hz tick; the real board answers from its CAN
     interrupt.) Reported once per emergency, counted every time."""
-    from atemr.io.motors.emulator import RmdMotorEmulator
-
-    motors = [RmdMotorEmulator(can.Bus(interface="virtual", channel=bench.channel), i) for i in (1, 2)]
     rogue = RogueDriver(can.Bus(interface="virtual", channel=bench.channel))
-    try:
-        for motor in motors:
-            bench.scheduler.add(motor, 100.0)
+    with emulated_motors(bench) as motors, contextlib.closing(rogue):
         bench.bring_up()
         bench.scheduler.add(rogue, 50.0)
         bench.run(1.0)
@@ -444,26 +449,13 @@ def test_the_soft_emergency_brakes_again_each_drive_command_it_sees(bench: LinkB
         assert bench.core.counters.overridden_brakes > 100
         messages = [e.message for e in bench.core.events.recent(20) if e.kind == "emergency"]
         assert sum("commanded during the soft emergency" in m for m in messages) == 1, messages
-    finally:
-        rogue.shutdown()
-        for motor in motors:
-            motor.shutdown()
 
 
 def test_zero_speed_commands_during_the_soft_emergency_are_not_drive_commands(bench: LinkBench) -> None:
     """While it boots the primary holds its motors with zero-speed commands: no extra brake, no event."""
-    from atemr.io.motors.emulator import RmdMotorEmulator
-
-    motors = [RmdMotorEmulator(can.Bus(interface="virtual", channel=bench.channel), i) for i in (1, 2)]
     holding = RogueDriver(can.Bus(interface="virtual", channel=bench.channel), speed_radps=0.0)
-    try:
-        for motor in motors:
-            bench.scheduler.add(motor, 100.0)
+    with emulated_motors(bench), contextlib.closing(holding):
         bench.scheduler.add(holding, 50.0)
         bench.run(2.0)  # the board boots: soft emergency "starting up"
         assert bench.core.soft_emergency and bench.core.counters.overridden_brakes == 0
         assert not any("commanded during" in e.message for e in bench.core.events.recent(20))
-    finally:
-        holding.shutdown()
-        for motor in motors:
-            motor.shutdown()
