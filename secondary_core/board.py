@@ -28,7 +28,7 @@ import logging
 import math
 import threading
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -143,7 +143,7 @@ class _Counters:
     bus_errors: int = 0
     heartbeats_answered: int = 0
     brake_frames: int = 0
-    #: Speed or MOTOR_RUN frames for a braked motor seen during a soft emergency (each braked again at once).
+    #: Frames asking a braked motor to move seen during a soft emergency (each braked again at once).
     overridden_brakes: int = 0
     wifi_sent: int = 0
     ip_requests: int = 0
@@ -429,10 +429,14 @@ class SecondaryCore:
 
     def _send_rebrakes(self) -> None:
         """One MOTOR_STOP per motor per tick, however many drive frames the tick read."""
-        for motor_id in sorted(self._rebrake):
+        self._brake(sorted(self._rebrake))
+        self._rebrake.clear()
+
+    def _brake(self, motor_ids: Iterable[int]) -> None:
+        """MOTOR_STOP to each of ``motor_ids``, counted."""
+        for motor_id in motor_ids:
             if self._send(RmdRequest(motor_id, RmdCommand.MOTOR_STOP).encode()):
                 self.counters.brake_frames += 1
-        self._rebrake.clear()
 
     def _on_message(self, msg: object, now: float) -> None:
         if isinstance(msg, Heartbeat):
@@ -555,9 +559,7 @@ class SecondaryCore:
             self.soft_emergency = reason is not None
             self.emergency_reason = reason
         if self.soft_emergency and _due(now, self._t.next_brake):
-            for motor_id in self.config.motor_ids:
-                if self._send(RmdRequest(motor_id, RmdCommand.MOTOR_STOP).encode()):
-                    self.counters.brake_frames += 1
+            self._brake(self.config.motor_ids)
             self._t.next_brake = _next(self._t.next_brake, self.config.brake_period_s, now)
 
     def _publish_ir(self, now: float) -> None:
