@@ -48,6 +48,9 @@ from atemr.skills.localization.likelihood_field import LikelihoodField
 from atemr.skills.localization.scan import scan_points, valid_mask
 from atemr.skills.localization.scan_to_map import ScanToMapMatcher
 
+#: Fewest points (scan returns, or mapped cells) a match is tried with.
+MIN_POINTS = 20
+
 
 def logodds(p: float) -> float:
     return math.log(p / (1.0 - p))
@@ -145,9 +148,7 @@ class OccupancyGridSlam:
             return False
         self._odom = o
         predicted = compose(self.pose, inc)
-        points = scan_points(scan)
-        points = points[np.hypot(points[:, 0], points[:, 1]) <= p.max_range_m]
-        self.pose = self._match(points, predicted) if p.match_scans else predicted
+        self.pose = self._match(self._points(scan), predicted) if p.match_scans else predicted
         self._integrate(scan)
         return True
 
@@ -159,9 +160,8 @@ class OccupancyGridSlam:
         assert anchor is not None
         if not anchor.occupied.any():
             return
-        points = scan_points(scan)
-        points = points[np.hypot(points[:, 0], points[:, 1]) <= p.max_range_m]
-        if points.shape[0] < 20:
+        points = self._points(scan)
+        if points.shape[0] < MIN_POINTS:
             return
         match = ScanToMapMatcher(LikelihoodField(anchor)).match(points, as_pose(self.pose),
                                                                 window_xy_m=p.anchor_window_m,
@@ -170,6 +170,11 @@ class OccupancyGridSlam:
             self.pose = as_array(match.pose)
             self.anchored = True
 
+    def _points(self, scan: LaserScan) -> FloatArray:
+        """The scan's returns in the base frame, up to ``max_range_m`` (what matching trusts)."""
+        points = scan_points(scan)
+        return points[np.hypot(points[:, 0], points[:, 1]) <= self.params.max_range_m]
+
     def _plausible(self, pose: FloatArray, predicted: FloatArray) -> bool:
         d = relative(predicted, pose)
         return math.hypot(d[0], d[1]) <= self.params.max_correction_m and abs(d[2]) <= self.params.max_correction_rad
@@ -177,7 +182,7 @@ class OccupancyGridSlam:
     def _match(self, points: FloatArray, predicted: FloatArray) -> FloatArray:
         p = self.params
         target = self.occupied_points()
-        if points.shape[0] < 20 or target.shape[0] < 20:
+        if points.shape[0] < MIN_POINTS or target.shape[0] < MIN_POINTS:
             return predicted
         result = icp(points, IcpTarget(target, IcpParams(max_correspondence_m=0.3)), as_pose(predicted))
         pose = as_array(result.pose)
@@ -272,8 +277,6 @@ class OccupancyGridSlam:
         return OccupancyMap(np.ascontiguousarray(data), res, origin, name=name)
 
 
-__all__ = ["OccupancyGridSlam", "SlamParams", "logodds"]
-
 
 def map_agreement(built: OccupancyMap, truth: OccupancyMap) -> tuple[float, float]:
     """How well a built map matches a true one, within one cell: (precision, recall).
@@ -299,3 +302,6 @@ def map_agreement(built: OccupancyMap, truth: OccupancyMap) -> tuple[float, floa
     built_occupied[r[inside], c[inside]] = True
     recall = float((ndimage.binary_dilation(built_occupied, near) & surface).sum() / max(1, surface.sum()))
     return precision, recall
+
+
+__all__ = ["OccupancyGridSlam", "SlamParams", "logodds", "map_agreement"]
