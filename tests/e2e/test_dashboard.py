@@ -62,9 +62,22 @@ def screen_point(page, x_m: float, y_m: float) -> tuple[float, float]:
 #: The Control page shows the MJPEG stream and its first frame (at least 640 wide) has arrived.
 CAMERA_STREAMING = ("document.getElementById('camera').src.includes('/api/camera.mjpeg') "
                     "&& document.getElementById('camera').naturalWidth >= 640")
-#: How long to wait for the first frame: the robot renders it in real time beside the browser, and a loaded
-#: 2-core machine took longer than the default 8 s once (a wait, not a speed check).
+#: How long to wait for the first frame (a wait, not a speed check): the robot renders it in real time beside
+#: the browser, and a loaded 2-core machine took longer than the default 8 s.
 CAMERA_WAIT_MS = 20_000
+
+
+def wait_for_camera(page) -> None:
+    """Wait for `CAMERA_STREAMING`; a failure says which transport the page uses and what the image shows (the
+    page falls back to Socket.IO frames when the MJPEG image errors, and then the stream never comes)."""
+    try:
+        wait_for(page, CAMERA_STREAMING, timeout=CAMERA_WAIT_MS)
+    except AssertionError as exc:
+        seen = page.evaluate("(() => { const c = document.getElementById('camera'); "
+                             "return `transport=${c.dataset.transport} "
+                             "src=${(c.getAttribute('src') || '').slice(0, 40)} "
+                             "width=${c.naturalWidth} hidden=${c.hidden}`; })()")
+        raise AssertionError(f"{exc} ({seen})") from None
 
 
 def test_control_page_shows_the_robot_and_the_keyboard_drives_it(robot_site, page, shots, helpers):
@@ -72,7 +85,7 @@ def test_control_page_shows_the_robot_and_the_keyboard_drives_it(robot_site, pag
     page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
-    wait_for(page, CAMERA_STREAMING, timeout=CAMERA_WAIT_MS)
+    wait_for_camera(page)
     wait_for(page, "ATEMR.map.image !== null && ATEMR.state.pose !== null && ATEMR.state.scan.length > 100")
     assert page.evaluate("ATEMR.state.active_map") == "studio"
     assert page.evaluate("ATEMR.state.level2.lidar && ATEMR.state.level2.webserver && ATEMR.state.level1.heartbeat")
@@ -280,7 +293,7 @@ def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, CAMERA_STREAMING, timeout=CAMERA_WAIT_MS)
+    wait_for_camera(page)
     images = robot_site.data_dir / "media" / "images"
     for _ in range(2):
         page.click("#capture")
