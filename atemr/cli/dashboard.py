@@ -21,7 +21,8 @@ class DashboardCommand:
     def configure(self, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
         parser.add_argument("--message-queue", help="Redis URL the robots publish to, e.g. redis://127.0.0.1:6379/0")
-        parser.add_argument("--host", help="address to listen on (default 127.0.0.1)")
+        parser.add_argument("--host", help="address to listen on (default 127.0.0.1; 0.0.0.0: every interface, "
+                                           "which exposes it to the network)")
         parser.add_argument("--port", type=int, help="TCP port (default 5000; 0: any free port)")
         parser.add_argument("--data-dir", type=Path, help="where the users database and the session key live")
 

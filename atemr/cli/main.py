@@ -8,6 +8,7 @@ import sys
 from collections.abc import Sequence
 
 from atemr import __version__
+from atemr.cli.arguments import Parser
 from atemr.cli.command import commands
 from atemr.errors import AtemrError
 from atemr.logsetup import configure_logging
@@ -21,7 +22,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The full parser with every registered subcommand."""
     for module in COMMAND_MODULES:
         importlib.import_module(module)
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="atemr",
         description="ATEMR: the software of an autonomous telepresence robot, on the robot or in simulation.",
     )

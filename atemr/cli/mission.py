@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from atemr.cli.arguments import kidnap_argument, pose_argument
 from atemr.cli.command import commands
 from atemr.config import load_config
 from atemr.errors import ConfigError
@@ -115,30 +116,6 @@ def _robot_options(parser: argparse.ArgumentParser) -> None:
                              "captured images go; default: from config)")
     parser.add_argument("--socket", type=Path, help="the running robot's control socket (default: from config, "
                                                     "data_dir/control.sock)")
-
-
-def pose_argument(text: str) -> Pose2D:
-    """``"X,Y,YAW"`` (metres, metres, radians) → `Pose2D`; argparse shows the error."""
-    parts = text.split(",")
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        values = []
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(f"expected X,Y,YAW as three finite numbers, got {text!r}")
-    return Pose2D(*values)
-
-
-def kidnap_argument(text: str) -> tuple[float, Pose2D]:
-    """``"T,X,Y,YAW"`` → (seconds after the start, pose); argparse shows the error."""
-    when, _, pose = text.partition(",")
-    try:
-        t = float(when)
-    except ValueError:
-        t = math.nan
-    if not (math.isfinite(t) and t >= 0):
-        raise argparse.ArgumentTypeError(f"expected T,X,Y,YAW with T >= 0 seconds, got {text!r}")
-    return t, pose_argument(pose)
 
 
 def run_command(args: argparse.Namespace) -> int:

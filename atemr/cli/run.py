@@ -26,6 +26,9 @@ class RunCommand:
         )
         parser.add_argument("--can-interface", help="python-can interface (virtual, socketcan, ...)")
         parser.add_argument("--can-channel", help="CAN channel (can0 on the robot)")
+        parser.add_argument("--host", help="address the dashboard listens on (default 127.0.0.1; 0.0.0.0: every "
+                                           "interface, which exposes it to the network)")
+        parser.add_argument("--port", type=int, help="the dashboard's TCP port (default 5000; 0: any free port)")
         parser.add_argument(
             "--duration", type=float, help="stop after this many seconds of robot time (default: until Ctrl-C)"
         )
@@ -41,6 +44,8 @@ class RunCommand:
                 "sim.speed": args.speed,
                 "can.interface": args.can_interface,
                 "can.channel": args.can_channel,
+                "ui.host": args.host,
+                "ui.port": args.port,
             },
         )
         configure_logging(config.log_level)

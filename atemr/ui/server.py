@@ -10,6 +10,7 @@ the robot's scheduler, so there is no timer thread and no wall-clock sleep here.
 
 from __future__ import annotations
 
+import ipaddress
 import logging
 import threading
 from typing import Any
@@ -28,6 +29,25 @@ from atemr.ui.message_queue import check_reachable
 from atemr.ui.users import HASH_METHOD
 
 log = logging.getLogger(__name__)
+
+
+def is_loopback(host: str) -> bool:
+    """True for addresses only this machine reaches (127.0.0.0/8, ::1, localhost)."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:  # a host name: it may resolve to anything
+        return False
+
+
+def exposure_warning(host: str, port: int) -> str | None:
+    """What listening on ``host`` exposes, or None when only this machine can reach it."""
+    if is_loopback(host):
+        return None
+    return (f"the dashboard listens on {host}, not only on this machine: anyone who can reach port {port} there "
+            "sees the login page, and a logged-in user drives the robot and watches its camera over plain HTTP; "
+            "put it behind a TLS reverse proxy or keep it on 127.0.0.1")
 http_log = logging.getLogger("atemr.ui.http")
 
 
@@ -109,7 +129,9 @@ class DashboardServer:
 
     @property
     def url(self) -> str:
-        return f"http://{self.config.ui.host}:{self.port}"
+        host = self.config.ui.host
+        host = {"0.0.0.0": "127.0.0.1", "::": "::1"}.get(host, host)  # every interface: this machine's is one
+        return f"http://[{host}]:{self.port}" if ":" in host else f"http://{host}:{self.port}"
 
     @property
     def running(self) -> bool:
@@ -133,6 +155,9 @@ class DashboardServer:
             ) from None
         self._thread = threading.Thread(target=self._server.serve_forever, name="atemr-dashboard", daemon=True)
         self._thread.start()
+        exposed = exposure_warning(self.config.ui.host, self.port)
+        if exposed:
+            log.warning("%s", exposed)
         if self.app.extensions["atemr.users"].needs_root_password():
             log.warning(
                 "the dashboard has no admin password yet: open %s on this machine or run "

@@ -46,8 +46,8 @@ def mission_run(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPa
 def run_pair(pair, capsys, monkeypatch, tmp_path) -> dict:
     start, goal = pair.start, pair.goal
     result = mission_run(capsys, monkeypatch, tmp_path, "--world", pair.world, "--seed", str(pair.seed),
-                         f"--start={start.x_m},{start.y_m},{start.yaw_rad}",
-                         f"--goal={goal.x_m},{goal.y_m},{goal.yaw_rad}", "--timeout", "120")
+                         "--start", f"{start.x_m},{start.y_m},{start.yaw_rad}",  # as users type it, negative or not
+                         "--goal", f"{goal.x_m},{goal.y_m},{goal.yaw_rad}", "--timeout", "120")
     row: dict = quality.judge(pair, result)
     return row
 
