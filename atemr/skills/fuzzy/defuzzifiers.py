@@ -77,24 +77,22 @@ class Centroid(IntegralDefuzzifier):
 
 @dataclass(frozen=True)
 class Bisector(IntegralDefuzzifier):
-    """The x that splits the area in two equal halves.
+    """The sample that best splits the area in two halves, computed as fuzzylite computes it.
 
-    Each sample stands for its cell at constant height (the same staircase Centroid integrates); the
-    cumulative area is linear inside a cell, so the half-area point is found exactly by interpolating
-    in the cell where the cumulative sum first reaches half of the total. NaN when the area is zero.
+    The cumulative area at each midpoint sample counts that sample's whole cell; normalised by the total,
+    the sample(s) whose cumulative share is closest to one half win, and ties (a flat stretch of zero
+    membership around the half) give the mean of their x. So the answer is always a sample or the mean of
+    some, at most half a cell from the exact bisector, and an engine imported from ``.fll`` gives
+    fuzzylite's numbers. NaN when the area is zero.
     """
 
     def reduce(self, x: Array, y: Array) -> Array:
-        dx = x[1] - x[0] if len(x) > 1 else 1.0
         area = np.cumsum(y, axis=1)
-        half = area[:, -1] / 2.0
-        i = np.argmax(area >= half[:, None], axis=1)
-        rows = np.arange(len(y))
-        before = np.where(i > 0, area[rows, i - 1], 0.0)
-        height = y[rows, i]
         with np.errstate(divide="ignore", invalid="ignore"):
-            inside = np.where(height > 0, (half - before) / height, 0.5)
-            return np.where(half > 0, x[i] - dx / 2.0 + inside * dx, np.nan)
+            distance = np.abs(area / area[:, -1:] - 0.5)  # rows with no area: all NaN, so nothing is closest
+            closest = distance == np.min(distance, axis=1, keepdims=True)
+            count = closest.sum(axis=1)
+            return np.where(count > 0, (closest * x).sum(axis=1) / count, np.nan)
 
 
 def _maxima(y: Array) -> NDArray[np.bool_]:

@@ -127,8 +127,8 @@ def test_other_integral_defuzzifiers_by_hand(kind: str) -> None:
     defuzzifier: {kind} 4
     terms: {{A: Rectangle 0 0.5, B: Rectangle 0.5 1}}"""
     # x = 0.25: samples .125 .375 (A at .75) and .625 .875 (B at .25): y = .75 .75 .25 .25
-    # bisector: total 2.0 (in cells of .25), half 1.0 reached in the 2nd cell [.25, .5] after .75 of it: .25 + .25/3
-    expected = {"Bisector": 0.25 + 0.25 / 3, "MeanOfMaximum": 0.25, "SmallestOfMaximum": 0.125,
+    # bisector (fuzzylite's): cumulative shares .375 .75 .875 1; the first sample's is closest to one half
+    expected = {"Bisector": 0.125, "MeanOfMaximum": 0.25, "SmallestOfMaximum": 0.125,
                 "LargestOfMaximum": 0.375}
     out = engine(outputs, RULES_AB).process({"x": 0.25})
     assert float(out["y"]) == pytest.approx(expected[kind])
