@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from atemr.errors import ConfigError
+from atemr.io.devices.config import DevicesConfig
 from atemr.skills.localization.config import LocalizationConfig
 from atemr.skills.nav.config import NavConfig
 from atemr.skills.ramp import MotionLimits
@@ -113,9 +114,9 @@ class UiConfig:
 
 @dataclass(frozen=True)
 class SecondaryConfig:
-    """The secondary core: the emulated ESP32 board (simulation) and the primary's side of its link."""
+    """The secondary core (the ESP32, or its emulator: ``devices.secondary.driver``) and the primary's side of
+    its link."""
 
-    emulate: bool = field(default=True, metadata={"help": "run the emulated board in simulation (robot: the ESP32)"})
     robot_name: str = field(
         default="KAY",
         metadata={"help": "the robot's name: on the board's screens and in the dashboard's state (tells robots "
@@ -173,7 +174,11 @@ class Config:
     log_level: LogLevel = "INFO"
     data_dir: Path = field(default_factory=default_data_dir)
     simulation: bool = field(default=True, metadata={"help": "run in the built-in simulator (false: real robot)"})
+    power_off_command: str | None = field(default=None, metadata={
+        "help": "run after the power-off is acknowledged (the robot: systemctl poweroff); none by default"})
     sim: SimConfig = field(default_factory=SimConfig)
+    #: Which driver runs each device (`atemr.io.devices.config`): the simulator's or the real hardware's.
+    devices: DevicesConfig = field(default_factory=DevicesConfig)
     can: CanConfig = field(default_factory=CanConfig)
     motors: MotorsConfig = field(default_factory=MotorsConfig)
     ui: UiConfig = field(default_factory=UiConfig)

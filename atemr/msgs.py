@@ -76,12 +76,14 @@ class LaserScan:
 
 @dataclass(frozen=True)
 class ImuSample:
-    """Yaw rate (rad/s) and linear acceleration in the base frame (m/s²)."""
+    """Yaw rate (rad/s) and linear acceleration in the base frame (m/s²); ``accel_z_mps2`` is what the
+    accelerometer reads upwards, +g on a level floor (the simulator does not model tilt)."""
 
     t: float
     yaw_rate_radps: float
     accel_x_mps2: float
     accel_y_mps2: float
+    accel_z_mps2: float = 9.80665
 
 
 @dataclass(frozen=True)

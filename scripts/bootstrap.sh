@@ -41,5 +41,12 @@ atemr_bootstrap() {
     echo "Installing ATEMR${extras:+ with [$extras]} into $atemr_venv ..." >&2
     "$atemr_venv/bin/python" -m pip install --quiet --disable-pip-version-check --upgrade pip setuptools wheel >&2
     "$atemr_venv/bin/python" -m pip install --quiet --disable-pip-version-check -e "$spec" >&2
+    if [ "$extras" = "test" ]; then
+        # pyfuzzylite (the reference the fuzzy tests compare against) pins numpy<2 although it runs on numpy 2
+        # (tests/skills/fuzzy/test_against_pyfuzzylite.py proves it): with its pin the whole test environment
+        # would sit on numpy 1.x, unlike what ./run installs. So it comes without its dependencies.
+        "$atemr_venv/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
+            'pyfuzzylite>=8.0' >&2
+    fi
     echo "$want" >"$stamp"
 }

@@ -3,13 +3,22 @@
 from __future__ import annotations
 
 import argparse
+import logging
+import shlex
+import subprocess
+import sys
 from pathlib import Path
 
 from atemr.cli.command import commands
 from atemr.cli.signals import stop_on_signals
-from atemr.config import load_config
+from atemr.config import Config, load_config
 from atemr.logsetup import configure_logging
 from atemr.robot import build_robot
+
+log = logging.getLogger(__name__)
+
+#: How long the real robot's start-up check waits for its devices to answer, in seconds.
+STARTUP_CHECK_S = 5.0
 
 
 class RunCommand:
@@ -49,6 +58,14 @@ class RunCommand:
             },
         )
         configure_logging(config.log_level)
+        if not config.simulation:
+            missing = startup_check(config)
+            if missing:
+                for line in missing:
+                    print(f"atemr run: {line}", file=sys.stderr)
+                print("atemr run: not started (the robot was not powered off); 'atemr hw check' shows every "
+                      "device", file=sys.stderr)
+                return 1
         robot = build_robot(config, realtime=True)
 
         with stop_on_signals(robot.stop), robot:
@@ -61,7 +78,31 @@ class RunCommand:
                       f"from another terminal of this user", flush=True)
             robot.run(duration=args.duration)
         print("ATEMR stopped.", flush=True)
+        agent = robot.parts.get("agent")
+        if getattr(agent, "halted", False) and config.power_off_command:
+            return power_off(config.power_off_command)
         return 0
+
+
+def startup_check(config: Config) -> list[str]:
+    """One line per critical device that does not answer within a few seconds, before anything starts: a
+    robot missing its lidar must not boot into STARTUP, fail there and acknowledge a power-off."""
+    from atemr.io.devices.check import check_devices, missing_critical
+
+    rows = check_devices(config, seconds=STARTUP_CHECK_S, until_healthy=True)
+    return [f"{r.device} ({r.driver}{', ' + r.port if r.port else ''}) is missing: {r.detail}"
+            for r in missing_critical(rows)]
+
+
+def power_off(command: str) -> int:
+    """Run ``power_off_command`` once the power-off is acknowledged (``systemctl poweroff`` on the robot)."""
+    argv = shlex.split(command)
+    log.warning("power-off acknowledged: running %s", argv)
+    try:
+        return subprocess.run(argv, check=False).returncode  # the operator's own configured command
+    except OSError as exc:
+        log.error("power_off_command %r failed: %s", command, exc)
+        return 1
 
 
 commands.add("run", RunCommand())

@@ -98,7 +98,8 @@ def mission_runnable(g: GuardInput) -> str | None:
 
 @guards.register("level1_ok")
 def level1_ok(g: GuardInput) -> str | None:
-    """AUTO only when the level-1 statuses are OK: heartbeat alive and every reported hardware part healthy."""
+    """AUTO only when the level-1 statuses are OK: heartbeat alive, every reported hardware part healthy, and
+    the robot localized (AUTO drives by the map: a robot that does not know where it is must not)."""
     problems = []
     link = g.context.link
     if link is not None and not link.heartbeat_ok():
@@ -107,6 +108,8 @@ def level1_ok(g: GuardInput) -> str | None:
     bad = sorted(n for n, h in health.items() if n in HARDWARE_COMPONENTS and not h.ok)
     if bad:
         problems.append(f"unhealthy: {', '.join(bad)}")
+    if g.context.port.localized() is False:
+        problems.append("not localized: select a map and set the robot's pose")
     return f"level-1 status not OK ({'; '.join(problems)})" if problems else None
 
 

@@ -103,13 +103,19 @@ class MapStore:
         return load_map(self.path(name))
 
     # -- the active map ----------------------------------------------------------------------------
-    def active_name(self) -> str | None:
-        """The selected map, or the default built-in when none was selected or the selected one is gone."""
+    def selected_name(self) -> str | None:
+        """The map the operator selected, if it still exists; no fallback (the real robot starts on it or
+        on none)."""
         try:
             name = self._active_file.read_text(encoding="utf-8").strip()
         except OSError:
-            name = ""
-        if name and self.exists(name):
+            return None
+        return name if name and self.exists(name) else None
+
+    def active_name(self) -> str | None:
+        """The selected map, or the default built-in when none was selected or the selected one is gone."""
+        name = self.selected_name()
+        if name is not None:
             return name
         if DEFAULT_MAP in self.builtins:
             return DEFAULT_MAP

@@ -27,14 +27,17 @@ from atemr.errors import AtemrError, HardwareError
 from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.fsm.recording import AgentRecorder
 from atemr.io.can.supervisor import BusSupervisor
+from atemr.io.devices.base import fresh
+from atemr.io.devices.drivers import DeviceContext, build_devices, driver_name, needs_world
 from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.secondary_link import build_secondary_link
+from atemr.io.sim.simulation import Simulation
 from atemr.io.system_monitor import SystemMonitor
 from atemr.io.trace_file import SUFFIX, TraceWriter
 from atemr.msgs import Twist, WheelSpeeds
 from atemr.robot.core import Robot, Ticker
-from atemr.robot.health import FRESH_S, HealthBoard, fresh
+from atemr.robot.health import FRESH_S, HealthBoard
 from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
@@ -89,8 +92,8 @@ def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = 
     health = HealthBoard(clock.now)
     robot.extras["health"] = health
 
-    if config.simulation:
-        _add_simulation(robot, health)
+    sim = _add_simulation(robot) if needs_world(config) else None
+    _add_devices(robot, health, sim)
     _add_primary(robot, inputs, health, settings)
     _add_localization(robot)
     _add_agent(robot)
@@ -126,8 +129,11 @@ def _add_localization(robot: Robot) -> None:
     """Odometry fusion + AMCL against the active map, and the map service (active map, mapping)."""
     cfg = robot.config
     sim = robot.extras.get("sim")
+    devices = robot.devices
     driver: RmdDriver = robot.extras["driver"]
-    builtins = dict(BUILTIN_MAPS)
+    # The shipped maps are maps of simulated worlds: a robot without one is offered only the maps it made
+    # or was given.
+    builtins = dict(BUILTIN_MAPS) if sim is not None else {}
     if sim is not None and sim.world.source is not None:
         builtins.setdefault(sim.world.name, sim.world.source)
     store = MapStore(cfg.data_dir, builtins=builtins)
@@ -140,17 +146,20 @@ def _add_localization(robot: Robot) -> None:
         localization.on_wheels(now, driver.feedback())
 
     robot.add(Ticker("wheel_odometry", feed_wheels), RATES["odometry"])
-    robot.add(localization, cfg.sim.lidar_hz if sim is not None else RATES["localization"])
-    if sim is not None:
-        sim.lidar_source.subscribe(localization.on_scan)
-        sim.lidar_source.subscribe(maps.on_scan)
-        sim.imu_source.subscribe(localization.on_imu)
+    simulated_lidar = driver_name(cfg, "lidar") == "sim"
+    robot.add(localization, cfg.sim.lidar_hz if simulated_lidar else RATES["localization"])
+    devices.lidar.subscribe(localization.on_scan)
+    devices.lidar.subscribe(maps.on_scan)
+    devices.imu.subscribe(localization.on_imu)
+    if cfg.simulation and sim is not None:
         # The simulated robot starts where its world says, on that world's map, localized there: as if
         # the operator had selected the map and clicked the initial pose.
         maps.activate(sim.world.name, sim.world.map)
         localization.set_initial_pose(robot.clock.now(), sim.world.start)
     else:
-        name = store.active_name()
+        # A real robot starts unlocalized, on the map the operator last selected (if any): never on a map
+        # it was not given, and never at a pose nobody set.
+        name = store.selected_name()
         if name is not None:
             maps.activate(name)
 
@@ -158,11 +167,12 @@ def _add_localization(robot: Robot) -> None:
 def _add_agent(robot: Robot) -> None:
     """The agent (lifecycle + trees + Monitor) over the robot's ports; when it halts, the robot stops."""
     cfg = robot.config
-    sim = robot.extras.get("sim")
+    devices = robot.devices
+    camera = devices.camera
     port = RobotPortImpl(
         now=robot.clock.now, inputs=robot.extras["inputs"], health=robot.extras["health"],
         localization=robot.extras["localization"], maps=robot.extras["maps"],
-        camera=(lambda: sim.camera_source.latest) if sim is not None else (lambda: None),
+        camera=(lambda: camera.latest) if camera is not None else (lambda: None),
         images_dir=cfg.data_dir / "media" / "images", wall_time=WallClock().wall_time,
     )
     control: MotionControl = robot.parts["motion"]  # type: ignore[assignment]
@@ -172,7 +182,7 @@ def _add_agent(robot: Robot) -> None:
 
     navigation = RobotNavigation(
         robot.extras["maps"], robot.extras["localization"],
-        scan=(lambda: sim.lidar_source.latest) if sim is not None else (lambda: None), velocity=measured,
+        scan=lambda: devices.lidar.latest, velocity=measured,
         params=cfg.nav.nav_params(robot.extras["pipeline"].limits),
     )
     link = robot.parts["secondary_link"]
@@ -216,35 +226,50 @@ def _add_recorder(robot: Robot) -> None:
     robot.add(writer, 1.0)
 
 
-def _add_simulation(robot: Robot, health: HealthBoard) -> None:
-    """The simulated world, the two motor emulators and the emulated secondary core."""
+def _add_simulation(robot: Robot) -> Simulation:
+    """The simulated world, with the emulated CAN devices the configuration asks for in it.
+
+    With ``emulated`` motors, the two motor emulators answer on the robot's bus and their models are the
+    simulated base's wheels; with real motors, the world's wheels are models nobody commands (the world then
+    only feeds the simulated sensors, for bench work). With an ``emulated`` secondary core, the emulated board
+    answers on the bus and reads the world's cliff sensors.
+    """
     from atemr.io.motors.emulator import RmdMotorEmulator
     from atemr.io.sim.base import MountedWheel
     from atemr.io.sim.simulation import build_simulation, params_from_config
     from secondary_core.wiring import emulated_secondary
 
     cfg = robot.config
-    left = RmdMotorEmulator(robot.open_bus(), cfg.motors.left_id, name="left_motor_emulator", steps_model=False)
-    right = RmdMotorEmulator(robot.open_bus(), cfg.motors.right_id, name="right_motor_emulator", steps_model=False)
-    wheels = (MountedWheel(left.model, cfg.motors.left_direction),
-              MountedWheel(right.model, cfg.motors.right_direction))
+    emulators: list[RmdMotorEmulator] = []
+    wheels = None
+    if driver_name(cfg, "motors") == "emulated":
+        left = RmdMotorEmulator(robot.open_bus(), cfg.motors.left_id, name="left_motor_emulator", steps_model=False)
+        right = RmdMotorEmulator(robot.open_bus(), cfg.motors.right_id, name="right_motor_emulator",
+                                 steps_model=False)
+        emulators = [left, right]
+        wheels = (MountedWheel(left.model, cfg.motors.left_direction),
+                  MountedWheel(right.model, cfg.motors.right_direction))
     sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params_from_config(cfg.sim), wheels=wheels)
     robot.extras["sim"] = sim
     for component, rate in sim.components():
         robot.add(component, rate)
-    robot.add(left, RATES["motor_emulator"])
-    robot.add(right, RATES["motor_emulator"])
-    for board_part, rate in emulated_secondary(cfg, robot.open_bus(), lambda: sim.cliff_source.latest):
-        robot.add(board_part, rate)
+    for emulator in emulators:
+        robot.add(emulator, RATES["motor_emulator"])
+    if driver_name(cfg, "secondary") == "emulated":
+        for board_part, rate in emulated_secondary(cfg, robot.open_bus(), lambda: sim.cliff_source.latest):
+            robot.add(board_part, rate)
+    return sim
 
-    def latest_t(source: object) -> float | None:
-        reading = getattr(source, "latest", None)
-        return getattr(reading, "t", None) if reading is not None else None
 
-    health.add("lidar", lambda now: fresh(latest_t(sim.lidar_source), now, FRESH_S["lidar"], "scan"))
-    health.add("imu", lambda now: fresh(latest_t(sim.imu_source), now, FRESH_S["imu"], "IMU sample"))
-    if sim.params.camera_hz > 0:
-        health.add("camera", lambda now: ComponentHealth(sim.camera_source.latest is not None, "no frame yet"))
+def _add_devices(robot: Robot, health: HealthBoard, sim: Simulation | None) -> None:
+    """The lidar, the IMU and the camera with their configured drivers (`atemr.io.devices.drivers`): the only
+    way the rest of the robot reads its sensors. Each reports its own health under its kind's name."""
+    devices = build_devices(DeviceContext(robot.config, robot.clock.now, sim))
+    robot.devices = devices
+    for device in devices.all():
+        if device.rate_hz is not None:
+            robot.add(device, device.rate_hz)
+        health.add(device.name, device.health)
 
 
 #: The safety-stop reason held while the CAN bus is faulted (`MotionInputs.set_safety_stop`).
@@ -285,7 +310,7 @@ def _add_can_bus(robot: Robot, inputs: MotionInputs, health: HealthBoard) -> Bus
 def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settings: SettingsStore) -> None:
     """The primary core: CAN bus supervisor, secondary-core link, motion control, motor driver, odometry."""
     cfg = robot.config
-    sim = robot.extras.get("sim")
+    lidar = robot.devices.lidar
     can_bus = _add_can_bus(robot, inputs, health)
 
     def on_heartbeat(ok: bool) -> None:
@@ -314,8 +339,7 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
     robot.extras["pipeline"] = pipeline
 
     def read(now: float) -> ControlInputs:
-        scan = sim.lidar_source.latest if sim is not None else None
-        return inputs.control_inputs(now, scan, link.latest_cliff())
+        return inputs.control_inputs(now, lidar.latest, link.latest_cliff())
 
     def command(wheels: WheelSpeeds) -> None:
         # A latched motor fault already stops both motors (the driver keeps sending the stop); the

@@ -15,6 +15,7 @@ import can
 from atemr.clock import Clock
 from atemr.config import Config
 from atemr.io.can.bus import open_bus
+from atemr.io.devices.drivers import Devices
 from atemr.scheduler import Component, Scheduler
 
 log = logging.getLogger(__name__)
@@ -56,7 +57,20 @@ class Robot:
     extras: dict[str, Any] = field(default_factory=dict)
     #: CAN buses opened for the parts; closed after every part has shut down.
     buses: list[can.BusABC] = field(default_factory=list)
+    #: The sensors behind the device interface; set by `build_robot` before anything reads them.
+    _devices: Devices | None = None
     _events_lock: threading.Lock = field(default_factory=threading.Lock)
+
+    @property
+    def devices(self) -> Devices:
+        """The lidar, IMU and camera (`atemr.io.devices.drivers.Devices`)."""
+        if self._devices is None:
+            raise RuntimeError("the robot's devices are not built yet")
+        return self._devices
+
+    @devices.setter
+    def devices(self, devices: Devices) -> None:
+        self._devices = devices
 
     def add(self, component: Component, rate_hz: float) -> None:
         """Schedule ``component`` and make it reachable as ``robot.parts[name]``."""

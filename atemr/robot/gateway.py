@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from atemr.clock import WallClock
 from atemr.errors import AtemrError, ConfigError
 from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
+from atemr.io.devices.drivers import camera_rate_hz
 from atemr.io.map_store import MapStore
 from atemr.io.secondary_link import SecondaryLink
 from atemr.msgs import Pose2D, Twist
@@ -107,6 +108,7 @@ class RobotGatewayImpl:
         self.maps: MapService = robot.extras["maps"]
         self.store: MapStore = robot.extras.get("map_store") or self.maps.store
         self.sim: Any = robot.extras.get("sim")
+        self.camera = robot.devices.camera
         self.link = cast(SecondaryLink, robot.parts["secondary_link"])
         self.missions_dir = (self.config.agent.file or DEFAULT_AGENT_FILE).parent / "missions"
         self._lock = threading.Lock()
@@ -122,10 +124,10 @@ class RobotGatewayImpl:
         self._wifi_ssid: str | None = None
         robot.add(_Pump(self), pump_rate_hz)
         self.recorder: VideoRecorder | None = None
-        if self.sim is not None and self.sim.params.camera_hz > 0:
+        if self.camera is not None:
             self.recorder = VideoRecorder(self.config.data_dir / "media" / "videos", self._camera_frame,
                                           WallClock().wall_time)
-            robot.add(self.recorder, self.sim.params.camera_hz)
+            robot.add(self.recorder, camera_rate_hz(self.config))
 
     # -- the robot's thread ------------------------------------------------------------------------------
     def _pump(self, now: float) -> None:
@@ -172,9 +174,9 @@ class RobotGatewayImpl:
     # -- reading -----------------------------------------------------------------------------------------
     def _camera_frame(self) -> tuple[object, bytes] | None:
         """The newest camera frame and its JPEG, encoded once per frame whoever asks."""
-        if self.sim is None:
+        if self.camera is None:
             return None
-        frame: NDArray[np.uint8] | None = self.sim.camera_source.latest
+        frame: NDArray[np.uint8] | None = self.camera.latest
         if frame is None:
             return None
         with self._lock:
@@ -240,7 +242,7 @@ class RobotGatewayImpl:
             "missions": self.missions(),
             "maps": self._listing_of("maps", self.store.dir, self.store.names),
         }
-        scan = self.sim.lidar_source.latest if self.sim is not None else None
+        scan = self.robot.devices.lidar.latest
         if scan is not None and pose is not None:
             out["scan"] = points_json(scan_points(scan, pose))
         status, goal = self._navigation()

@@ -6,24 +6,14 @@ server while it is serving. Names follow the 0x153 hardware bits (`atemr.trees.p
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from atemr.trees.ports import ComponentHealth
 
-#: How old a sensor's newest reading may be before the sensor counts as silent, in seconds.
-FRESH_S = {"lidar": 0.5, "imu": 0.2, "ir": 0.5}
-
-
-def fresh(t: float | None, now: float, max_age_s: float, what: str) -> ComponentHealth:
-    """Healthy when a reading from time ``t`` is at most ``max_age_s`` old at ``now``."""
-    if t is None:
-        return ComponentHealth(False, f"no {what} yet")
-    age = now - t
-    if not math.isfinite(age) or age > max_age_s:
-        return ComponentHealth(False, f"{what} silent for {age:.1f} s")
-    return ComponentHealth(True)
+#: How old the secondary core's newest IR frame may be before the cliff sensors count as silent, in seconds
+#: (the lidar, IMU and camera judge their own freshness: `atemr.io.devices`).
+FRESH_S = {"ir": 0.5}
 
 
 @dataclass

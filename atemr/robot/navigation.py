@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.robot.mapping import MapService
 from atemr.skills.localization.pipeline import LocalizationPipeline
@@ -22,12 +23,20 @@ class RobotNavigation(NavigatorPort):
     def __init__(self, maps: MapService, localization: LocalizationPipeline,
                  scan: Callable[[], LaserScan | None], velocity: Callable[[], Twist | None],
                  params: NavParams | None = None) -> None:
-        if maps.active is None:
-            raise ValueError("navigation needs an active map (the map store always offers the built-in one)")
-        super().__init__(Navigator(maps.active, params), pose=localization.map_pose, scan=scan,
-                         localized=lambda: localization.localized, velocity=velocity)
-        maps.on_map_change(self.navigator.set_map)
+        super().__init__(None, pose=localization.map_pose, scan=scan, localized=lambda: localization.localized,
+                         velocity=velocity)
+        self.params = params
+        if maps.active is not None:
+            self._use_map(maps.active)
+        maps.on_map_change(self._use_map)
+
+    def _use_map(self, grid: OccupancyMap) -> None:
+        """The navigator plans on the active map; a robot that starts without one gets it with the first map."""
+        if self.navigator is None:
+            self.navigator = Navigator(grid, self.params)
+        else:
+            self.navigator.set_map(grid)
 
     @property
     def goal(self) -> Pose2D | None:
-        return self.navigator.goal
+        return None if self.navigator is None else self.navigator.goal

@@ -11,21 +11,25 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
+from atemr.errors import NavigationError
 from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.skills.nav.navigator import Navigator, NavStatus
 from atemr.trees.ports import NavProgress
 
 _NO_POSE = Pose2D(math.nan, math.nan, math.nan)
+#: Why a goal is refused on a robot without a map (a real robot's first start).
+NO_MAP = "no map is selected: select a map (or make one in MAPPING) and set the robot's pose first"
 
 
 class NavigatorPort:
     """The agent's navigation: ``Agent(spec, port, link, navigation=NavigatorPort(navigator, ...))``.
 
     ``pose`` gives the map-frame pose (None before any), ``scan`` the latest lidar scan (None: none yet),
-    ``localized`` whether the pose can be trusted, ``velocity`` the measured twist if known.
+    ``localized`` whether the pose can be trusted, ``velocity`` the measured twist if known. Without a
+    navigator (a robot that has no map yet) every goal is refused with `NO_MAP`.
     """
 
-    def __init__(self, navigator: Navigator, *, pose: Callable[[], Pose2D | None],
+    def __init__(self, navigator: Navigator | None, *, pose: Callable[[], Pose2D | None],
                  scan: Callable[[], LaserScan | None] = lambda: None, localized: Callable[[], bool] = lambda: True,
                  velocity: Callable[[], Twist | None] = lambda: None) -> None:
         self.navigator = navigator
@@ -33,13 +37,19 @@ class NavigatorPort:
         self.last_status: NavStatus | None = None
 
     def check_goal(self, goal: Pose2D) -> str | None:
+        if self.navigator is None:
+            return NO_MAP
         verdict = self.navigator.check(goal, localized=self._localized(), mode="AUTO")
         return None if verdict.ok else verdict.reason
 
     def start(self, goal: Pose2D, now: float, route: Sequence[Sequence[float]] | None = None) -> None:
+        if self.navigator is None:
+            raise NavigationError(NO_MAP)
         self.navigator.start(goal, now, localized=self._localized(), mode="AUTO", route=route)
 
     def update(self, now: float) -> NavProgress:
+        if self.navigator is None:
+            return NavProgress("FAILED", reason=NO_MAP)
         pose = self._pose()
         status = self.navigator.update(now, pose if pose is not None else _NO_POSE, self._scan(),
                                        self._localized(), self._velocity())
@@ -48,4 +58,5 @@ class NavigatorPort:
         return NavProgress(status.state, status.twist, status.distance_left_m, status.eta_s, reason)
 
     def cancel(self, now: float) -> None:
-        self.last_status = self.navigator.cancel(now)
+        if self.navigator is not None:
+            self.last_status = self.navigator.cancel(now)
