@@ -1,8 +1,13 @@
 """The DBC file shipped with the package: the whole bus (inter-core protocol and RMD motors) for CAN tools.
 
 cantools, SavvyCAN, Vector tools and ``candump | cantools decode`` read it to decode a capture of this
-robot's bus. The codec in `atemr.io.can.protocol` is the authority; a test decodes codec output with
-this file and checks the values agree.
+robot's bus. The codecs in `atemr.io.can.protocol` and `atemr.io.motors.rmd_protocol` are the authority;
+a test decodes codec output with this file and checks the values agree.
+
+The motors appear in both protocol versions the RMD-L ships with: ``RMD_MOTOR_1``/``_2`` (0x141/0x142)
+describe MyActuator's protocol V1.61, whose requests and replies share that ID, and ``RMD_V4_REPLY_1``/``_2``
+(0x241/0x242) the replies of protocol V4.2, whose requests keep the V1.61 layout on 0x141/0x142. Which one a
+capture holds follows the robot's ``devices.motors.protocol`` setting (``atemr can decode --protocol``).
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 `DriveMotors` is the template: it owns what every motor pair must do whatever the wire — the 0.5 s
 command watchdog, the fault latch ("one motor silent or in error → both stop and the agent is told"),
 idempotent shutdown and context management. `RmdDriver` owns the wire: MyActuator RMD-L frames on a
-python-can bus, polled in `tick` (no threads, so a simulation stays deterministic).
+python-can bus, polled in `tick` (no threads, so a simulation stays deterministic), in either protocol
+version the RMD-L ships with (``protocol``: ``v1`` = V1.61 or ``v4`` = V4.2, `atemr.io.motors.rmd_protocol`).
 
 Units at this API are wheel speeds in rad/s, positive driving the robot forward on either side
 (`atemr.msgs.WheelSpeeds`); each motor's mounting direction (``+1``/``-1``) is applied inside.
@@ -23,16 +24,9 @@ import can
 from atemr.config import MotorsConfig
 from atemr.errors import BusError, HardwareError, ProtocolError
 from atemr.io.can.protocol import is_protocol_id
-from atemr.io.motors.rmd_codec import (
-    MotorErrorFlags,
-    RmdCommand,
-    RmdRequest,
-    Status1Reply,
-    Status2Reply,
-    _flag_names,
-    decode_reply,
-    motor_can_id,
-)
+from atemr.io.motors.rmd_codec import MotorErrorFlags, RmdCommand, RmdRequest, Status1Reply, Status2Reply
+from atemr.io.motors.rmd_protocol import AnyReply, RmdProtocol, rmd_protocol
+from atemr.io.motors.rmd_v4 import V4Status1Reply, V4Status2Reply
 from atemr.msgs import WheelSpeeds
 
 log = logging.getLogger(__name__)
@@ -40,13 +34,19 @@ log = logging.getLogger(__name__)
 SIDES = ("left", "right")
 
 
-def check_motor_ids(motor_ids: tuple[int, ...], *, component: str) -> None:
-    """Refuse motor ids whose CAN ID (0x140 + id) is one of the inter-core protocol's 0x150-0x157."""
+def check_motor_ids(motor_ids: tuple[int, ...], *, component: str, protocol: str | RmdProtocol = "v1") -> None:
+    """Refuse motor ids whose request or reply ID (0x140 + id; V4.2 replies 0x240 + id) is one of the inter-core
+    protocol's 0x150-0x157: the two would be taken for each other."""
+    codec = rmd_protocol(protocol)
     for motor_id in motor_ids:
-        can_id = motor_can_id(motor_id)
-        if is_protocol_id(can_id):
-            raise HardwareError(f"motor id {motor_id} would use 0x{can_id:03X}, an ID of the inter-core protocol; "
-                                f"use 1-15 or 24-32", component=component)
+        try:
+            can_ids = (codec.request_id(motor_id), codec.reply_id(motor_id))
+        except ProtocolError as exc:
+            raise HardwareError(str(exc), component=component) from None
+        for can_id in can_ids:
+            if is_protocol_id(can_id):
+                raise HardwareError(f"motor id {motor_id} would use 0x{can_id:03X}, an ID of the inter-core "
+                                    f"protocol; use 1-15 or 24-32", component=component)
 
 
 def wheel_speeds_from_mps(left_mps: float, right_mps: float, wheel_radius_m: float) -> WheelSpeeds:
@@ -65,12 +65,17 @@ def wheel_speeds_to_mps(speeds: WheelSpeeds, wheel_radius_m: float) -> tuple[flo
 
 @dataclass(frozen=True)
 class MotorState:
-    """What is known about one motor from its last replies (wheel frame: forward positive)."""
+    """What is known about one motor from its last replies (wheel frame: forward positive).
+
+    Status 2 carries the shaft position as V1.61's 14-bit ``encoder`` or as V4.2's output-shaft ``angle_rad``
+    (int16 degrees); the other stays at its default.
+    """
 
     side: str
     motor_id: int
     speed_radps: float = 0.0
     encoder: int = 0
+    angle_rad: float | None = None
     current_a: float = 0.0
     temperature_c: int = 0
     voltage_v: float = 0.0
@@ -236,10 +241,17 @@ class DriveMotors(ABC):
 class RmdDriver(DriveMotors):
     """Two RMD-L-7015 on ``bus`` (its own Bus instance; closed by `shutdown` when ``close_bus``).
 
-    Every tick sends a SPEED_CONTROL to each motor (its reply is status 2: speed, encoder, current) and
+    Every tick sends a SPEED_CONTROL to each motor (its reply is status 2: speed, position, current) and
     every ``status_period_s`` a READ_STATUS_1 (temperature, voltage, error flags). Schedule it at
     ``rate_hz`` ≥ 20 so a silent motor is noticed within ``silence_timeout_s``.
     ``directions`` is the sign that turns a forward wheel speed into that motor's shaft speed.
+
+    ``protocol`` (``v1`` or ``v4``, the ``devices.motors.protocol`` setting) is the version the motors speak:
+    the driver listens for replies on that version's IDs (0x140 + id, or 0x240 + id) and sends only commands
+    it has. V4.2 has no MOTOR_RUN (`motor_on` just lets the next speed command resume) and no CLEAR_ERRORS:
+    its level-2 errors (under-voltage, over-temperature, ...) clear by themselves once the cause is gone, so
+    the driver only polls status 1; its level-1 errors (stall, over-current) need the motor checked and
+    restarted, which is an operator's decision (`system_reset`), never the driver's own.
     """
 
     def __init__(self, bus: can.BusABC, *, left_id: int = 1, right_id: int = 2,
@@ -247,12 +259,13 @@ class RmdDriver(DriveMotors):
                  command_timeout_s: float = 0.5, silence_timeout_s: float = 0.3,
                  on_fault: Callable[[HardwareError], None] | None = None,
                  on_watchdog: Callable[[WatchdogEvent], None] | None = None,
-                 name: str = "motors", close_bus: bool = True) -> None:
+                 name: str = "motors", close_bus: bool = True, protocol: str | RmdProtocol = "v1") -> None:
         super().__init__(command_timeout_s=command_timeout_s, silence_timeout_s=silence_timeout_s,
                          on_fault=on_fault, on_watchdog=on_watchdog)
         if left_id == right_id:
             raise HardwareError(f"left and right motor share id {left_id}", component=name)
-        check_motor_ids((left_id, right_id), component=name)
+        self.protocol = rmd_protocol(protocol)
+        check_motor_ids((left_id, right_id), component=name, protocol=self.protocol)
         if any(d not in (1, -1) for d in directions):
             raise HardwareError(f"directions must be +1 or -1, got {directions}", component=name)
         self.bus = bus
@@ -261,21 +274,22 @@ class RmdDriver(DriveMotors):
         self.status_period_s = status_period_s
         self.ids = {"left": left_id, "right": right_id}
         self.directions = dict(zip(SIDES, directions, strict=True))
-        self._by_can_id = {motor_can_id(mid): side for side, mid in self.ids.items()}
+        self._by_reply_id = {self.protocol.reply_id(mid): side for side, mid in self.ids.items()}
         self.states = {side: MotorState(side, mid) for side, mid in self.ids.items()}
         self.bad_frames = 0
         self.output_off = False
         self._last_status1_t: float | None = None
 
     @classmethod
-    def from_config(cls, bus: can.BusABC, config: MotorsConfig, *,
+    def from_config(cls, bus: can.BusABC, config: MotorsConfig, *, protocol: str | RmdProtocol = "v1",
                     on_fault: Callable[[HardwareError], None] | None = None,
                     on_watchdog: Callable[[WatchdogEvent], None] | None = None) -> RmdDriver:
-        """The driver described by the ``motors`` configuration section (schedule it at ``config.rate_hz``)."""
+        """The driver described by the ``motors`` configuration section (schedule it at ``config.rate_hz``);
+        ``protocol`` is ``devices.motors.protocol``, which lives in another section."""
         return cls(bus, left_id=config.left_id, right_id=config.right_id,
                    directions=(config.left_direction, config.right_direction), status_period_s=config.status_period_s,
                    command_timeout_s=config.command_timeout_s, silence_timeout_s=config.silence_timeout_s,
-                   on_fault=on_fault, on_watchdog=on_watchdog)
+                   on_fault=on_fault, on_watchdog=on_watchdog, protocol=protocol)
 
     # -- readings -------------------------------------------------------------------------------
     def feedback(self) -> WheelSpeeds:
@@ -290,30 +304,29 @@ class RmdDriver(DriveMotors):
     # -- wire -----------------------------------------------------------------------------------
     def start(self) -> None:
         """Ask both motors for status 1 so the first tick already has an answer to read."""
+        self._send_both(RmdCommand.READ_STATUS_1)
+
+    def _send(self, motor_id: int, command: RmdCommand, speed_radps: float = 0.0) -> None:
+        """One request, refused (`ProtocolError`) if the motors' protocol version has no such command."""
+        self.bus.send(self.protocol.encode_request(RmdRequest(motor_id, command, speed_radps)))
+
+    def _send_both(self, command: RmdCommand) -> None:
         for side in SIDES:
-            self.bus.send(RmdRequest(self.ids[side], RmdCommand.READ_STATUS_1).encode())
+            self._send(self.ids[side], command)
 
     def _receive(self, now: float) -> None:
         while (msg := self.bus.recv(timeout=0)) is not None:
-            side = self._by_can_id.get(msg.arbitration_id)
+            side = self._by_reply_id.get(msg.arbitration_id)
             if side is None or msg.is_extended_id:
                 continue
             try:
-                reply = decode_reply(msg)
+                reply = self.protocol.decode_reply(msg)
             except ProtocolError as exc:
                 self.bad_frames += 1
                 log.warning("%s: bad reply from the %s motor: %s", self.name, side, exc)
                 continue
-            state = replace(self.states[side], last_reply_t=now)
-            sign = self.directions[side]
-            if isinstance(reply, Status2Reply):
-                state = replace(state, speed_radps=sign * reply.speed_radps, encoder=reply.encoder,
-                                current_a=sign * reply.current_a, temperature_c=reply.temperature_c,
-                                last_feedback_t=now)
-            elif isinstance(reply, Status1Reply):
-                state = replace(state, temperature_c=reply.temperature_c, voltage_v=reply.voltage_v,
-                                errors=reply.errors)
-            self.states[side] = state
+            self.states[side] = _updated(replace(self.states[side], last_reply_t=now), reply,
+                                         self.directions[side], now)
 
     def _health(self, now: float) -> HardwareError | None:
         assert self._started_t is not None
@@ -323,28 +336,26 @@ class RmdDriver(DriveMotors):
                 return HardwareError(f"{side} motor (id {state.motor_id}) silent for {now - since:.2f} s",
                                      component=self.name, critical=True)
             if state.errors:
-                return HardwareError(f"{side} motor (id {state.motor_id}) reports {_flag_names(state.errors)}",
-                                     component=self.name, critical=True)
+                return HardwareError(f"{side} motor (id {state.motor_id}) reports "
+                                     f"{self.protocol.error_text(state.errors)}", component=self.name, critical=True)
         return None
 
     def _exchange(self, command: WheelSpeeds, now: float) -> None:
         speeds = {"left": command.left_radps, "right": command.right_radps}
         for side in SIDES:
             if self.fault is None and not self.output_off:
-                shaft = self.directions[side] * speeds[side]
-                self.bus.send(RmdRequest(self.ids[side], RmdCommand.SPEED_CONTROL, shaft).encode())
+                self._send(self.ids[side], RmdCommand.SPEED_CONTROL, self.directions[side] * speeds[side])
             else:  # no speed commands after a fault or motor_off; status 2 keeps the feedback (odometry) fresh
-                self.bus.send(RmdRequest(self.ids[side], RmdCommand.READ_STATUS_2).encode())
+                self._send(self.ids[side], RmdCommand.READ_STATUS_2)
         if self._last_status1_t is None or now - self._last_status1_t >= self.status_period_s - 1e-9:
             self._last_status1_t = now
             for side in SIDES:
                 if self.fault is not None:  # repeat the stop: the first one may have been lost with the link
-                    self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_STOP).encode())
-                self.bus.send(RmdRequest(self.ids[side], RmdCommand.READ_STATUS_1).encode())
+                    self._send(self.ids[side], RmdCommand.MOTOR_STOP)
+                self._send(self.ids[side], RmdCommand.READ_STATUS_1)
 
     def _stop_now(self, now: float) -> None:
-        for side in SIDES:
-            self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_STOP).encode())
+        self._send_both(RmdCommand.MOTOR_STOP)
 
     def brake(self, now: float) -> None:
         """Emergency stop: MOTOR_STOP to both motors at once (no ramp) and zero as the command."""
@@ -352,10 +363,11 @@ class RmdDriver(DriveMotors):
         self._stop_now(now)
 
     def motor_on(self) -> None:
-        """MOTOR_RUN to both motors and speed commands again (after `motor_off`, or a MOTOR_STOP from another node)."""
+        """Speed commands again (after `motor_off`, or a MOTOR_STOP from another node): V1.61 motors are sent
+        MOTOR_RUN first; V4.2 has no such command, its next speed command resumes."""
         self.output_off = False
-        for side in SIDES:
-            self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_RUN).encode())
+        if self.protocol.run_command is not None:
+            self._send_both(self.protocol.run_command)
 
     def motor_off(self) -> None:
         """MOTOR_OFF to both motors: output off, the wheels coast (power-off, after the robot has stopped).
@@ -363,40 +375,58 @@ class RmdDriver(DriveMotors):
         No speed command is sent until `motor_on` (a speed command would switch a motor back on).
         """
         self.output_off = True
-        for side in SIDES:
-            self.bus.send(RmdRequest(self.ids[side], RmdCommand.MOTOR_OFF).encode())
+        self._send_both(RmdCommand.MOTOR_OFF)
 
     def request_error_clear(self) -> None:
-        """Send CLEAR_ERRORS to both motors but keep the fault latched: a motor drops only the flags whose cause
-        is gone, and its status-1 reply shows what remains (`clear_motor_errors` also resets the fault)."""
-        for side in SIDES:
-            self.bus.send(RmdRequest(self.ids[side], RmdCommand.CLEAR_ERRORS).encode())
+        """Ask both motors to clear their error flags but keep the fault latched; the status-1 replies show what
+        remains (`clear_motor_errors` also resets the fault).
+
+        V1.61: CLEAR_ERRORS, and a motor drops the flags whose cause is gone. V4.2 has no such command (its
+        level-2 errors clear by themselves), so this asks for status 1 to see them go.
+        """
+        self._send_both(self.protocol.clear_command or RmdCommand.READ_STATUS_1)
+
+    def system_reset(self) -> None:
+        """SYSTEM_RESET (0x76) to both V4.2 motors: they restart, the only way to clear a level-1 error (stall,
+        over-current) short of a power cycle. An operator's decision once the cause is checked; the driver never
+        sends it by itself. V1.61 has no such command: `HardwareError`."""
+        if RmdCommand.SYSTEM_RESET not in self.protocol.commands:
+            raise HardwareError(f"the motors speak {self.protocol.title}, which has no system reset; "
+                                f"clear_motor_errors sends {RmdCommand.CLEAR_ERRORS.name}", component=self.name)
+        self._send_both(RmdCommand.SYSTEM_RESET)
 
     def recover(self, now: float) -> str | None:
         """Clear the latched fault once its cause is gone (the agent's Error state calls this every tick while it
         waits): None when nothing is latched any more, else why not yet.
 
         The fault is reset only once both motors have answered within ``silence_timeout_s`` (the driver keeps
-        polling them while faulted) and report no error flag; a motor still reporting a flag is sent
-        CLEAR_ERRORS (a flag whose cause is gone clears, and its next status-1 reply shows what remains).
+        polling them while faulted) and report no error flag; a motor still reporting a flag is asked to clear
+        it (`request_error_clear`: a flag whose cause is gone clears, and its next status-1 reply shows what
+        remains). A V4.2 level-1 error never clears this way: the reason says it needs `system_reset`.
         """
         if self.fault is None:
             return None
         for side, state in self.states.items():
             if state.last_reply_t is None or now - state.last_reply_t > self.silence_timeout_s:
                 return f"{side} motor (id {state.motor_id}) not answering"
-        flagged = [f"{side} motor reports {state.errors.name or f'0x{int(state.errors):02X}'}"
-                   for side, state in self.states.items() if state.errors]
+        flagged = [self._why_flagged(side, state.errors) for side, state in self.states.items() if state.errors]
         if flagged:
             self.request_error_clear()
             return "; ".join(flagged)
         self.clear_motor_errors()
         return None
 
+    def _why_flagged(self, side: str, errors: MotorErrorFlags) -> str:
+        why = f"{side} motor reports {self.protocol.error_text(errors)}"
+        if self.protocol.clear_command is None and errors & ~self.protocol.self_clearing(errors):
+            why += ", which needs a check and then a system reset (0x76) or a power cycle"
+        return why
+
     def clear_motor_errors(self) -> None:
-        """Send CLEAR_ERRORS to both motors (their replies refresh the error flags), then `reset_fault`."""
+        """Ask both motors to clear their error flags (`request_error_clear`), forget the flags they reported
+        (their next status-1 replies refresh them), then `reset_fault`."""
+        self.request_error_clear()
         for side in SIDES:
-            self.bus.send(RmdRequest(self.ids[side], RmdCommand.CLEAR_ERRORS).encode())
             self.states[side] = replace(self.states[side], errors=MotorErrorFlags.NONE)
         self.reset_fault()
 
@@ -410,3 +440,16 @@ class RmdDriver(DriveMotors):
     def _close(self) -> None:
         if self.close_bus:
             self.bus.shutdown()
+
+
+def _updated(state: MotorState, reply: AnyReply, sign: int, now: float) -> MotorState:
+    """``state`` with what ``reply`` (of either protocol version) says; speeds and currents signed by ``sign``."""
+    if isinstance(reply, Status2Reply | V4Status2Reply):
+        state = replace(state, speed_radps=sign * reply.speed_radps, current_a=sign * reply.current_a,
+                        temperature_c=reply.temperature_c, last_feedback_t=now)
+        if isinstance(reply, V4Status2Reply):
+            return replace(state, angle_rad=sign * reply.angle_rad)
+        return replace(state, encoder=reply.encoder)
+    if isinstance(reply, Status1Reply | V4Status1Reply):
+        return replace(state, temperature_c=reply.temperature_c, voltage_v=reply.voltage_v, errors=reply.errors)
+    return state

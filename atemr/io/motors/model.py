@@ -10,8 +10,9 @@ and temperature are accurate to first order in the step:
 * winding temperature rises with ``heating_c_per_a2s · I²`` and relaxes towards ambient with
   ``cooling_time_constant_s``;
 * error flags (over-temperature, under-voltage) come from the temperature and supply voltage, from
-  injected faults, and latch until cleared (0x9B) once their cause is gone; while any flag is set the
-  motor's output is off, as the real driver protects itself;
+  injected faults, and latch until cleared once their cause is gone — by V1.61's 0x9B (`clear_errors`), by
+  a V4.2 motor itself for its level-2 errors (`clear_errors` with ``only``), or by V4.2's 0x76 system reset
+  (`reset`); while any flag is set the motor's output is off, as the real driver protects itself;
 * "unplugged" cuts the motor's power: no output, and the emulator stops answering;
 * `comm_timeout` is the RMD's CAN communication-interruption protection tripping (the emulator trips it when
   no speed command has arrived for its ``comm_timeout_s``): the motor brakes to zero, forgets its command and
@@ -157,10 +158,20 @@ class RmdMotorModel:
         if self.mode is MotorMode.RUNNING:
             self.mode = MotorMode.STOPPED
 
-    def clear_errors(self) -> MotorErrorFlags:
-        """Clear error flags (0x9B): latched flags whose cause is gone are cleared; returns what remains."""
-        self._latched = self._conditions()
+    def clear_errors(self, only: MotorErrorFlags | None = None) -> MotorErrorFlags:
+        """Clear error flags (V1.61 0x9B): latched flags whose cause is gone are cleared; returns what remains.
+
+        ``only`` limits it to those flags: a V4.2 motor clears its level-2 errors by itself this way.
+        """
+        keep = self._latched & ~only if only is not None else MotorErrorFlags.NONE
+        self._latched = keep | self._conditions()
         return self.error_flags
+
+    def reset(self) -> None:
+        """System reset (V4.2 0x76): the motor restarts as after power-up, command cleared, and latches only the
+        errors whose cause is still there."""
+        self._latched = self._conditions()
+        self.plug()
 
     # -- faults ---------------------------------------------------------------------------------
     def inject_error(self, flags: MotorErrorFlags) -> None:
@@ -186,7 +197,7 @@ class RmdMotorModel:
     # -- readings -------------------------------------------------------------------------------
     @property
     def error_flags(self) -> MotorErrorFlags:
-        """The error flags the motor reports (0x9A byte 7)."""
+        """The error flags the motor reports (in its 0x9A status-1 reply)."""
         return self._latched | self._conditions()
 
     @property

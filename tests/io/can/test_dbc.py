@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from atemr.io.can import protocol as p
 from atemr.io.can.dbc import dbc_path, load_database
 from atemr.io.motors import rmd_codec as r
+from atemr.io.motors import rmd_v4 as v4
 
 DB = load_database()
 
@@ -77,3 +78,35 @@ def test_rmd_frames(
     s1 = r.Status1Reply(motor, r.RmdCommand.READ_STATUS_1, temp, volts, r.MotorErrorFlags(flags))
     v1 = cantools_values(s1)
     assert v1["s1_voltage"] == pytest.approx(s1.voltage_v) and v1["s1_error_flags"] == flags
+
+
+def test_dbc_names_the_protocol_versions() -> None:
+    assert "V1.61" in DB.get_message_by_name("RMD_MOTOR_1").comment
+    assert "V4.2" in DB.get_message_by_name("RMD_V4_REPLY_1").comment
+    assert {m.frame_id for m in DB.messages} >= {0x241, 0x242}
+
+
+def test_rmd_v4_document_examples() -> None:
+    s1 = dict(DB.decode_message(0x241, bytes.fromhex("9A 32 00 01 E5 01 04 00"), decode_choices=False))
+    assert s1 == {"command": 0x9A, "s1_temperature": 50, "s1_brake_released": 1, "s1_voltage": pytest.approx(48.5),
+                  "s1_error_state": 0x0004}
+    s2 = dict(DB.decode_message(0x242, bytes.fromhex("A2 32 64 00 F4 01 2D 00"), decode_choices=False))
+    assert s2 == {"command": 0xA2, "s2_temperature": 50, "s2_torque_current": pytest.approx(1.0), "s2_speed": 500,
+                  "s2_angle": 45}
+
+
+@settings(max_examples=60)
+@given(st.integers(1, 2), st.integers(-128, 127), st.floats(-300, 300), st.floats(-500, 500), st.floats(-500, 500),
+       st.floats(0, 60), st.integers(0, 0xFFFF), st.booleans())
+def test_rmd_v4_replies(
+    motor: int, temp: int, current: float, speed: float, angle: float, volts: float, code: int, brake: bool
+) -> None:
+    s2 = v4.V4Status2Reply(motor, r.RmdCommand.READ_STATUS_2, temp, current, speed, angle)
+    v2 = cantools_values(s2)
+    assert v2["s2_temperature"] == temp and v2["s2_torque_current"] == pytest.approx(s2.current_a)
+    assert v2["s2_speed"] == pytest.approx(math.degrees(s2.speed_radps))
+    assert v2["s2_angle"] == pytest.approx(math.degrees(s2.angle_rad))
+    s1 = v4.V4Status1Reply(motor, r.RmdCommand.READ_STATUS_1, temp, volts, v4.errors_from_wire(code), brake)
+    v1 = cantools_values(s1)
+    assert v1["s1_voltage"] == pytest.approx(s1.voltage_v) and v1["s1_error_state"] == code
+    assert v1["s1_brake_released"] == int(brake)

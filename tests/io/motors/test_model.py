@@ -141,3 +141,18 @@ def test_deterministic() -> None:
 def test_bad_parameters_are_refused() -> None:
     with pytest.raises(HardwareError, match="time_constant_s"):
         RmdMotorParams(time_constant_s=0.0)
+
+
+def test_clear_errors_only_some_and_reset() -> None:
+    """V4.2 motors clear level-2 errors by themselves (`clear_errors(only=...)`) and the rest on a system reset."""
+    model = RmdMotorModel()
+    model.inject_error(MotorErrorFlags.MOTOR_STALL | MotorErrorFlags.OVER_TEMPERATURE)
+    model.set_speed(3.0)
+    model.clear_injected()
+    assert model.clear_errors(only=MotorErrorFlags.OVER_TEMPERATURE) == MotorErrorFlags.MOTOR_STALL
+    model.voltage_v = 10.0
+    model.reset()  # restarts with its command cleared; an error whose cause is still there stays
+    assert model.error_flags == MotorErrorFlags.UNDER_VOLTAGE and model.command_radps == 0.0
+    model.voltage_v = 24.0
+    model.reset()
+    assert model.error_flags == MotorErrorFlags.NONE and model.output_enabled
