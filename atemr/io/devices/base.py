@@ -15,8 +15,10 @@ unhealthy device whose health says what is wrong and what to do about it.
 
 from __future__ import annotations
 
+import errno
 import logging
 import math
+import os
 import queue
 import threading
 from abc import ABC, abstractmethod
@@ -33,7 +35,8 @@ R_co = TypeVar("R_co", covariant=True)
 
 #: How long a reader waits before opening a port that failed again, in seconds.
 REOPEN_S = 0.25
-#: Readings a reader thread may hand over before the scheduler drains them; older ones are dropped.
+#: Readings a reader thread may hand over before the scheduler drains them; older ones are dropped (the
+#: default of `ThreadedDevice`'s ``queue_size``).
 QUEUE_SIZE = 64
 
 
@@ -45,6 +48,22 @@ def fresh(t: float | None, now: float, max_age_s: float, what: str) -> Component
     if not math.isfinite(age) or age > max_age_s:
         return ComponentHealth(False, f"{what} silent for {age:.1f} s")
     return ComponentHealth(True)
+
+
+def serial_port_hint(name: str, port: str, error: BaseException, *, device: str, udev_name: str) -> str:
+    """What to do when the serial ``port`` of ``device`` (as a sentence names it: "the WT901") failed to open
+    with ``error``: join the dialout group, plug the device in (``port`` is missing, or a link to a device
+    that is gone; ``udev_name`` is the stable name a udev rule can give it), or free it from another
+    program. ``name`` is the component's, which the hint starts with."""
+    code = getattr(error, "errno", None)
+    if code in (errno.EACCES, errno.EPERM) or isinstance(error, PermissionError):
+        return (f"{name}: no permission to open {port}: add the user to the dialout group "
+                f"(sudo usermod -aG dialout $USER, then log in again) ({error})")
+    if not os.path.exists(port):
+        dangling = " (a link to a device that is gone)" if os.path.lexists(port) else ""
+        return (f"{name}: {port} does not exist{dangling}: is {device} plugged in? "
+                f"(ls /dev/ttyUSB*; a udev rule can name it {udev_name})")
+    return f"{name}: cannot open {port} ({error}): is another program using it?"
 
 
 @dataclass(frozen=True)
@@ -123,19 +142,25 @@ class ThreadedDevice(ABC, Generic[R]):
     Subclasses implement `_open` (open the port, configure the device, return a short description such as
     the model), `_read` (block briefly, return the readings decoded so far, raise `OSError` when the port
     fails) and `_close`. ``now`` is the robot's clock, used to stamp readings as they arrive; ``max_age_s``
-    is how old the newest reading may be before the device counts as silent.
+    is how old the newest reading may be before the device counts as silent; ``queue_size`` is how many
+    readings wait for the scheduler at most (when it stalls, the oldest are dropped and counted in
+    ``dropped``): a device with large readings, such as a camera's frames, keeps fewer.
     """
 
     #: Readings are handed over on the scheduler's thread this often (a lidar revolution is 0.1 s).
     rate_hz: float | None = 50.0
 
-    def __init__(self, name: str, *, now: Callable[[], float], max_age_s: float, port: str | None = None) -> None:
+    def __init__(self, name: str, *, now: Callable[[], float], max_age_s: float, port: str | None = None,
+                 queue_size: int = QUEUE_SIZE) -> None:
+        if queue_size < 1:
+            raise ValueError(f"{name}: queue_size must be at least 1, got {queue_size}")
         self.name = name
         self.port = port
         self.max_age_s = max_age_s
         self._now = now
         self._out: Subscribers[R] = Subscribers(name)
-        self._queue: queue.Queue[R] = queue.Queue(maxsize=QUEUE_SIZE)
+        self.queue_size = queue_size
+        self._queue: queue.Queue[R] = queue.Queue(maxsize=queue_size)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()

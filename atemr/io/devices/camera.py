@@ -69,6 +69,9 @@ OPEN_TIMEOUT_S = 5.0
 READ_TIMEOUT_S = 2.0
 #: The environment variable OpenCV's V4L2 backend reads its frame timeout from, in whole seconds.
 V4L2_TIMEOUT_ENV = "OPENCV_VIDEOIO_V4L_SELECT_TIMEOUT"
+#: Frames waiting for the scheduler at most: when it stalls the oldest are dropped (64 queued 640x480 frames,
+#: the base's default, would hold about 59 MB).
+QUEUE_FRAMES = 4
 #: The longest `_read` sleeps while pacing a video file (the reader thread must notice ``shutdown``).
 MAX_PACE_SLEEP_S = 0.1
 #: A frame may arrive this fraction of a period early and still be kept: arrival times jitter (USB, the
@@ -215,7 +218,7 @@ class OpenCvCamera(ThreadedDevice[Frame]):
         self.source = CameraSource.parse(source)
         if max_age_s is None:  # as the simulated camera's: a few frame periods, at least a second
             max_age_s = max(1.0, 3.0 / fps)
-        super().__init__(name, now=now, max_age_s=max_age_s, port=self.source.shown)
+        super().__init__(name, now=now, max_age_s=max_age_s, port=self.source.shown, queue_size=QUEUE_FRAMES)
         self.width, self.height, self.fps = width, height, fps
         self.open_timeout_s, self.read_timeout_s = open_timeout_s, read_timeout_s
         self._cap_rate = RateCap(fps)

@@ -169,7 +169,8 @@ class _CanCheck:
         self.supervisor = BusSupervisor(self.bus, threaded=True, name="can_check", close_bus=False)
         self.supervisor.start()
         if "motors" in self.parts:
-            self.driver = RmdDriver.from_config(self.supervisor.inbox("motors"), self.config.motors)
+            self.driver = RmdDriver.from_config(self.supervisor.inbox("motors"), self.config.motors,
+                                                protocol=self.config.devices.motors.protocol)
             self.driver.start()
         if "secondary" in self.parts:
             self.link = build_secondary_link(self.config, self.supervisor.inbox("secondary_link"))

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import errno
 import logging
-import os
 import time
 from collections.abc import Callable, Sequence
 
@@ -32,7 +31,7 @@ import serial
 
 from atemr.errors import HardwareError, ProtocolError
 from atemr.io.devices import rplidar_protocol as rp
-from atemr.io.devices.base import DeviceInfo, ThreadedDevice
+from atemr.io.devices.base import DeviceInfo, ThreadedDevice, serial_port_hint
 from atemr.io.devices.config import LidarDeviceConfig
 from atemr.msgs import LaserScan, Pose2D
 
@@ -121,15 +120,7 @@ class RplidarDriver(ThreadedDevice[LaserScan]):
             return str(error)
         if isinstance(error, ProtocolError):
             return f"{self.name}: {error}"
-        code = getattr(error, "errno", None)
-        if code in (errno.EACCES, errno.EPERM) or isinstance(error, PermissionError):
-            return (f"{self.name}: no permission to open {port}: add the user to the dialout group "
-                    f"(sudo usermod -aG dialout $USER, then log in again) ({error})")
-        if not os.path.exists(port):
-            dangling = " (a link to a device that is gone)" if os.path.lexists(port) else ""
-            return (f"{self.name}: {port} does not exist{dangling}: is the RPLidar's USB adapter plugged in? "
-                    f"(ls /dev/ttyUSB*; a udev rule can name it /dev/rplidar)")
-        return f"{self.name}: cannot open {port} ({error}): is another program using it?"
+        return serial_port_hint(self.name, port, error, device="the RPLidar's USB adapter", udev_name="/dev/rplidar")
 
     # -- the reader thread -----------------------------------------------------------------------------------
     def _open(self) -> None:

@@ -18,34 +18,30 @@ radians, metres), read once per revolution. Each sample takes the beam nearest t
 a beam that is not finite or lies outside the scan's [range_min_m, range_max_m] gives distance 0, no
 return, as the device reports it. No feed, or a feed that returns None: no returns at all.
 
-The host opens ``port``, a symlink in a temporary directory to the pty's device side, so `unplug` (the pty
-is closed: the host's reads fail, the path disappears) and `replug` (a new pty, the link re-pointed
-atomically) behave like the USB adapter leaving and coming back at the same udev name. `inject` puts raw
-bytes on the wire and `corrupt_next` zeroes the next bytes of the sample stream, as line noise would; both
-act at a sample (or capsule) boundary. As a real device, it drops what nobody reads (the pty's buffer full).
+The host opens ``port``, a symlink in a temporary directory to the pty's device side (`PluggablePty`), so
+`unplug` (the pty is closed: the host's reads fail, the path disappears) and `replug` (a new pty, the link
+re-pointed atomically) behave like the USB adapter leaving and coming back at the same udev name. `inject`
+puts raw bytes on the wire and `corrupt_next` zeroes the next bytes of the sample stream, as line noise
+would; both act at a sample (or capsule) boundary. As a real device, it drops what nobody reads (the pty's
+buffer full).
 """
 
 from __future__ import annotations
 
-import contextlib
 import errno
 import logging
 import math
 import os
 import select
-import shutil
-import tempfile
-import threading
 import time
-import tty
 from collections.abc import Callable
 from pathlib import Path
-from types import TracebackType
 
 import numpy as np
 from numpy.typing import NDArray
 
 from atemr.io.devices import rplidar_protocol as rp
+from atemr.io.devices.pty_port import PtyEmulator
 from atemr.msgs import LaserScan
 
 log = logging.getLogger(__name__)
@@ -66,26 +62,6 @@ MAX_OFFSET_Q3 = 3
 MAX_BURST_S = 0.1
 
 
-class _Pty:
-    """One plugged-in device: both ends of a pty, kept open so that its raw settings stay while no host
-    has it open. The host opens the slave (through the link); the emulator uses the non-blocking master."""
-
-    def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        try:
-            tty.setraw(self.slave)
-            os.set_blocking(self.master, False)
-            self.path = os.ttyname(self.slave)
-        except BaseException:
-            self.close()
-            raise
-
-    def close(self) -> None:
-        for fd in (self.master, self.slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)
-
-
 def distances_mm(scan: LaserScan | None, angles_cw_deg: NDArray[np.float64]) -> NDArray[np.float64]:
     """What the device measures at clockwise ``angles_cw_deg``: the nearest beam of ``scan`` in millimetres,
     0 where it has no valid return (not finite, or outside its [range_min_m, range_max_m])."""
@@ -99,7 +75,7 @@ def distances_mm(scan: LaserScan | None, angles_cw_deg: NDArray[np.float64]) -> 
     return np.where(valid, r * 1000.0, 0.0)
 
 
-class RplidarEmulator:
+class RplidarEmulator(PtyEmulator):
     """An RPLidar A2M8 on a pty (see the module docstring)."""
 
     def __init__(
@@ -120,19 +96,14 @@ class RplidarEmulator:
         if not (math.isfinite(revolutions_per_s) and 0 < revolutions_per_s <= samples_per_s / 8):
             raise ValueError(f"RplidarEmulator: revolutions_per_s must be in (0, samples_per_s/8], got "
                              f"{revolutions_per_s}")
+        super().__init__(link_name, directory=directory, prefix="atemr-rplidar-")
+        self.directory = self._pty.directory
         self.feed = feed
         self.samples_per_s = samples_per_s
         self.revolutions_per_s = revolutions_per_s
         self.info = info
         self.health = rp.LidarHealth(health_status, health_error_code)
         self._rng = np.random.default_rng(seed)
-        self._own_directory = directory is None
-        self.directory = Path(tempfile.mkdtemp(prefix="atemr-rplidar-") if directory is None else directory)
-        self.port = str(self.directory / link_name)
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._pty: _Pty | None = None
         # what the host sees and did (for tests)
         self.commands: list[int] = []
         self.samples_sent = 0
@@ -140,60 +111,13 @@ class RplidarEmulator:
         self.dropped_bytes = 0
         self._power_on()
 
-    # -- life cycle --------------------------------------------------------------------------------------------
+    # -- life cycle (the rest is `PtyEmulator`'s) ---------------------------------------------------------------
     def start(self) -> RplidarEmulator:
         """Plug the device in and start answering; returns itself."""
-        if self._thread is not None:
-            return self
-        self.replug()
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="atemr-rplidar-emulator", daemon=True)
-        self._thread.start()
+        if self._thread is None:
+            self.replug()
+            self._start_thread("atemr-rplidar-emulator")
         return self
-
-    def close(self) -> None:
-        """Stop the thread, unplug, remove the temporary directory (if it made it); idempotent."""
-        self._stop.set()
-        thread, self._thread = self._thread, None
-        if thread is not None:
-            thread.join(timeout=2.0)
-        self.unplug()
-        if self._own_directory:
-            shutil.rmtree(self.directory, ignore_errors=True)
-
-    def __enter__(self) -> RplidarEmulator:
-        return self.start()
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        self.close()
-
-    @property
-    def plugged(self) -> bool:
-        return self._pty is not None
-
-    def unplug(self) -> None:
-        """The USB adapter is pulled: the pty closes (the host's reads fail) and ``port`` disappears."""
-        with self._lock:
-            pty, self._pty = self._pty, None
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(self.port)
-            if pty is not None:
-                pty.close()
-
-    def replug(self) -> None:
-        """The adapter comes back (unplugged first if it was in): a device just powered on, on a new pty, with
-        ``port`` re-pointed to it atomically."""
-        self.unplug()
-        pty = _Pty()
-        tmp = f"{self.port}.new"
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        os.symlink(pty.path, tmp)
-        os.replace(tmp, self.port)
-        with self._lock:
-            self._power_on()
-            self._pty = pty
 
     # -- faults ------------------------------------------------------------------------------------------------
     def reboot(self) -> None:
@@ -246,27 +170,27 @@ class RplidarEmulator:
     def _run(self) -> None:
         while not self._stop.is_set():
             with self._lock:
-                pty = self._pty
-                if pty is not None:
+                master = self._pty.master
+                if master is not None:
                     try:
-                        self._step(pty)
+                        self._step(master)
                     except Exception:  # an emulator bug must not hang the tests silently
                         log.exception("rplidar emulator: step failed")
-            if pty is None:
+            if master is None:
                 self._stop.wait(0.01)
 
-    def _step(self, pty: _Pty) -> None:
+    def _step(self, master: int) -> None:
         timeout = 0.004 if self._mode else 0.01
-        readable, _, _ = select.select([pty.master], [], [], timeout)
+        readable, _, _ = select.select([master], [], [], timeout)
         if readable:
             try:
-                data = os.read(pty.master, 4096)
+                data = os.read(master, 4096)
             except BlockingIOError:
                 data = b""
             for request in self._parser.feed(data):
                 self._handle(request)
         self._stream()
-        self._flush(pty)
+        self._flush(master)
 
     def _handle(self, request: rp.Request) -> None:
         cmd = request.cmd
@@ -391,14 +315,14 @@ class RplidarEmulator:
         self.samples_sent += rp.CAPSULE_SAMPLES
         return capsule
 
-    def _flush(self, pty: _Pty) -> None:
+    def _flush(self, master: int) -> None:
         if len(self._pending) > MAX_PENDING:  # nobody reads: the oldest bytes are lost on the wire
             drop = len(self._pending) - MAX_PENDING
             del self._pending[:drop]
             self.dropped_bytes += drop
         while self._pending:
             try:
-                written = os.write(pty.master, self._pending)
+                written = os.write(master, self._pending)
             except BlockingIOError:
                 return
             except OSError as exc:

@@ -21,10 +21,8 @@ consumer that wants to wait.
 
 from __future__ import annotations
 
-import errno
 import logging
 import math
-import os
 from collections import deque
 from collections.abc import Callable, Sequence
 
@@ -32,7 +30,7 @@ import numpy as np
 import serial
 
 from atemr.io.devices import wt901_protocol as wit
-from atemr.io.devices.base import DeviceInfo, ThreadedDevice
+from atemr.io.devices.base import DeviceInfo, ThreadedDevice, serial_port_hint
 from atemr.io.devices.config import ImuDeviceConfig
 from atemr.msgs import ImuSample
 from atemr.trees.ports import ComponentHealth
@@ -228,16 +226,7 @@ class Wt901Driver(ThreadedDevice[ImuSample]):
         return status
 
     def missing_hint(self, error: BaseException) -> str:
-        port = self.port or "?"
-        code = getattr(error, "errno", None)
-        if code in (errno.EACCES, errno.EPERM) or isinstance(error, PermissionError):
-            return (f"{self.name}: no permission to open {port}: add the user to the dialout group "
-                    f"(sudo usermod -aG dialout $USER, then log in again) ({error})")
-        if not os.path.exists(port):
-            dangling = " (a link to a device that is gone)" if os.path.lexists(port) else ""
-            return (f"{self.name}: {port} does not exist{dangling}: is the WT901 plugged in? (ls /dev/ttyUSB*; "
-                    f"a udev rule can name it /dev/imu)")
-        return f"{self.name}: cannot open {port} ({error}): is another program using it?"
+        return serial_port_hint(self.name, self.port or "?", error, device="the WT901", udev_name="/dev/imu")
 
     # -- the reader thread -----------------------------------------------------------------------------------
     def _open(self) -> None:

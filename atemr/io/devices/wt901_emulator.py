@@ -8,7 +8,7 @@ the robot's configured WT901 rate). What it streams comes from ``feed()``, the s
 it is given (so a driver configured with the same rotation recovers the base frame), adds gravity on the
 base's z axis and a constant gyro bias, and integrates the yaw rate for the angle frame.
 
-The driver opens ``port``, a symlink in a temporary directory to the pty's device side, so that
+The driver opens ``port``, a symlink in a temporary directory to the pty's device side (`PluggablePty`), so
 `unplug` (the pty is closed: the driver's reads fail, the path disappears) and `replug` (a new pty, the
 link re-pointed atomically) behave like a USB adapter leaving and coming back at the same udev name.
 `corrupt_next` flips a byte in the next frames, as line noise would.
@@ -19,48 +19,23 @@ reads and discards what the host writes (the driver sends nothing).
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import os
-import shutil
-import tempfile
-import threading
 import time
-import tty
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from types import TracebackType
 
 import numpy as np
 
 from atemr.io.devices import wt901_protocol as wit
+from atemr.io.devices.pty_port import PtyEmulator
 from atemr.msgs import ImuSample
 
 log = logging.getLogger(__name__)
 
 
-class _Pty:
-    """One plugged-in device: the pty's two ends, both kept open so its settings persist while no host has it
-    open; the host's end is the slave, the emulator writes on the non-blocking master."""
-
-    def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        try:
-            tty.setraw(self.slave)
-            os.set_blocking(self.master, False)
-            self.path = os.ttyname(self.slave)
-        except BaseException:
-            self.close()
-            raise
-
-    def close(self) -> None:
-        for fd in (self.master, self.slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)
-
-
-class Wt901Emulator:
+class Wt901Emulator(PtyEmulator):
     """A WT901 streaming on a pty (see the module docstring)."""
 
     def __init__(
@@ -78,95 +53,31 @@ class Wt901Emulator:
             raise ValueError(f"Wt901Emulator: rate_hz must be > 0, got {rate_hz}")
         if len(rotation) != 3 or len(gyro_bias_radps) != 3:
             raise ValueError("Wt901Emulator: rotation and gyro_bias_radps take three numbers each")
+        super().__init__(link_name, directory=directory, prefix="atemr-wt901-")
         self.feed = feed or (lambda: None)
         self.rate_hz = rate_hz
         roll, pitch, yaw = rotation
         self._mount = wit.rotation_matrix(roll, pitch, yaw)
         self.gyro_bias_radps = np.asarray(gyro_bias_radps, dtype=np.float64)
         self.temperature_c = temperature_c
-        self._own_dir = directory is None
-        self._dir = Path(tempfile.mkdtemp(prefix="atemr-wt901-")) if directory is None else Path(directory)
-        self._link = self._dir / link_name
-        self._lock = threading.Lock()
-        self._pty: _Pty | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._corrupt = 0
         self._yaw = 0.0
         self.frames_sent = 0
         self.frames_lost = 0
         self.bytes_received = 0
         try:
-            self._plug()
+            self.replug()  # plugged in from the start
         except BaseException:
-            if self._own_dir:
-                shutil.rmtree(self._dir, ignore_errors=True)
+            self._pty.close()
             raise
 
-    # -- the device's life -------------------------------------------------------------------------------------
-    @property
-    def port(self) -> str:
-        """The stable path a driver opens (a symlink to the current pty)."""
-        return str(self._link)
-
-    @property
-    def plugged(self) -> bool:
-        with self._lock:
-            return self._pty is not None
-
+    # -- the device's life (the rest is `PtyEmulator`'s) ------------------------------------------------------
     def start(self) -> None:
         """Start streaming (idempotent)."""
-        if self._thread is not None:
-            return
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name="wt901-emulator", daemon=True)
-        self._thread.start()
+        self._start_thread("wt901-emulator")
 
-    def close(self) -> None:
-        """Stop streaming, close the pty and remove the link (and the directory the emulator made)."""
-        self._stop.set()
-        thread, self._thread = self._thread, None
-        if thread is not None:
-            thread.join(timeout=2.0)
-        self.unplug()
-        if self._own_dir:
-            shutil.rmtree(self._dir, ignore_errors=True)
-
-    def __enter__(self) -> Wt901Emulator:
-        self.start()
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
-
-    def unplug(self) -> None:
-        """The USB cable is pulled: the pty closes (a host's reads fail with EIO) and the path disappears."""
-        with self._lock:
-            pty, self._pty = self._pty, None
-            self._link.unlink(missing_ok=True)
-        if pty is not None:
-            pty.close()
-
-    def replug(self) -> None:
-        """The cable is back: a new pty behind the same path; the device restarts (its yaw from zero)."""
-        self.unplug()
-        self._plug()
-
-    def _plug(self) -> None:
-        pty = _Pty()
-        tmp = self._dir / f".{self._link.name}.new"
-        try:
-            tmp.unlink(missing_ok=True)
-            tmp.symlink_to(pty.path)
-            os.replace(tmp, self._link)  # atomic: a host never sees a half-made link
-        except BaseException:
-            pty.close()
-            raise
-        with self._lock:
-            self._pty = pty
-            self._yaw = 0.0
+    def _power_on(self) -> None:
+        self._yaw = 0.0  # a restarted device integrates its yaw from zero
 
     def corrupt_next(self, n: int = 1) -> None:
         """Flip one byte in each of the next ``n`` frames (each then fails its checksum)."""
@@ -214,15 +125,16 @@ class Wt901Emulator:
 
     def _emit(self, sample: ImuSample | None, dt: float) -> None:
         with self._lock:
-            if self._pty is None:  # unplugged: nothing to power it
+            master = self._pty.master
+            if master is None:  # unplugged: nothing to power it
                 return
-            self._drain(self._pty.master)
+            self._drain(master)
             for frame in _split(self.cycle(sample, dt)):
                 if self._corrupt > 0:
                     self._corrupt -= 1
-                    self._write(self._pty.master, frame[:5] + bytes((frame[5] ^ 0xFF,)) + frame[6:])
+                    self._write(master, frame[:5] + bytes((frame[5] ^ 0xFF,)) + frame[6:])
                 else:
-                    self._write(self._pty.master, frame)
+                    self._write(master, frame)
 
     def _write(self, fd: int, frame: bytes) -> None:
         try:
