@@ -78,7 +78,8 @@ class CanConfig:
 
 @dataclass(frozen=True)
 class MotorsConfig:
-    """The two RMD-L-7015 drive motors on the CAN bus (0x140 + id) and their driver's watchdogs."""
+    """The two RMD-L-7015 drive motors on the CAN bus (requests on 0x140 + id; the protocol version is
+    ``devices.motors.protocol``) and their driver's watchdogs."""
 
     left_id: int = field(default=1, metadata={"min": 1, "max": 32, "help": "left motor's RMD id (not 16-23)"})
     right_id: int = field(default=2, metadata={"min": 1, "max": 32, "help": "right motor's RMD id (not 16-23)"})

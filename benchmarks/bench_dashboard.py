@@ -217,7 +217,7 @@ def load_check(window_s: float, clients: int = CLIENTS) -> dict[str, Any]:
             driver = threading.Thread(target=_drive, args=(watchers[0], stop_driving, acks), daemon=True)
             driver.start()
             time.sleep(1.0)  # everyone is receiving
-            made0 = robot.extras["sim"].camera_source.count if "sim" in robot.extras else 0
+            made0 = robot.parts.sim.camera_source.count if robot.parts.sim is not None else 0
             pushes0, t0, robot0 = server.pushes, time.monotonic(), robot.clock.now()
             for w in watchers:
                 w.count(True)
@@ -228,7 +228,7 @@ def load_check(window_s: float, clients: int = CLIENTS) -> dict[str, Any]:
             camera.count(False)
             pushes, elapsed = server.pushes - pushes0, time.monotonic() - t0
             robot_s = robot.clock.now() - robot0
-            made = (robot.extras["sim"].camera_source.count if "sim" in robot.extras else 0) - made0
+            made = (robot.parts.sim.camera_source.count if robot.parts.sim is not None else 0) - made0
         finally:
             stop_driving.set()
             if driver is not None:

@@ -48,8 +48,8 @@ def real_time_factor(camera_hz: float, sim_seconds: float, *, whole_robot: bool 
     if whole_robot:
         config = load_config(environ={}, overrides={"sim.camera_hz": camera_hz, "sim.seed": 1})
         robot = build_headless_robot(config)
-        sim = robot.extras["sim"]
-        inputs = robot.extras["inputs"]
+        sim = robot.parts.sim
+        inputs = robot.parts.inputs
         robot.add(Ticker("bench.joystick", lambda now: inputs.operate(Twist(0.3, 0.2), now)), 10.0)
         sched = robot.scheduler
         robot.start()

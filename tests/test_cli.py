@@ -51,3 +51,27 @@ def test_run_stops_cleanly_on_sigterm_and_sigint(tmp_path):
         assert proc.returncode == 0, err
         assert "ATEMR stopped." in out
         assert f"{signal.Signals(sig).name} received" in err
+
+
+def test_power_off_command_runs_only_after_an_acknowledged_power_off(tmp_path):
+    """The robot's example configuration runs ``systemctl poweroff`` once the ESP32's power-off request is
+    acknowledged; here the command touches a file, and it runs only when the agent halted that way."""
+    from atemr.cli.run import after_stop
+    from atemr.clock import SimClock
+    from atemr.config import load_config
+    from atemr.io.can.bus import unique_channel
+    from atemr.robot import build_robot
+
+    marker = tmp_path / "powered-off"
+    config = load_config(environ={}, overrides={
+        "data_dir": str(tmp_path), "can.channel": unique_channel("poweroff"), "ui.enabled": False,
+        "secondary.portal_serve": False, "power_off_command": f"touch {marker}"})
+    robot = build_robot(config, realtime=False, clock=SimClock())
+    with robot:
+        robot.run(until=5.0)
+        assert robot.parts.agent.state.startswith("IDLE")
+        assert after_stop(robot) == 0 and not marker.exists()  # stopped without a power-off: nothing runs
+        robot.parts.agent.submit("shutdown")
+        robot.run(until=8.0)
+        assert robot.parts.agent.halted
+    assert after_stop(robot) == 0 and marker.exists()

@@ -143,7 +143,7 @@ def run_command(args: argparse.Namespace) -> int:
     with robot:
         if args.start is not None:
             place(robot, args.start)
-        agent = robot.parts.get("agent")
+        agent = robot.components.get("agent")
         if not isinstance(agent, Agent):
             raise ConfigError("this robot has no agent wired", path="atemr mission run")
         watch = TruthWatch(robot, kidnap=args.kidnap)
@@ -151,7 +151,7 @@ def run_command(args: argparse.Namespace) -> int:
         result.update(watch.report())
     result["world"] = config.sim.world
     result["seed"] = config.sim.seed
-    writer = robot.extras.get("trace")
+    writer = robot.parts.trace
     if writer is not None:
         result["trace_files"] = [str(p) for p in writer.parts]  # "trace" is the agent's state trace
         if writer.error:
@@ -165,7 +165,7 @@ def run_command(args: argparse.Namespace) -> int:
 
 def place(robot: Any, pose: Pose2D) -> None:
     """Teleport the simulated robot to ``pose`` and tell localization it is there (the operator's click)."""
-    sim, localization = robot.extras.get("sim"), robot.extras.get("localization")
+    sim, localization = robot.parts.sim, robot.parts.localization
     if sim is None or localization is None:
         raise ConfigError("--start needs the simulated robot with localization", path="--start")
     try:

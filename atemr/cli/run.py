@@ -14,6 +14,7 @@ from atemr.cli.signals import stop_on_signals
 from atemr.config import Config, load_config
 from atemr.logsetup import configure_logging
 from atemr.robot import build_robot
+from atemr.robot.core import Robot
 
 log = logging.getLogger(__name__)
 
@@ -71,17 +72,23 @@ class RunCommand:
         with stop_on_signals(robot.stop), robot:
             can = f"{config.can.interface}:{config.can.channel}"
             mode = "simulation" if config.simulation else f"real hardware on {can}"
-            print(f"ATEMR running in {mode}; started: {', '.join(robot.parts)}. Ctrl-C stops.", flush=True)
-            control = robot.extras.get("control")
+            print(f"ATEMR running in {mode}; started: {', '.join(robot.components)}. Ctrl-C stops.", flush=True)
+            control = robot.parts.control
             if control is not None:
                 print(f"control socket {control.server.path}: atemr mission run FILE (or status, cancel) "
                       f"from another terminal of this user", flush=True)
             robot.run(duration=args.duration)
         print("ATEMR stopped.", flush=True)
-        agent = robot.parts.get("agent")
-        if getattr(agent, "halted", False) and config.power_off_command:
-            return power_off(config.power_off_command)
-        return 0
+        return after_stop(robot)
+
+
+def after_stop(robot: Robot) -> int:
+    """The exit code once the robot has stopped: ``power_off_command``'s when the agent halted on an
+    acknowledged power-off and one is configured, else 0."""
+    command = robot.config.power_off_command
+    if robot.parts.agent.halted and command:
+        return power_off(command)
+    return 0
 
 
 def startup_check(config: Config) -> list[str]:

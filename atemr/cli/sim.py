@@ -89,9 +89,11 @@ class SimCommand:
         if args.stack == "robot":
             robot = build_headless_robot(config) if args.headless else build_robot(config, realtime=True)
             scheduler, clock = robot.scheduler, robot.clock
-            sim: Simulation = robot.extras["sim"]
+            if robot.parts.sim is None:
+                raise ConfigError("atemr sim needs the simulated world (simulation: true)", path="simulation")
+            sim = robot.parts.sim
             if v or w:
-                inputs: MotionInputs = robot.extras["inputs"]
+                inputs: MotionInputs = robot.parts.inputs
                 robot.add(Ticker("sim.joystick", lambda now: inputs.operate(Twist(v, w), now)), 10.0)
         else:
             sim = build_simulation(config.sim.world, config.sim.seed, params=params_from_config(config.sim))

@@ -17,6 +17,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -28,10 +29,10 @@ from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.fsm.recording import AgentRecorder
 from atemr.io.can.supervisor import BusSupervisor
 from atemr.io.devices.base import fresh
-from atemr.io.devices.drivers import DeviceContext, build_devices, driver_name, needs_world
+from atemr.io.devices.drivers import DeviceContext, Devices, build_devices, driver_name, needs_world
 from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
-from atemr.io.secondary_link import build_secondary_link
+from atemr.io.secondary_link import SecondaryLink, build_secondary_link
 from atemr.io.sim.simulation import Simulation
 from atemr.io.system_monitor import SystemMonitor
 from atemr.io.trace_file import SUFFIX, TraceWriter
@@ -41,6 +42,7 @@ from atemr.robot.health import FRESH_S, HealthBoard
 from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
+from atemr.robot.parts import RobotParts
 from atemr.robot.port import RobotPortImpl
 from atemr.robot.reload import RATE_HZ as RELOAD_RATE_HZ
 from atemr.robot.reload import ReloadWatcher
@@ -86,17 +88,20 @@ def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = 
     robot = Robot(config, clock, scheduler)
     scheduler.on_error = lambda component, exc: _on_component_error(robot, component, exc)
     settings = SettingsStore(config.data_dir)
-    robot.extras["settings"] = settings
     inputs = MotionInputs()
-    robot.extras["inputs"] = inputs
     health = HealthBoard(clock.now)
-    robot.extras["health"] = health
 
     sim = _add_simulation(robot) if needs_world(config) else None
-    _add_devices(robot, health, sim)
-    _add_primary(robot, inputs, health, settings)
-    _add_localization(robot)
-    _add_agent(robot)
+    devices = _add_devices(robot, health, sim)
+    primary = _add_primary(robot, inputs, health, settings, devices)
+    store, localization, maps = _add_localization(robot, sim, devices, primary.driver)
+    port, navigation, agent = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
+                                         localization=localization, maps=maps)
+    robot.parts = RobotParts(
+        settings=settings, inputs=inputs, health=health, devices=devices, driver=primary.driver, link=primary.link,
+        pipeline=primary.pipeline, motion=primary.motion, map_store=store, localization=localization, maps=maps,
+        port=port, navigation=navigation, agent=agent, sim=sim,
+    )
     _add_recorder(robot)
     if config.ui.enabled:
         from atemr.robot.dashboard import add_dashboard  # lazy: headless runs never import Flask
@@ -120,17 +125,15 @@ def _add_control(robot: Robot) -> None:
     runs missions through. Added after the agent at the agent's rate, so it sees each tick's outcome at once."""
     from atemr.robot.control import RobotControl
 
-    control = RobotControl(robot)
+    control = RobotControl(robot, localization=robot.parts.localization, sim=robot.parts.sim)
     robot.add(control, robot.config.agent.rate_hz)
-    robot.extras["control"] = control
+    robot.parts = replace(robot.parts, control=control)
 
 
-def _add_localization(robot: Robot) -> None:
+def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
+                      driver: RmdDriver) -> tuple[MapStore, LocalizationPipeline, MapService]:
     """Odometry fusion + AMCL against the active map, and the map service (active map, mapping)."""
     cfg = robot.config
-    sim = robot.extras.get("sim")
-    devices = robot.devices
-    driver: RmdDriver = robot.extras["driver"]
     # The shipped maps are maps of simulated worlds: a robot without one is offered only the maps it made
     # or was given.
     builtins = dict(BUILTIN_MAPS) if sim is not None else {}
@@ -140,7 +143,6 @@ def _add_localization(robot: Robot) -> None:
     rng = np.random.default_rng(cfg.localization.seed)
     localization = LocalizationPipeline(None, rng, localizer=cfg.localization.localizer_params())
     maps = MapService(store, localization, cfg.localization.slam_params(), on_event=robot.event)
-    robot.extras.update(map_store=store, localization=localization, maps=maps)
 
     def feed_wheels(now: float) -> None:
         localization.on_wheels(now, driver.feedback())
@@ -162,36 +164,31 @@ def _add_localization(robot: Robot) -> None:
         name = store.selected_name()
         if name is not None:
             maps.activate(name)
+    return store, localization, maps
 
 
-def _add_agent(robot: Robot) -> None:
+def _add_agent(robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, devices: Devices,
+               localization: LocalizationPipeline, maps: MapService) -> tuple[RobotPortImpl, RobotNavigation, Agent]:
     """The agent (lifecycle + trees + Monitor) over the robot's ports; when it halts, the robot stops."""
     cfg = robot.config
-    devices = robot.devices
     camera = devices.camera
     port = RobotPortImpl(
-        now=robot.clock.now, inputs=robot.extras["inputs"], health=robot.extras["health"],
-        localization=robot.extras["localization"], maps=robot.extras["maps"],
+        now=robot.clock.now, inputs=inputs, health=health, localization=localization, maps=maps,
         camera=(lambda: camera.latest) if camera is not None else (lambda: None),
         images_dir=cfg.data_dir / "media" / "images", wall_time=WallClock().wall_time,
     )
-    control: MotionControl = robot.parts["motion"]  # type: ignore[assignment]
+    control = primary.motion
 
     def measured() -> Twist | None:
         return None if control.last is None else control.last.twist
 
-    navigation = RobotNavigation(
-        robot.extras["maps"], robot.extras["localization"],
-        scan=lambda: devices.lidar.latest, velocity=measured,
-        params=cfg.nav.nav_params(robot.extras["pipeline"].limits),
-    )
-    link = robot.parts["secondary_link"]
-    agent = Agent.from_config(cfg, port, SecondaryLinkPort(link),  # type: ignore[arg-type]
-                              navigation=navigation, on_halt=robot.stop)
-    robot.extras.update(port=port, navigation=navigation)
+    navigation = RobotNavigation(maps, localization, scan=lambda: devices.lidar.latest, velocity=measured,
+                                 params=cfg.nav.nav_params(primary.pipeline.limits))
+    agent = Agent.from_config(cfg, port, SecondaryLinkPort(primary.link), navigation=navigation, on_halt=robot.stop)
     robot.add(agent, cfg.agent.rate_hz)
     # Hot reload: edits of the agent document and the missions are validated and handed to the agent.
     robot.add(ReloadWatcher(agent, Path(agent.spec.file or DEFAULT_AGENT_FILE)), RATES["reload_watcher"])
+    return port, navigation, agent
 
 
 def trace_path(config: Config, wall_time: float) -> Path:
@@ -212,17 +209,17 @@ def _add_recorder(robot: Robot) -> None:
     cfg = robot.config
     if not cfg.trace.enabled and cfg.trace.file is None:
         return
-    agent: Agent = robot.parts["agent"]  # type: ignore[assignment]
-    sim = robot.extras.get("sim")
+    agent = robot.parts.agent
+    sim = robot.parts.sim
     meta = {"world": cfg.sim.world if sim is not None else None, "seed": cfg.sim.seed if sim is not None else None,
-            "map": robot.extras["maps"].active_name, "simulation": cfg.simulation}
+            "map": robot.parts.maps.active_name, "simulation": cfg.simulation}
     writer = TraceWriter(trace_path(cfg, WallClock().wall_time()), max_bytes=int(cfg.trace.max_file_mb * 1024 * 1024),
                          max_files=None if cfg.trace.file is not None else cfg.trace.max_files,
                          prune=f"run-*{SUFFIX}")
     recorder = AgentRecorder(agent, writer.write, pose_hz=cfg.trace.pose_hz, meta=meta)
     writer.preamble = recorder.preamble
     recorder.attach()
-    robot.extras["trace"] = writer
+    robot.parts = replace(robot.parts, trace=writer)
     robot.add(writer, 1.0)
 
 
@@ -243,14 +240,15 @@ def _add_simulation(robot: Robot) -> Simulation:
     emulators: list[RmdMotorEmulator] = []
     wheels = None
     if driver_name(cfg, "motors") == "emulated":
-        left = RmdMotorEmulator(robot.open_bus(), cfg.motors.left_id, name="left_motor_emulator", steps_model=False)
+        protocol = cfg.devices.motors.protocol
+        left = RmdMotorEmulator(robot.open_bus(), cfg.motors.left_id, name="left_motor_emulator", steps_model=False,
+                                protocol=protocol)
         right = RmdMotorEmulator(robot.open_bus(), cfg.motors.right_id, name="right_motor_emulator",
-                                 steps_model=False)
+                                 steps_model=False, protocol=protocol)
         emulators = [left, right]
         wheels = (MountedWheel(left.model, cfg.motors.left_direction),
                   MountedWheel(right.model, cfg.motors.right_direction))
     sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params_from_config(cfg.sim), wheels=wheels)
-    robot.extras["sim"] = sim
     for component, rate in sim.components():
         robot.add(component, rate)
     for emulator in emulators:
@@ -261,15 +259,25 @@ def _add_simulation(robot: Robot) -> Simulation:
     return sim
 
 
-def _add_devices(robot: Robot, health: HealthBoard, sim: Simulation | None) -> None:
+def _add_devices(robot: Robot, health: HealthBoard, sim: Simulation | None) -> Devices:
     """The lidar, the IMU and the camera with their configured drivers (`atemr.io.devices.drivers`): the only
     way the rest of the robot reads its sensors. Each reports its own health under its kind's name."""
     devices = build_devices(DeviceContext(robot.config, robot.clock.now, sim))
-    robot.devices = devices
     for device in devices.all():
         if device.rate_hz is not None:
             robot.add(device, device.rate_hz)
         health.add(device.name, device.health)
+    return devices
+
+
+@dataclass(frozen=True)
+class _Primary:
+    """What `_add_primary` wires: the motor driver, the secondary-core link, and the motion control."""
+
+    driver: RmdDriver
+    link: SecondaryLink
+    pipeline: MotionPipeline
+    motion: MotionControl
 
 
 #: The safety-stop reason held while the CAN bus is faulted (`MotionInputs.set_safety_stop`).
@@ -307,10 +315,11 @@ def _add_can_bus(robot: Robot, inputs: MotionInputs, health: HealthBoard) -> Bus
     return supervisor
 
 
-def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settings: SettingsStore) -> None:
+def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settings: SettingsStore,
+                 devices: Devices) -> _Primary:
     """The primary core: CAN bus supervisor, secondary-core link, motion control, motor driver, odometry."""
     cfg = robot.config
-    lidar = robot.devices.lidar
+    lidar = devices.lidar
     can_bus = _add_can_bus(robot, inputs, health)
 
     def on_heartbeat(ok: bool) -> None:
@@ -326,7 +335,7 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
     def on_fault(fault: HardwareError) -> None:
         robot.event("motor fault", str(fault))
 
-    driver = RmdDriver.from_config(motors_inbox, cfg.motors, on_fault=on_fault)
+    driver = RmdDriver.from_config(motors_inbox, cfg.motors, protocol=cfg.devices.motors.protocol, on_fault=on_fault)
     stored = settings.load()
     limits = cfg.motion
     if isinstance(stored.get("motion"), dict):
@@ -336,7 +345,6 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
             log.error("ignoring stored speed limits: %s", exc)
     inputs.awareness = bool(stored.get("reactive", {}).get("awareness", False))
     pipeline = MotionPipeline(limits)
-    robot.extras["pipeline"] = pipeline
 
     def read(now: float) -> ControlInputs:
         return inputs.control_inputs(now, lidar.latest, link.latest_cliff())
@@ -350,7 +358,6 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
     control = MotionControl(pipeline, read, command)
     robot.add(control, RATES["motion"])
     robot.add(driver, cfg.motors.rate_hz)
-    robot.extras["driver"] = driver
 
     def motor(side: str) -> Callable[[float], ComponentHealth]:
         def probe(now: float) -> ComponentHealth:
@@ -389,6 +396,7 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
         return ComponentHealth(ip is not None, f"address {ip}" if ip else "no network address")
 
     health.add("connectivity", connectivity)
+    return _Primary(driver=driver, link=link, pipeline=pipeline, motion=control)
 
 
 def _on_component_error(robot: Robot, component: Component, exc: BaseException) -> None:

@@ -41,8 +41,10 @@ from atemr.fsm.agent import Agent
 from atemr.fsm.codes import top_level
 from atemr.fsm.mission_run import MissionRun
 from atemr.io.control_socket import ControlConnection, ControlServer, control_socket_path
+from atemr.io.sim.simulation import Simulation
 from atemr.msgs import Pose2D
 from atemr.robot.core import Robot
+from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.trees.missions import Mission, mission_from_goals, parse_mission
 from atemr.yamlsafe import load_yaml
 
@@ -134,9 +136,14 @@ class RobotControl:
 
     name = "control"
 
-    def __init__(self, robot: Robot, *, answer_timeout_s: float = ANSWER_TIMEOUT_S) -> None:
+    def __init__(self, robot: Robot, *, localization: LocalizationPipeline | None = None,
+                 sim: Simulation | None = None, answer_timeout_s: float = ANSWER_TIMEOUT_S) -> None:
+        """``localization`` gives ``status`` the robot's pose; ``sim`` says it is simulated (world and seed go
+        into every result). Both are the robot's parts; a bare agent (tests) has neither."""
         self.robot = robot
-        self.agent = cast(Agent, robot.parts["agent"])
+        self.agent = cast(Agent, robot.components["agent"])
+        self.localization = localization
+        self.sim = sim
         self.answer_timeout_s = answer_timeout_s
         self.server = ControlServer(control_socket_path(robot.config), {
             "status": self._cmd_status, "start": self._cmd_start, "follow": self._cmd_follow,
@@ -147,7 +154,6 @@ class RobotControl:
         self._actions: queue.SimpleQueue[tuple[Callable[[float], Any], Future[Any]]] = queue.SimpleQueue()
         self._lock = threading.Lock()
         self._closed = False
-        sim = robot.extras.get("sim")
         self._extras = {"world": robot.config.sim.world if sim is not None else None,
                         "seed": robot.config.sim.seed if sim is not None else None}
 
@@ -277,11 +283,10 @@ class RobotControl:
 
     def _status(self, now: float) -> dict[str, Any]:
         snapshot = self.agent.snapshot(transitions=10)
-        localization = self.robot.extras.get("localization")
-        pose: Pose2D | None = None if localization is None else localization.map_pose()
+        pose: Pose2D | None = None if self.localization is None else self.localization.map_pose()
         return {
             "t": now,
-            "simulation": self.robot.extras.get("sim") is not None,
+            "simulation": self.sim is not None,
             **{k: snapshot[k] for k in ("state", "mode", "task", "task_progress", "last_task", "error",
                                         "valid_triggers", "transitions")},
             "pose": asdict(pose) if pose is not None else None,

@@ -16,6 +16,7 @@ from atemr.clock import Clock
 from atemr.config import Config
 from atemr.io.can.bus import open_bus
 from atemr.io.devices.drivers import Devices
+from atemr.robot.parts import RobotParts
 from atemr.scheduler import Component, Scheduler
 
 log = logging.getLogger(__name__)
@@ -46,36 +47,40 @@ class Ticker:
 
 @dataclass
 class Robot:
-    """The assembled robot. Build it with `atemr.robot.build_robot`; parts are reachable by name."""
+    """The assembled robot. Build it with `atemr.robot.build_robot`: its parts are ``robot.parts`` (typed) and
+    its scheduled components ``robot.components`` (by name)."""
 
     config: Config
     clock: Clock
     scheduler: Scheduler
-    parts: dict[str, Component] = field(default_factory=dict)
+    #: The scheduled components by name (``robot.components["agent"]``), in the order they tick.
+    components: dict[str, Component] = field(default_factory=dict)
     events: deque[RobotEvent] = field(default_factory=lambda: deque(maxlen=200))
-    #: Extra objects that are not scheduled (inputs, health board, simulation, stores), by name.
-    extras: dict[str, Any] = field(default_factory=dict)
     #: CAN buses opened for the parts; closed after every part has shut down.
     buses: list[can.BusABC] = field(default_factory=list)
-    #: The sensors behind the device interface; set by `build_robot` before anything reads them.
-    _devices: Devices | None = None
+    _parts: RobotParts | None = None
     _events_lock: threading.Lock = field(default_factory=threading.Lock)
+
+    @property
+    def parts(self) -> RobotParts:
+        """Everything wired, typed (`atemr.robot.parts.RobotParts`); set by `build_robot`."""
+        if self._parts is None:
+            raise RuntimeError("the robot's parts are not wired yet (build it with atemr.robot.build_robot)")
+        return self._parts
+
+    @parts.setter
+    def parts(self, parts: RobotParts) -> None:
+        self._parts = parts
 
     @property
     def devices(self) -> Devices:
         """The lidar, IMU and camera (`atemr.io.devices.drivers.Devices`)."""
-        if self._devices is None:
-            raise RuntimeError("the robot's devices are not built yet")
-        return self._devices
-
-    @devices.setter
-    def devices(self, devices: Devices) -> None:
-        self._devices = devices
+        return self.parts.devices
 
     def add(self, component: Component, rate_hz: float) -> None:
-        """Schedule ``component`` and make it reachable as ``robot.parts[name]``."""
+        """Schedule ``component`` and make it reachable as ``robot.components[name]``."""
         self.scheduler.add(component, rate_hz)
-        self.parts[component.name] = component
+        self.components[component.name] = component
 
     def event(self, kind: str, text: str) -> None:
         """Record an event for the dashboard (thread-safe) and log it."""
@@ -90,7 +95,7 @@ class Robot:
     def start(self) -> None:
         """Start every component in order."""
         self.scheduler.start()
-        log.info("started: %s", ", ".join(self.parts))
+        log.info("started: %s", ", ".join(self.components))
 
     def run(self, *, duration: float | None = None, until: float | None = None) -> None:
         """Tick until `stop` is called or up to ``until`` / for ``duration`` seconds of robot time."""

@@ -7,6 +7,8 @@ queue is set; tests call them on a robot built with both off.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from atemr.robot.core import Robot
 from atemr.robot.gateway import RobotGatewayImpl
 from atemr.trees.ports import ComponentHealth
@@ -22,13 +24,12 @@ def add_dashboard(robot: Robot, *, hash_method: str = HASH_METHOD) -> DashboardS
     server = DashboardServer(robot.config, gateway, clock=robot.clock, hash_method=hash_method,
                              map_store=gateway.store)
     robot.add(server, PUSH_RATE_HZ)
-    robot.extras["gateway"] = gateway
-    robot.extras["dashboard"] = server
+    robot.parts = replace(robot.parts, gateway=gateway, dashboard=server)
 
     def probe(now: float) -> ComponentHealth:
         return ComponentHealth(True) if server.running else ComponentHealth(False, "the dashboard is not serving")
 
-    robot.extras["health"].add("webserver", probe)
+    robot.parts.health.add("webserver", probe)
     return server
 
 
@@ -39,15 +40,14 @@ def add_state_publisher(robot: Robot, url: str) -> StatePublisher:
     gateway = RobotGatewayImpl(robot)
     publisher = StatePublisher(url, gateway)
     robot.add(publisher, PUSH_RATE_HZ)
-    robot.extras["gateway"] = gateway
-    robot.extras["state_publisher"] = publisher
+    robot.parts = replace(robot.parts, gateway=gateway, state_publisher=publisher)
 
     def probe(now: float) -> ComponentHealth:
         if publisher.running:
             return ComponentHealth(True, "no dashboard here: the state goes to the message queue")
         return ComponentHealth(False, "the state publisher is not running")
 
-    robot.extras["health"].add("webserver", probe)
+    robot.parts.health.add("webserver", probe)
     return publisher
 
 

@@ -31,21 +31,13 @@ from numpy.typing import NDArray
 
 from atemr.clock import WallClock
 from atemr.errors import AtemrError, ConfigError
-from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
+from atemr.fsm.agent import DEFAULT_AGENT_FILE
 from atemr.io.devices.drivers import camera_rate_hz
-from atemr.io.map_store import MapStore
-from atemr.io.secondary_link import SecondaryLink
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
-from atemr.robot.health import HealthBoard
-from atemr.robot.inputs import MotionInputs
-from atemr.robot.mapping import MapService
-from atemr.robot.navigation import RobotNavigation
 from atemr.robot.port import jpeg
 from atemr.robot.reload import ReloadWatcher
-from atemr.robot.settings_store import SettingsStore
 from atemr.robot.video import VideoRecorder
-from atemr.skills.motion_pipeline import MotionControl, MotionPipeline
 from atemr.skills.nav.navigator import NavStatus
 from atemr.skills.ramp import checked_limits
 from atemr.ui.gateway import CommandResult, MapImage, Mode
@@ -100,16 +92,17 @@ class RobotGatewayImpl:
     def __init__(self, robot: Robot, *, pump_rate_hz: float = PUMP_RATE_HZ) -> None:
         self.robot = robot
         self.config = robot.config
-        self.agent = cast(Agent, robot.parts["agent"])
-        self.inputs: MotionInputs = robot.extras["inputs"]
-        self.health: HealthBoard = robot.extras["health"]
-        self.pipeline: MotionPipeline = robot.extras["pipeline"]
-        self.settings: SettingsStore = robot.extras["settings"]
-        self.maps: MapService = robot.extras["maps"]
-        self.store: MapStore = robot.extras.get("map_store") or self.maps.store
-        self.sim: Any = robot.extras.get("sim")
-        self.camera = robot.devices.camera
-        self.link = cast(SecondaryLink, robot.parts["secondary_link"])
+        parts = robot.parts
+        self.agent = parts.agent
+        self.inputs = parts.inputs
+        self.health = parts.health
+        self.pipeline = parts.pipeline
+        self.settings = parts.settings
+        self.maps = parts.maps
+        self.store = parts.map_store
+        self.sim = parts.sim
+        self.camera = parts.devices.camera
+        self.link = parts.link
         self.missions_dir = (self.config.agent.file or DEFAULT_AGENT_FILE).parent / "missions"
         self._lock = threading.Lock()
         self._actions: queue.SimpleQueue[tuple[str, Callable[[float], object]]] = queue.SimpleQueue()
@@ -153,10 +146,8 @@ class RobotGatewayImpl:
                 self.robot.event("autonomy", f"{trigger}: {result.reason}")
             elif not result.accepted:
                 self.robot.event("refused", f"{trigger}: {result.reason}")
-        localization = self.robot.extras.get("localization")
-        if localization is not None:
-            for event in localization.drain_events():
-                self.robot.event(f"localization {event.kind}", event.detail)
+        for event in self.robot.parts.localization.drain_events():
+            self.robot.event(f"localization {event.kind}", event.detail)
 
     def _queue(self, what: str, action: Callable[[float], object]) -> None:
         self._actions.put((what, action))
@@ -208,10 +199,8 @@ class RobotGatewayImpl:
         return self._listing_of("missions", folder, lambda: sorted(p.stem for p in folder.glob("*.yaml")))
 
     def _navigation(self) -> tuple[NavStatus | None, Pose2D | None]:
-        """The navigator's last status (with its paths) and goal, when navigation is wired."""
-        nav: RobotNavigation | None = self.robot.extras.get("navigation")
-        if nav is None:
-            return None, None
+        """The navigator's last status (with its paths) and goal."""
+        nav = self.robot.parts.navigation
         return nav.last_status, nav.goal
 
     def _mission(self, snapshot: dict[str, Any]) -> dict[str, Any] | None:
@@ -225,8 +214,7 @@ class RobotGatewayImpl:
 
     def state(self) -> dict[str, Any]:
         agent = self.agent.snapshot(transitions=0)
-        localization = self.robot.extras.get("localization")
-        pose = None if localization is None else localization.map_pose()
+        pose = self.robot.parts.localization.map_pose()
         out: dict[str, Any] = {
             "robot": self.config.secondary.robot_name,
             "agent_state": str(agent["state"]).split(".")[0],
@@ -250,16 +238,12 @@ class RobotGatewayImpl:
         out["global_path"] = points_json(getattr(status, "global_path", None)) if running else []
         out["local_path"] = points_json(getattr(status, "local_trajectory", None)) if running else []
         out["goal"] = pose_json(goal) if running and out["agent_state"] == "EXEC" else None
-        driver = self.robot.extras.get("driver")
-        if driver is not None:
-            wheels = driver.feedback()
-            out["wheel_speeds"] = {"left_radps": round(wheels.left_radps, 3),
-                                   "right_radps": round(wheels.right_radps, 3)}
-        control = cast("MotionControl | None", self.robot.parts.get("motion"))
-        last = None if control is None else control.last
+        wheels = self.robot.parts.driver.feedback()
+        out["wheel_speeds"] = {"left_radps": round(wheels.left_radps, 3), "right_radps": round(wheels.right_radps, 3)}
+        last = self.robot.parts.motion.last
         out["emergency"] = bool(last is not None and (last.emergency or last.cliff_stop))
         out["level1"], out["level2"] = status_levels(self.link.status)
-        monitor = self.robot.parts.get("system_monitor")
+        monitor = self.robot.components.get("system_monitor")
         out["system"] = system_json(getattr(monitor, "latest", None))
         limits = self.pipeline.limits
         out["limits"] = {"linear_mps": limits.max_linear_mps, "angular_radps": limits.max_angular_radps}
@@ -294,7 +278,7 @@ class RobotGatewayImpl:
         return None if frame is None else frame[1]
 
     def secondary_screen_png(self) -> bytes | None:
-        core = self.robot.parts.get("secondary_core")
+        core = self.robot.components.get("secondary_core")
         screen = getattr(core, "screen_png", None)
         return None if screen is None else cast(bytes, screen(scale=2, color=True))
 
@@ -337,7 +321,7 @@ class RobotGatewayImpl:
         why = _pose_ok(pose, "initial pose")
         if why is not None:
             return CommandResult.refused(why)
-        localization = self.robot.extras.get("localization")
+        localization = self.robot.parts.localization
         if localization is None:
             return CommandResult.refused("this robot has no localization")
         grid = self.maps.active
@@ -350,7 +334,7 @@ class RobotGatewayImpl:
         return CommandResult.accepted()
 
     def localize_globally(self) -> CommandResult:
-        localization = self.robot.extras.get("localization")
+        localization = self.robot.parts.localization
         if localization is None:
             return CommandResult.refused("this robot has no localization")
         if self.maps.active is None:
@@ -480,7 +464,7 @@ class RobotGatewayImpl:
     def capture_image(self) -> CommandResult:
         # One way to capture: the same as the agent's CaptureImage leaf (RobotPort.capture_image).
         try:
-            self.robot.extras["port"].capture_image("capture")
+            self.robot.parts.port.capture_image("capture")
         except AtemrError as exc:
             return CommandResult.refused(str(exc))
         return CommandResult.accepted()
@@ -529,7 +513,7 @@ class RobotGatewayImpl:
         return CommandResult.accepted()
 
     def reload_agent(self) -> CommandResult:
-        watcher: ReloadWatcher | None = cast("ReloadWatcher | None", self.robot.parts.get("reload_watcher"))
+        watcher: ReloadWatcher | None = cast("ReloadWatcher | None", self.robot.components.get("reload_watcher"))
         if watcher is None:
             return CommandResult.refused("this robot does not watch its agent document")
         watcher.request()
@@ -550,7 +534,7 @@ class RobotGatewayImpl:
         return CommandResult.accepted()
 
     def sim_button(self, hold_s: float) -> CommandResult:
-        core = self.robot.parts.get("secondary_core")
+        core = self.robot.components.get("secondary_core")
         if self.sim is None or core is None:
             return CommandResult.refused("not a simulation")
         if not _finite(hold_s) or not 0 < hold_s <= MAX_BUTTON_HOLD_S:
@@ -561,6 +545,8 @@ class RobotGatewayImpl:
     def _in_world(self, x_m: float, y_m: float) -> str | None:
         if not _finite(x_m, y_m):
             return f"a position must be finite numbers, got ({x_m!r}, {y_m!r})"
+        if self.sim is None:
+            return "not a simulation"
         world = self.sim.world.map
         if not world.contains(*world.world_to_cell(x_m, y_m)):
             return f"({x_m:.2f}, {y_m:.2f}) is outside the simulated world"

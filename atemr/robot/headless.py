@@ -49,7 +49,7 @@ def build_headless_robot(config: Config) -> Robot:
 
 def agent_summary(robot: Robot) -> dict[str, Any]:
     """The agent's final state and its transitions, for a run's JSON report."""
-    agent = robot.parts.get("agent")
+    agent = robot.components.get("agent")
     if agent is None:
         return {}
     return {
@@ -73,7 +73,7 @@ class TruthWatch:
     """
 
     def __init__(self, robot: Robot, *, period_s: float = 0.1, kidnap: tuple[float, Any] | None = None) -> None:
-        sim, localization = robot.extras.get("sim"), robot.extras.get("localization")
+        sim, localization = robot.parts.sim, robot.parts.localization
         if sim is None or localization is None:
             raise ValueError("watching ground truth needs the simulated robot with localization")
         self.sim = sim

@@ -314,8 +314,8 @@ class RobotSite:
         self.clock = BootThenRealTime(BOOT_S, speed)
         self.robot = build_robot(config, realtime=True, clock=self.clock)
         self.server = add_dashboard(self.robot, hash_method=FAST_SCRYPT)
-        self.gateway = self.robot.extras["gateway"]
-        self.sim = self.robot.extras["sim"]
+        self.gateway = self.robot.parts.gateway
+        self.sim = self.robot.parts.sim
         self.thread = threading.Thread(target=self.robot.run, name="e2e-robot", daemon=True)
 
     @property
@@ -328,7 +328,7 @@ class RobotSite:
 
     @property
     def agent_state(self) -> str:
-        return str(self.robot.parts["agent"].state)  # type: ignore[attr-defined]
+        return str(self.robot.components["agent"].state)  # type: ignore[attr-defined]
 
     def start(self) -> None:
         self.robot.start()

@@ -59,9 +59,9 @@ def test_live_view_follows_a_mission_through_exec_and_back_then_replays_it(fast_
     seen = page.evaluate("window.seen")
     assert seen[seen.index("EXEC") - 1:][:2] == ["IDLE.AUTO", "EXEC"] and seen[-1] == "IDLE.AUTO"
     assert "reached" in page.inner_text("#agent-transitions")
-    assert site.robot.extras["trace"].error is None
+    assert site.robot.parts.trace.error is None
     # The run was recorded: replay it and seek into EXEC.
-    site.robot.extras["trace"].flush()
+    site.robot.parts.trace.flush()
     page.reload()
     wait_for(page, "document.querySelectorAll('#trace-select option').length === 1 && "
                    "document.getElementById('trace-select').value.startsWith('run-')")

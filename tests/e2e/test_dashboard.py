@@ -205,7 +205,7 @@ def test_mapping_begin_end_and_save_on_the_robot(robot_site, page, shots, helper
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
     wait_for(page, "document.getElementById('map-select').value === 'kitchen'")
     assert (robot_site.data_dir / "maps" / "kitchen.yaml").is_file()
-    assert robot_site.robot.extras["maps"].active_name == "kitchen"
+    assert robot_site.robot.parts.maps.active_name == "kitchen"
     page.select_option("#map-select", "studio")
     wait_for(page, "document.getElementById('command-result').textContent === 'map_select: ok'")
     wait_for(page, "ATEMR.state.active_map === 'studio'")
@@ -219,8 +219,8 @@ def test_change_a_speed_limit_on_the_robot(robot_site, page, shots, helpers):
     page.click("#limits-update")
     page.wait_for_selector("text=Speed limits: done")
     assert page.input_value("#linear-limit") == "0.8"
-    assert robot_site.robot.extras["pipeline"].limits.max_linear_mps == 0.8
-    assert robot_site.robot.extras["settings"].load()["motion"]["max_linear_mps"] == 0.8  # persisted
+    assert robot_site.robot.parts.pipeline.limits.max_linear_mps == 0.8
+    assert robot_site.robot.parts.settings.load()["motion"]["max_linear_mps"] == 0.8  # persisted
     page.screenshot(path=str(shots / "settings.png"), full_page=True)
 
 
@@ -404,7 +404,7 @@ def test_a_gated_transition_is_confirmed_from_the_page(robot_site, page, shots, 
     page.click("#autonomy-confirm")
     wait_for(page, "document.getElementById('agent-state').textContent === 'MAPPING'")
     wait_for(page, "document.getElementById('autonomy-request').hidden")
-    confirmed = [r for r in robot_site.robot.parts["agent"].trace if r.decision == "confirmed"]
+    confirmed = [r for r in robot_site.robot.components["agent"].trace if r.decision == "confirmed"]
     assert [(r.trigger, r.dest, r.decided_by) for r in confirmed] == [("begin_mapping", "MAPPING", "admin")]
 
 

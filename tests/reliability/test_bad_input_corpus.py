@@ -215,7 +215,7 @@ def test_bad_goals_are_refused_with_the_reason_and_the_robot_stays_put(tmp_path:
         "obstacle": (Pose2D(0.6, 2.2, 0.0), "obstacle"),  # on the sofa
     }
     with robot:
-        agent, sim = robot.parts["agent"], robot.extras["sim"]
+        agent, sim = robot.components["agent"], robot.parts.sim
         robot.run(until=7.0)
         agent.submit("set_auto")
         robot.run(until=7.5)

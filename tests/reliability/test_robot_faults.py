@@ -40,9 +40,9 @@ class Entered:
 class Harness:
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
-        self.agent: Any = robot.parts["agent"]
-        self.inputs = robot.extras["inputs"]
-        self.emulators = [robot.parts["left_motor_emulator"], robot.parts["right_motor_emulator"]]
+        self.agent: Any = robot.components["agent"]
+        self.inputs = robot.parts.inputs
+        self.emulators = [robot.components["left_motor_emulator"], robot.components["right_motor_emulator"]]
         self.errors: list[Entered] = []
         self.records: list[TransitionRecord] = []
         self.agent.listeners.append(self._on_transition)
@@ -127,7 +127,7 @@ def classified(h: Harness, since: float) -> str:
 
 # -- heartbeat loss ------------------------------------------------------------------------------------------------
 def silence_secondary_core(h: Harness) -> Callable[[], None]:
-    board = h.robot.parts["secondary_core"]
+    board = h.robot.components["secondary_core"]
     tick = board.tick
     board.tick = lambda now: None  # type: ignore[method-assign]
 
@@ -164,7 +164,7 @@ def test_heartbeat_loss_stops_the_motors_and_enters_error_then_recovers(harness:
 def test_dropped_heartbeat_frames_alone_stop_the_motors_after_two_seconds(harness: Harness) -> None:
     """Only 0x157 is lost (the board still sends its IR frames): the heartbeat watchdog is what stops the base."""
     h = harness
-    link = h.robot.parts["secondary_link"]
+    link = h.robot.components["secondary_link"]
     recv = link.bus.recv
 
     def without_heartbeat(timeout: float | None = None) -> can.Message | None:
@@ -212,7 +212,7 @@ def test_a_silent_motor_stops_both_and_enters_error_naming_it(harness: Harness) 
     assert classified(h, fault_t) == "recover"
     h.drive(fault_t + 3.0)
     assert h.targets() == [0.0, 0.0]  # the right motor, still powered, is held at zero too
-    assert h.robot.extras["driver"].fault is not None
+    assert h.robot.parts.driver.fault is not None
 
 
 def test_an_over_temperature_flag_stops_both_and_enters_error_naming_it(harness: Harness) -> None:
@@ -242,7 +242,7 @@ def test_a_silent_motor_holds_error_until_it_answers_then_the_robot_drives_again
 
 # -- the CAN interface itself failing ---------------------------------------------------------------------------
 def break_bus(h: Harness, what: str) -> Callable[[], None]:
-    bus = h.robot.extras["driver"].bus
+    bus = h.robot.parts.driver.bus
     original = getattr(bus, what)
 
     def fail(*args: object, **kwargs: object) -> None:
@@ -268,8 +268,8 @@ def test_a_failing_can_interface_enters_error_naming_the_motors(harness: Harness
     assert f"CAN {word} failed" in entered.reason, entered.reason
     assert classified(h, fault_t) == "recover"
     # the driver keeps zero as its command and no further speed frame goes out
-    assert h.robot.extras["driver"].commanded.left_radps == 0.0
-    assert h.robot.extras["driver"].fault is not None
+    assert h.robot.parts.driver.commanded.left_radps == 0.0
+    assert h.robot.parts.driver.fault is not None
     if side == "recv":  # the send side still works: the stop reached the motors
         assert h.stopped()
 
@@ -293,7 +293,7 @@ def bus_error(entered: Entered) -> HardwareError:
 def test_bus_off_stops_both_motors_and_enters_error_naming_the_bus_until_it_is_back(
         harness: Harness, monkeypatch: pytest.MonkeyPatch) -> None:
     h = harness
-    supervised = h.robot.parts["can_bus"].bus  # type: ignore[attr-defined]
+    supervised = h.robot.components["can_bus"].bus  # type: ignore[attr-defined]
     off = [False]
     # the controller reports bus-off through python-can's bus.state (only the supervised bus does)
     monkeypatch.setattr(type(supervised), "state", property(
@@ -321,7 +321,7 @@ def test_bus_off_stops_both_motors_and_enters_error_naming_the_bus_until_it_is_b
 def test_a_dead_receive_side_stops_both_motors_and_enters_error_naming_the_bus(
         harness: Harness, monkeypatch: pytest.MonkeyPatch) -> None:
     h = harness
-    supervised = h.robot.parts["can_bus"].bus  # type: ignore[attr-defined]
+    supervised = h.robot.components["can_bus"].bus  # type: ignore[attr-defined]
 
     def dead(timeout: float | None = None) -> can.Message | None:
         raise can.CanOperationError("controller gone (simulated)")
@@ -335,12 +335,12 @@ def test_a_dead_receive_side_stops_both_motors_and_enters_error_naming_the_bus(
     assert classified(h, fault_t) == "recover"
     h.drive(fault_t + 1.5)
     # nothing is received, so the motors went silent too: the driver latched that as well, the bus stays the cause
-    assert h.agent.state == "ERROR" and h.robot.extras["driver"].fault is not None and h.stopped()
+    assert h.agent.state == "ERROR" and h.robot.parts.driver.fault is not None and h.stopped()
     monkeypatch.undo()
     back_t = h.robot.clock.now()
     h.drive(back_t + 2.5)
     assert h.agent.state == "IDLE.MANUAL", [(r.source, r.dest, r.reason) for r in h.records[-5:]]
-    assert h.robot.extras["driver"].fault is None  # both latched faults cleared, not only the bus's
+    assert h.robot.parts.driver.fault is None  # both latched faults cleared, not only the bus's
     h.drive(back_t + 3.5)
     assert h.moving(), h.speeds()
 
@@ -354,7 +354,7 @@ def test_a_failing_listener_on_the_bus_is_an_error_naming_the_bus_while_it_fails
             raise RuntimeError("tap bug")
 
     fault_t = h.robot.clock.now()
-    h.robot.parts["can_bus"].add_listener(tap)  # type: ignore[attr-defined]
+    h.robot.components["can_bus"].add_listener(tap)  # type: ignore[attr-defined]
     stop_time(h, fault_t, 1.0)
     error = bus_error(first_error(h, fault_t))
     assert "listener failed" in str(error) and "tap bug" in str(error)

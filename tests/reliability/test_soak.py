@@ -53,7 +53,7 @@ def soak(tmp_path: Any, duration_s: float) -> dict[str, Any]:
     baseline: tuple[int, int] | None = None
     growth = (0, 0)
     with robot:
-        agent, sim, nav = robot.parts["agent"], robot.extras["sim"], robot.extras["navigation"]
+        agent, sim, nav = robot.components["agent"], robot.parts.sim, robot.parts.navigation
         robot.run(until=7.0)
         assert agent.state == "IDLE.MANUAL"
         agent.submit("set_auto")

@@ -21,7 +21,7 @@ def robot(tmp_path):
 
 
 def test_joystick_drives_the_simulated_base_over_can_and_a_lost_joystick_stops_it(robot):
-    sim, inputs = robot.extras["sim"], robot.extras["inputs"]
+    sim, inputs = robot.parts.sim, robot.parts.inputs
     robot.run(until=3.0)  # boot: secondary core ready, heartbeat established
     start = sim.pose
     t = robot.clock.now()
@@ -41,7 +41,7 @@ def test_joystick_drives_the_simulated_base_over_can_and_a_lost_joystick_stops_i
 
 def test_health_reports_every_hardware_component(robot):
     robot.run(until=4.0)  # the secondary core boots for 3 s, then publishes the IR sensors
-    health = robot.extras["health"].collect()
+    health = robot.parts.health.collect()
     for name in ("left_motor", "right_motor", "lidar", "imu", "ir_front", "ir_rear", "connectivity"):
         assert health[name].ok, (name, health[name])
 
@@ -54,29 +54,29 @@ def test_runs_are_deterministic(tmp_path):
                                                     "ui.enabled": False})
         robot = build_robot(config, realtime=False, clock=SimClock())
         with robot:
-            inputs = robot.extras["inputs"]
+            inputs = robot.parts.inputs
             t = 0.0
             while t < 3.0:
                 inputs.operate(Twist(0.25, 0.3), t)
                 robot.run(until=t + 0.1)
                 t = robot.clock.now()
-            poses.append(robot.extras["sim"].pose)
+            poses.append(robot.parts.sim.pose)
     assert poses[0] == poses[1]
     assert not math.isclose(poses[0].x_m, 0.0)
 
 
 def test_agent_starts_up_to_idle_and_reports_it_on_can(robot):
-    agent, link = robot.parts["agent"], robot.parts["secondary_link"]
+    agent, link = robot.components["agent"], robot.components["secondary_link"]
     robot.run(until=8.0)
     assert agent.state == "IDLE.MANUAL", agent.snapshot()["transitions"]
     assert link.status.state.name == "IDLE"
-    assert robot.parts["secondary_core"].state == "ops"  # the board saw 0x150 byte 0 = 1
-    assert robot.extras["localization"].localized
+    assert robot.components["secondary_core"].state == "ops"  # the board saw 0x150 byte 0 = 1
+    assert robot.parts.localization.localized
 
 
 def test_a_goal_in_auto_is_reached_through_the_whole_stack(robot):
     """Dashboard-style commands → agent → navigator → motion pipeline → CAN → motors → simulated base."""
-    agent, sim = robot.parts["agent"], robot.extras["sim"]
+    agent, sim = robot.components["agent"], robot.parts.sim
     robot.run(until=6.0)
     agent.submit("set_auto")
     robot.run(until=6.5)
@@ -91,14 +91,14 @@ def test_a_goal_in_auto_is_reached_through_the_whole_stack(robot):
     assert agent.state == "IDLE.AUTO", agent.trace[-3:]
     # The navigator stops within 0.25 m of the goal by its *estimated* pose; the true pose may differ
     # by the localization error (target RMSE < 0.10 m).
-    assert robot.extras["localization"].map_pose().distance_to(goal) <= 0.25
+    assert robot.parts.localization.map_pose().distance_to(goal) <= 0.25
     assert sim.pose.distance_to(goal) <= 0.25 + 0.10
     assert not sim.collisions
-    assert robot.extras["navigation"].last_status.state == "SUCCEEDED"
+    assert robot.parts.navigation.last_status.state == "SUCCEEDED"
 
 
 def test_an_invalid_goal_goes_to_error_with_the_reason_and_back_to_idle(robot):
-    agent = robot.parts["agent"]
+    agent = robot.components["agent"]
     robot.run(until=6.0)
     agent.submit("set_auto")
     robot.run(until=6.5)
@@ -123,7 +123,7 @@ def test_every_run_records_a_trace_rotated_by_size(tmp_path):
     parts = sorted((tmp_path / "traces").glob("run-*.atrace"))
     assert len(parts) == 3  # rotated at 4 kB, the oldest parts deleted
     assert all(p.stat().st_size <= 0.004 * 1024 * 1024 for p in parts)
-    newest = robot.extras["trace"].parts[-1]
+    newest = robot.parts.trace.parts[-1]
     timeline = TraceTimeline(read_trace(newest).records)
     assert timeline.head["meta"] == {"world": "studio", "seed": 0, "map": "studio", "simulation": True}
     end = timeline.frame(1e9)
@@ -138,17 +138,46 @@ def test_the_primary_receives_through_one_supervisor_polled_in_simulation_thread
                                                 "ui.enabled": False})
     robot = build_robot(config, realtime=False, clock=SimClock())  # built, not started: no thread runs
     try:
-        supervisor = robot.parts["can_bus"]
+        supervisor = robot.components["can_bus"]
         assert supervisor.threaded is not simulation
-        assert robot.parts["motors"].bus.supervisor is supervisor
-        assert robot.parts["secondary_link"].bus.supervisor is supervisor
-        assert robot.extras["health"].collect()["can_bus"].ok
+        assert robot.components["motors"].bus.supervisor is supervisor
+        assert robot.components["secondary_link"].bus.supervisor is supervisor
+        assert robot.parts.health.collect()["can_bus"].ok
     finally:
         robot.shutdown()
 
 
 def test_the_supervisor_delivers_every_frame_of_the_running_robot(robot):
     robot.run(until=3.0)
-    supervisor, link, driver = robot.parts["can_bus"], robot.parts["secondary_link"], robot.extras["driver"]
+    supervisor, link, driver = robot.components["can_bus"], robot.components["secondary_link"], robot.parts.driver
     assert supervisor.healthy and supervisor.frames > 0 and link.frames_in > 0
     assert all(state.last_reply_t is not None for state in driver.states.values())
+
+
+def test_motors_with_protocol_v4_drive_the_base_and_answer_on_0x240(tmp_path):
+    """``devices.motors.protocol: v4``: the driver and both emulators speak RMD V4.2 (replies on 0x240 + id), and
+    the robot drives as with V1.61."""
+    import can
+
+    channel = unique_channel("v4")
+    config = load_config(environ={}, overrides={"data_dir": str(tmp_path), "can.channel": channel, "sim.seed": 1,
+                                                "secondary.portal_serve": False, "ui.enabled": False,
+                                                "devices.motors.protocol": "v4"})
+    robot = build_robot(config, realtime=False, clock=SimClock())
+    with can.Bus(interface="virtual", channel=channel) as tap, robot:
+        sim, inputs = robot.parts.sim, robot.parts.inputs
+        robot.run(until=3.0)
+        start = sim.pose
+        t = robot.clock.now()
+        while t < 5.0:
+            inputs.operate(Twist(0.3, 0.0), t)
+            robot.run(until=t + 0.1)
+            t = robot.clock.now()
+        frames = []
+        while (msg := tap.recv(timeout=0)) is not None:
+            frames.append(msg)
+        assert sim.pose.x_m - start.x_m > 0.3
+        assert robot.parts.health.collect()["left_motor"].ok and robot.parts.driver.fault is None
+        assert {0x241, 0x242} <= {m.arbitration_id for m in frames}  # the V4.2 replies
+        requests = [m for m in frames if m.arbitration_id in (0x141, 0x142)]
+        assert requests and not [m for m in requests if m.data[0] in (0x88, 0x9B)]  # V4.2 has neither

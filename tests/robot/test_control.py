@@ -54,8 +54,8 @@ class Running:
 
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
-        self.control: RobotControl = robot.parts["control"]  # type: ignore[assignment]
-        self.agent: Agent = robot.parts["agent"]  # type: ignore[assignment]
+        self.control: RobotControl = robot.components["control"]  # type: ignore[assignment]
+        self.agent: Agent = robot.components["agent"]  # type: ignore[assignment]
         self.socket = self.control.server.path
         robot.start()
         self.thread = threading.Thread(target=robot.run, name="robot", daemon=True)

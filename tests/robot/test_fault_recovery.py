@@ -50,7 +50,7 @@ def robot(tmp_path: Any) -> Iterator[Robot]:
     robot = build_robot(config, realtime=False, clock=SimClock())
     with robot:
         robot.run(until=7.0)
-        assert robot.parts["agent"].state == "IDLE.MANUAL"  # type: ignore[attr-defined]
+        assert robot.components["agent"].state == "IDLE.MANUAL"  # type: ignore[attr-defined]
         yield robot
 
 
@@ -58,7 +58,7 @@ FORWARD = Twist(0.2, 0.0)
 
 
 def drive(robot: Robot, until: float, twist: Twist = FORWARD) -> None:
-    inputs = robot.extras["inputs"]
+    inputs = robot.parts.inputs
     t = robot.clock.now()
     while t < until - 1e-9:
         inputs.operate(twist, t)
@@ -67,10 +67,10 @@ def drive(robot: Robot, until: float, twist: Twist = FORWARD) -> None:
 
 
 def test_the_port_clears_the_driver_fault_only_once_both_motors_answer(robot: Robot) -> None:
-    port = robot.extras["port"]
+    port = robot.parts.port
     assert isinstance(port, RobotPort)
-    driver = robot.extras["driver"]
-    left = robot.parts["left_motor_emulator"]
+    driver = robot.parts.driver
+    left = robot.components["left_motor_emulator"]
     assert port.clear_faults() is None  # nothing latched
     left.model.unplug()  # type: ignore[attr-defined]
     robot.run(until=robot.clock.now() + 0.5)
@@ -87,10 +87,10 @@ def test_the_port_clears_the_driver_fault_only_once_both_motors_answer(robot: Ro
 
 
 def test_an_over_temperature_that_cools_down_is_cleared_and_the_robot_drives_again(robot: Robot) -> None:
-    agent: Any = robot.parts["agent"]
-    left: Any = robot.parts["left_motor_emulator"]
-    right: Any = robot.parts["right_motor_emulator"]
-    driver = robot.extras["driver"]
+    agent: Any = robot.components["agent"]
+    left: Any = robot.components["left_motor_emulator"]
+    right: Any = robot.components["right_motor_emulator"]
+    driver = robot.parts.driver
     fault_t = robot.clock.now()
     right.model.inject_error(MotorErrorFlags.OVER_TEMPERATURE)
     drive(robot, fault_t + 2.0)

@@ -45,7 +45,7 @@ def booted(tmp_path: Path) -> Iterator[tuple[Robot, RobotGatewayImpl]]:
     robot, gateway = make_robot(tmp_path / "data")
     with robot:
         robot.run(until=BOOTED_S)
-        assert robot.parts["agent"].state == "IDLE.MANUAL"  # type: ignore[attr-defined]
+        assert robot.components["agent"].state == "IDLE.MANUAL"  # type: ignore[attr-defined]
         yield robot, gateway
     gateway.close()
 
@@ -55,7 +55,7 @@ def run(robot: Robot, seconds: float) -> None:
 
 
 def agent_state(robot: Robot) -> str:
-    return str(robot.parts["agent"].state)  # type: ignore[attr-defined]
+    return str(robot.components["agent"].state)  # type: ignore[attr-defined]
 
 
 def drive(robot: Robot, gateway: RobotGatewayImpl, twist: Twist, seconds: float) -> None:
@@ -75,12 +75,12 @@ def test_the_snapshot_has_every_key_filled_from_the_robot(booted):
     assert state["robot"] == robot.config.secondary.robot_name == "KAY"
     assert state["active_map"] == "studio" and state["maps"][0] == "studio"
     assert "look-around" in state["missions"] and state["mission"] is None
-    truth = robot.extras["sim"].pose
+    truth = robot.parts.sim.pose
     assert math.hypot(state["pose"]["x_m"] - truth.x_m, state["pose"]["y_m"] - truth.y_m) < 0.15
     scan = np.asarray(state["scan"])
     assert scan.ndim == 2 and scan.shape[1] == 2 and len(scan) > 100
     # the scan is drawn in the map frame: its points lie on the map's walls, within a few cells
-    grid = robot.extras["maps"].active
+    grid = robot.parts.maps.active
     rows, cols = grid.world_to_cell(scan[:, 0], scan[:, 1])
     inside = grid.contains(rows, cols)
     assert inside.mean() > 0.95
@@ -104,7 +104,7 @@ def test_joystick_drives_the_robot_and_the_pose_follows(booted):
     assert gateway.state()["wheel_speeds"]["left_radps"] > 0.5
     x1 = gateway.state()["pose"]["x_m"]
     assert x1 > x0 + 0.2
-    assert abs(robot.extras["sim"].pose.x_m - x1) < 0.15
+    assert abs(robot.parts.sim.pose.x_m - x1) < 0.15
     assert not gateway.joystick(Twist(math.nan, 0.0)).ok
 
 
@@ -122,7 +122,7 @@ def test_modes_goals_and_missions_are_accepted_or_refused_as_the_agent_decides(b
     assert "AUTO" in gateway.joystick(Twist(0.2, 0.0)).reason
     assert "MANUAL" in gateway.begin_mapping().reason
     assert "non-finite" in gateway.set_goal(Pose2D(math.inf, 0.0, 0.0)).reason
-    grid = robot.extras["maps"].active
+    grid = robot.parts.maps.active
     row, col = np.argwhere(grid.data == 100)[len(np.argwhere(grid.data == 100)) // 2]
     wx, wy = grid.cell_to_world(row, col)
     wall = gateway.set_goal(Pose2D(float(wx), float(wy), 0.0))  # in a wall: refused, with or without navigation
@@ -144,7 +144,7 @@ def test_modes_goals_and_missions_are_accepted_or_refused_as_the_agent_decides(b
 
 def test_a_refusal_by_a_guard_is_reported_as_an_event(booted):
     robot, gateway = booted
-    robot.extras["health"].add("lidar", lambda now: ComponentHealth(False, "test: lidar unplugged"))
+    robot.parts.health.add("lidar", lambda now: ComponentHealth(False, "test: lidar unplugged"))
     assert gateway.set_mode("AUTO").ok  # may be taken in IDLE.MANUAL: queued; the guard decides
     run(robot, 0.3)
     assert agent_state(robot) in ("IDLE.MANUAL", "ERROR")
@@ -175,21 +175,21 @@ def test_mapping_begin_end_save_and_select(booted):
     state = gateway.state()
     assert state["agent_state"] == "IDLE" and state["active_map"] == "lounge" and "lounge" in state["maps"]
     assert "already exists" in gateway.save_map("lounge").reason
-    robot.extras["map_store"].delete("lounge")  # the media page deleted it
+    robot.parts.map_store.delete("lounge")  # the media page deleted it
     gateway.maps_changed()
     assert "lounge" not in gateway.state()["maps"]
     assert "lounge was deleted" in robot.recent_events(1)[0]["text"]
     assert gateway.select_map("studio").ok
     run(robot, 0.3)
     assert gateway.state()["active_map"] == "studio"
-    assert robot.extras["map_store"].active_name() == "studio"  # persisted
+    assert robot.parts.map_store.active_name() == "studio"  # persisted
 
 
 def test_initial_pose_is_set_on_the_robot_thread(booted):
     robot, gateway = booted
     assert "outside the map" in gateway.set_initial_pose(Pose2D(50.0, 50.0, 0.0)).reason
     assert "non-finite" in gateway.set_initial_pose(Pose2D(math.nan, 0.0, 0.0)).reason
-    truth = robot.extras["sim"].pose
+    truth = robot.parts.sim.pose
     assert gateway.set_initial_pose(truth).ok
     run(robot, 1.0)
     pose = gateway.state()["pose"]
@@ -216,7 +216,7 @@ def test_camera_jpeg_capture_and_video(booted):
     videos = list((robot.config.data_dir / "media" / "videos").glob("*.mjpeg"))
     assert len(videos) == 1
     frames = videos[0].read_bytes().split(b"\xff\xd9\xff\xd8")  # end of one JPEG, start of the next
-    camera_hz = robot.extras["sim"].params.camera_hz
+    camera_hz = robot.parts.sim.params.camera_hz
     assert abs(len(frames) - camera_hz) <= 1
     assert Image.open(io.BytesIO(videos[0].read_bytes())).size == (640, 480)  # the first frame decodes
     assert gateway.state()["recording"] is False
@@ -236,7 +236,7 @@ def test_limits_and_awareness_are_applied_and_survive_a_rebuild(tmp_path):
     robot, gateway = make_robot(tmp_path / "data")
     with robot:
         assert gateway.state()["limits"] == {"linear_mps": 0.8, "angular_radps": 1.5}
-        assert robot.extras["pipeline"].limits.max_linear_mps == 0.8
+        assert robot.parts.pipeline.limits.max_linear_mps == 0.8
         assert gateway.state()["awareness"] is True
     gateway.close()
 
@@ -247,7 +247,7 @@ def test_wifi_joins_through_the_link_and_reports_failure(booted):
     assert gateway.state()["wifi_ssid"] == "lab"
     assert "8-63" in gateway.set_wifi("lab", "short").reason
     assert "1-32" in gateway.set_wifi("", "password1").reason
-    robot.parts["secondary_link"].network.fail_with = "wrong password"  # type: ignore[attr-defined]
+    robot.components["secondary_link"].network.fail_with = "wrong password"  # type: ignore[attr-defined]
     failed = gateway.set_wifi("other", "password2")
     assert not failed.ok and "wrong password" in failed.reason
     assert gateway.state()["wifi_ssid"] == "lab"
@@ -255,7 +255,7 @@ def test_wifi_joins_through_the_link_and_reports_failure(booted):
 
 def test_simulation_panel_kidnap_obstacle_button_and_screen(booted):
     robot, gateway = booted
-    sim = robot.extras["sim"]
+    sim = robot.parts.sim
     assert "outside the simulated world" in gateway.sim_kidnap(Pose2D(-50.0, 0.0, 0.0)).reason
     grid = sim.world.map
     row, col = np.argwhere(grid.data == 100)[0]
@@ -292,27 +292,25 @@ def test_add_dashboard_serves_and_reports_the_webserver_healthy(tmp_path):
     })
     robot = build_robot(config, realtime=False, clock=SimClock())
     server = add_dashboard(robot, hash_method="scrypt:1024:8:1")
-    assert robot.extras["health"].collect()["webserver"].ok is False  # not serving yet
+    assert robot.parts.health.collect()["webserver"].ok is False  # not serving yet
     with robot:
         assert server.running and server.port > 0
-        assert robot.extras["health"].collect()["webserver"].ok
+        assert robot.parts.health.collect()["webserver"].ok
         robot.run(until=BOOTED_S)
         assert agent_state(robot) == "IDLE.MANUAL"
         assert server.pushes > 0
         client = server.app.test_client()
         assert client.get("/auth/first-start").status_code == 200
     assert not server.running
-    assert robot.extras["health"].collect()["webserver"].ok is False
-    robot.extras["gateway"].close()
+    assert robot.parts.health.collect()["webserver"].ok is False
+    robot.parts.gateway.close()
 
 
 def test_auto_goal_shows_the_paths_and_is_reached(booted):
     robot, gateway = booted
-    if "navigation" not in robot.extras:
-        pytest.skip("navigation is not wired into this robot yet")
     assert gateway.set_mode("AUTO").ok
     run(robot, 0.3)
-    start = robot.extras["sim"].pose
+    start = robot.parts.sim.pose
     goal = Pose2D(start.x_m + 1.0, start.y_m + 0.5, 0.0)
     assert gateway.set_goal(goal).ok
     run(robot, 1.0)
@@ -327,7 +325,7 @@ def test_auto_goal_shows_the_paths_and_is_reached(booted):
         if agent_state(robot) != "EXEC":
             break
     assert agent_state(robot) == "IDLE.AUTO"
-    assert robot.extras["sim"].pose.distance_to(goal) < 0.3
+    assert robot.parts.sim.pose.distance_to(goal) < 0.3
     assert gateway.state()["goal"] is None and gateway.state()["global_path"] == []
 
 
@@ -359,7 +357,7 @@ def test_global_localization_finds_a_robot_carried_elsewhere(booted):
     """The operator does not know where the robot is either: FIND POSE spreads the particles over the map and
     the robot finds itself, standing still, where it truly is."""
     robot, gateway = booted
-    sim = robot.extras["sim"]
+    sim = robot.parts.sim
     sim.kidnap(Pose2D(2.0, 3.3, 1.0))  # carried into the other half of the living room; localization not told
     assert gateway.localize_globally().ok
     events: list[dict[str, Any]] = []
@@ -380,6 +378,6 @@ def test_global_localization_finds_a_robot_carried_elsewhere(booted):
 def test_global_localization_needs_an_active_map(tmp_path):
     robot, gateway = make_robot(tmp_path / "data")
     with robot:
-        robot.extras["maps"].active = None
+        robot.parts.maps.active = None
         assert "no active map" in gateway.localize_globally().reason
     gateway.close()

@@ -54,13 +54,13 @@ def robot(tmp_path: object) -> Iterator[Robot]:
 def test_the_localization_bit_follows_a_kidnap_and_the_relocalization(robot: Robot) -> None:
     listener = Listener(robot)
     listener.run(BOOTED_S)
-    localization = robot.extras["localization"]
-    assert robot.parts["agent"].state == "IDLE.MANUAL" and localization.localized
+    localization = robot.parts.localization
+    assert robot.components["agent"].state == "IDLE.MANUAL" and localization.localized
     before = listener.localized_bits(since=BOOTED_S - 2.0)
     assert before and all(ok for _, ok in before), "bit 4 set while localized"
 
     kidnapped_at = robot.clock.now()
-    robot.extras["sim"].kidnap(ELSEWHERE)
+    robot.parts.sim.kidnap(ELSEWHERE)
     listener.run(kidnapped_at + 60.0)
     after = listener.localized_bits(since=kidnapped_at)
     lost = [t for t, ok in after if not ok]
@@ -69,6 +69,6 @@ def test_the_localization_bit_follows_a_kidnap_and_the_relocalization(robot: Rob
     found = [t for t, ok in after if ok and t > lost[0]]
     assert found, "bit 4 set again once relocalized"
     assert all(ok for t, ok in after if t >= found[0]), "and it stays set"
-    truth = robot.extras["sim"].base.pose
+    truth = robot.parts.sim.base.pose
     estimate = localization.map_pose()
     assert estimate is not None and estimate.distance_to(truth) < 0.15, (estimate, truth)

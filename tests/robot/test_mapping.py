@@ -26,7 +26,7 @@ CURVE = Twist(0.2, 0.3)
 
 
 def drive(robot, until, twist=CURVE):
-    inputs = robot.extras["inputs"]
+    inputs = robot.parts.inputs
     t = robot.clock.now()
     while t < until:
         inputs.operate(twist, t)
@@ -35,23 +35,23 @@ def drive(robot, until, twist=CURVE):
 
 
 def test_a_refused_save_keeps_the_session_and_stores_nothing(robot):
-    maps = robot.extras["maps"]
+    maps = robot.parts.maps
     robot.run(until=6.0)
     maps.begin()
     drive(robot, 12.0)
     with pytest.raises(AtemrError, match="built-in"):
         maps.end("studio", robot.clock.now())  # the built-in name is refused
     assert maps.slam is not None and maps.active_name == "studio"
-    assert robot.extras["map_store"].names() == ["studio"]
+    assert robot.parts.map_store.names() == ["studio"]
     stored = maps.end("living-room", robot.clock.now())
     assert stored == "living-room" and maps.active_name == "living-room" and maps.slam is None
-    assert robot.extras["map_store"].active_name() == "living-room"
+    assert robot.parts.map_store.active_name() == "living-room"
 
 
 def test_a_map_begun_while_localized_is_in_the_active_maps_frame(robot):
     """Mapping from a localized pose registers the first scan to the active map, so the saved map shares its
     frame: after the save the robot's pose on the new map is where it truly is in the world."""
-    maps, sim = robot.extras["maps"], robot.extras["sim"]
+    maps, sim = robot.parts.maps, robot.parts.sim
     robot.run(until=6.0)
     maps.begin()
     drive(robot, 14.0)
@@ -60,13 +60,13 @@ def test_a_map_begun_while_localized_is_in_the_active_maps_frame(robot):
     assert "mapping started in the frame of map studio" in texts
     maps.end("living-room", robot.clock.now())
     robot.run(until=robot.clock.now() + 1.0)
-    pose, truth = robot.extras["localization"].map_pose(), sim.pose
+    pose, truth = robot.parts.localization.map_pose(), sim.pose
     assert pose is not None and pose.distance_to(truth) < 0.05, (pose, truth)
     assert abs(math.remainder(pose.yaw_rad - truth.yaw_rad, math.tau)) < 0.01, (pose, truth)
 
 
 def test_a_map_begun_unlocalized_starts_at_the_odometry_pose(robot):
-    maps, localization = robot.extras["maps"], robot.extras["localization"]
+    maps, localization = robot.parts.maps, robot.parts.localization
     robot.run(until=6.0)
     localization.start_global(robot.clock.now())  # the pose is unknown now
     assert localization.map_pose() is None

@@ -56,10 +56,10 @@ class Drive:
 
     def __init__(self, robot: Robot) -> None:
         self.robot = robot
-        self.sim = robot.extras["sim"]
-        self.inputs = robot.extras["inputs"]
-        self.motion = robot.parts["motion"]
-        self.agent = robot.parts["agent"]
+        self.sim = robot.parts.sim
+        self.inputs = robot.parts.inputs
+        self.motion = robot.components["motion"]
+        self.agent = robot.components["agent"]
         self.log: list[Sample] = []
         self.last_sent = -math.inf
 
@@ -69,7 +69,7 @@ class Drive:
 
     def boot(self) -> float:
         """Run until the agent is IDLE and the secondary core in OPS (about 3 s); returns that time."""
-        board = self.robot.parts["secondary_core"]
+        board = self.robot.components["secondary_core"]
         while not (self.agent.state.startswith("IDLE") and board.state == "ops"):
             assert self.t < 10.0, f"not ready: agent {self.agent.state}, secondary core {board.state}"
             self.robot.run(until=round(self.t + TICK, 6))
@@ -78,7 +78,7 @@ class Drive:
     def place(self, pose: Pose2D) -> None:
         """Carry the robot to ``pose`` and tell the localization (as the operator's initial-pose click)."""
         self.sim.kidnap(pose)
-        self.robot.extras["localization"].set_initial_pose(self.t, pose)
+        self.robot.parts.localization.set_initial_pose(self.t, pose)
 
     def run(self, until: float, joy: Twist | None = None) -> None:
         """Tick to ``until``; with ``joy`` the operator holds the joystick (resent every 100 ms)."""

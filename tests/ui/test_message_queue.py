@@ -176,16 +176,16 @@ def test_a_robot_publishes_only_when_a_queue_is_set_and_refuses_to_start_without
 
     plain = build()
     try:
-        assert "state_publisher" not in plain.parts
+        assert "state_publisher" not in plain.components
     finally:
         plain.shutdown()
     url = f"redis://127.0.0.1:{free_port()}/0"  # nothing listens there
     queued = build(**{"ui.message_queue": url})
     try:
-        assert queued.extras["state_publisher"].url == url and "state_publisher" in queued.parts
+        assert queued.parts.state_publisher.url == url and "state_publisher" in queued.components
         with pytest.raises(HardwareError, match=f"cannot reach the message queue {url}"):
             queued.start()
-        assert not queued.extras["state_publisher"].running
+        assert not queued.parts.state_publisher.running
     finally:
         queued.shutdown()
     assert headless_config(queued.config).ui.message_queue is None  # headless runs never publish
