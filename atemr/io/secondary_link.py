@@ -53,8 +53,10 @@ from atemr.io.can import (
     decode,
     is_protocol_id,
 )
+from atemr.io.devices.base import DeviceInfo, Subscribers
 from atemr.io.network import NetworkBackend, NmcliBackend, RecordingNetworkBackend, usable_ipv4
 from atemr.msgs import CliffReadings
+from atemr.trees.ports import ComponentHealth
 
 log = logging.getLogger(__name__)
 
@@ -113,6 +115,9 @@ class SecondaryLink:
     The bus belongs to the caller.
     """
 
+    #: Ticked at 50 Hz (the heartbeat's 0.5 s period and the 2 Hz status need far less; IR frames come at 20 Hz).
+    rate_hz: float | None = 50.0
+
     def __init__(
         self,
         bus: can.BusABC,
@@ -162,6 +167,7 @@ class SecondaryLink:
 
         self._front: tuple[float, float, float] | None = None  # t, left m, right m
         self._rear: tuple[float, float] | None = None  # t, rear m
+        self._cliff: Subscribers[CliffReadings] = Subscribers(f"{name} IR")
 
         self._ssid_rx = SegmentedReceiver(SSID)
         self._password_rx = SegmentedReceiver(PASSWORD)
@@ -224,8 +230,34 @@ class SecondaryLink:
             return None
         return CliffReadings(min(front[0], rear[0]), front[1], front[2], rear[1])
 
-    def health(self) -> dict[str, Any]:
-        """Plain data for the Monitor and the dashboard."""
+    # -- the device interface (`atemr.io.devices.base.Device`): the secondary core's readings are its IR
+    # -- sensors; it is healthy while the heartbeat is answered
+    @property
+    def latest(self) -> CliffReadings | None:
+        return self.latest_cliff()
+
+    @property
+    def count(self) -> int:
+        return self._cliff.count
+
+    def subscribe(self, callback: Callable[[CliffReadings], None]) -> None:
+        """Call ``callback`` with every new pair of IR readings (inside `tick`)."""
+        self._cliff.subscribe(callback)
+
+    def health(self, now: float) -> ComponentHealth:
+        """Healthy while the 0x157 heartbeat is answered."""
+        if self._heartbeat_ok:
+            return ComponentHealth(True)
+        if self._last_exchange is None:
+            return ComponentHealth(False, "no heartbeat answer from the secondary core yet")
+        return ComponentHealth(False, f"no heartbeat answer for {now - self._last_exchange:.1f} s")
+
+    def info(self) -> DeviceInfo:
+        return DeviceInfo(kind="secondary", driver="esp32", port=str(getattr(self.bus, "channel_info", "")) or None,
+                          model="ESP32 secondary core")
+
+    def diagnostics(self) -> dict[str, Any]:
+        """Plain data about the link for tests and tools: counters, heartbeat, power, the last WiFi join."""
         last = self.wifi_results[-1] if self.wifi_results else None
         return {
             "heartbeat_ok": self._heartbeat_ok, "heartbeat_established": self.heartbeat_established,
@@ -257,6 +289,11 @@ class SecondaryLink:
         self._collect_wifi(now)
 
     # -- internals ----------------------------------------------------------------------------
+    def _publish_cliff(self) -> None:
+        reading = self.latest_cliff()
+        if reading is not None:
+            self._cliff.publish(reading)
+
     def _send(self, msg: can.Message) -> bool:
         try:
             self.bus.send(msg)
@@ -349,8 +386,10 @@ class SecondaryLink:
             self._send(IpAddress(answer).encode())
         elif isinstance(msg, IrFront):
             self._front = (now, ir_cm_to_m(msg.left_cm), ir_cm_to_m(msg.right_cm))
+            self._publish_cliff()
         elif isinstance(msg, IrRear):
             self._rear = (now, ir_cm_to_m(msg.distance_cm))
+            self._publish_cliff()
         elif isinstance(msg, WifiSsidSegment):
             self._on_ssid_segment(msg, now)
         elif isinstance(msg, WifiPasswordSegment):

@@ -359,16 +359,8 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
     robot.add(control, RATES["motion"])
     robot.add(driver, cfg.motors.rate_hz)
 
-    def motor(side: str) -> Callable[[float], ComponentHealth]:
-        def probe(now: float) -> ComponentHealth:
-            if driver.fault is not None:
-                return ComponentHealth(False, str(driver.fault))
-            state = driver.states[side]
-            return fresh(state.last_reply_t, now, 2 * cfg.motors.silence_timeout_s, f"{side} motor reply")
-        return probe
-
-    health.add("left_motor", motor("left"))
-    health.add("right_motor", motor("right"))
+    health.add("left_motor", lambda now: driver.side_health("left", now))
+    health.add("right_motor", lambda now: driver.side_health("right", now))
 
     def clear_motor_fault() -> str | None:
         # The agent's Error state calls this while it waits: the latched fault is reset only once both motors

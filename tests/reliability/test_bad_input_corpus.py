@@ -343,4 +343,4 @@ def test_random_frames_on_every_id_into_the_link_and_the_board() -> None:
         bench.run(0.5)
         assert bench.core.state == before == "ops"
         assert bench.link.heartbeat_ok
-        assert bench.link.health()["frames_in"] > 0
+        assert bench.link.diagnostics()["frames_in"] > 0

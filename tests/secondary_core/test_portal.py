@@ -93,7 +93,7 @@ def test_connect_end_to_end_applies_credentials(bench: LinkBench, client: FlaskC
     assert len(results) == 1 and results[0].ok and results[0].ssid == "Casa Ñandú 5G"
     ids = [m.arbitration_id for m in wifi_frames(bench)]
     assert ids == [CanId.WIFI_SSID] * 3 + [CanId.WIFI_PASSWORD] * 3  # 15 and 21 bytes: 3 frames each
-    assert bench.link.health()["wifi"]["ok"] is True
+    assert bench.link.diagnostics()["wifi"]["ok"] is True
 
 
 @pytest.mark.parametrize(
@@ -190,7 +190,7 @@ def test_backend_failure_reported(bench: LinkBench, client: FlaskClient) -> None
     bench.run(0.1)
     result = bench.link.wifi_results[-1]
     assert not result.ok and "Secrets were required" in (result.error or "")
-    assert bench.link.health()["wifi"]["ok"] is False
+    assert bench.link.diagnostics()["wifi"]["ok"] is False
 
 
 def test_view_ip_and_refresh_twice(bench: LinkBench, client: FlaskClient) -> None:

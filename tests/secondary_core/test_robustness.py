@@ -26,4 +26,4 @@ def test_random_frames_never_crash_board_or_link(junk: list[tuple[int, bytes, bo
         assert bench.core.state in ("ops", "config", "power_off")
         snapshot = bench.core.snapshot()
         assert snapshot["screen_text"].count("\n") == 7
-        assert bench.link.health()["frames_in"] >= 0
+        assert bench.link.diagnostics()["frames_in"] >= 0

@@ -11,6 +11,10 @@ decodes, stamps each reading with the robot's clock as it arrives, and hands it 
 queue; when the port fails (the device was unplugged) it closes it, reports why, and opens it again every
 `REOPEN_S` until the device is back. A missing device is never an exception in the control loop: it is an
 unhealthy device whose health says what is wrong and what to do about it.
+
+The CAN devices answer to the same interface: the motor pair (`atemr.io.motors.driver.RmdDriver`: both
+motors' latest replies) and the secondary core (`atemr.io.secondary_link.SecondaryLink`: its IR readings,
+healthy while the heartbeat is answered). Their ``emulated`` drivers are the emulators on the robot's bus.
 """
 
 from __future__ import annotations

@@ -24,10 +24,12 @@ import can
 from atemr.config import MotorsConfig
 from atemr.errors import BusError, HardwareError, ProtocolError
 from atemr.io.can.protocol import is_protocol_id
+from atemr.io.devices.base import DeviceInfo, Subscribers, fresh
 from atemr.io.motors.rmd_codec import MotorErrorFlags, RmdCommand, RmdRequest, Status1Reply, Status2Reply
 from atemr.io.motors.rmd_protocol import AnyReply, RmdProtocol, rmd_protocol
 from atemr.io.motors.rmd_v4 import V4Status1Reply, V4Status2Reply
 from atemr.msgs import WheelSpeeds
+from atemr.trees.ports import ComponentHealth
 
 log = logging.getLogger(__name__)
 
@@ -82,6 +84,15 @@ class MotorState:
     errors: MotorErrorFlags = MotorErrorFlags.NONE
     last_reply_t: float | None = None
     last_feedback_t: float | None = None
+
+
+@dataclass(frozen=True)
+class MotorsReading:
+    """Both motors as their latest replies left them, at time ``t`` (the motors' reading as a device)."""
+
+    t: float
+    left: MotorState
+    right: MotorState
 
 
 @dataclass(frozen=True)
@@ -276,6 +287,8 @@ class RmdDriver(DriveMotors):
         self.directions = dict(zip(SIDES, directions, strict=True))
         self._by_reply_id = {self.protocol.reply_id(mid): side for side, mid in self.ids.items()}
         self.states = {side: MotorState(side, mid) for side, mid in self.ids.items()}
+        self.rate_hz: float | None = None  # the robot ticks it at motors.rate_hz (`from_config` sets it)
+        self._readings: Subscribers[MotorsReading] = Subscribers(name)
         self.bad_frames = 0
         self.output_off = False
         self._last_status1_t: float | None = None
@@ -286,15 +299,53 @@ class RmdDriver(DriveMotors):
                     on_watchdog: Callable[[WatchdogEvent], None] | None = None) -> RmdDriver:
         """The driver described by the ``motors`` configuration section (schedule it at ``config.rate_hz``);
         ``protocol`` is ``devices.motors.protocol``, which lives in another section."""
-        return cls(bus, left_id=config.left_id, right_id=config.right_id,
-                   directions=(config.left_direction, config.right_direction), status_period_s=config.status_period_s,
-                   command_timeout_s=config.command_timeout_s, silence_timeout_s=config.silence_timeout_s,
-                   on_fault=on_fault, on_watchdog=on_watchdog, protocol=protocol)
+        driver = cls(bus, left_id=config.left_id, right_id=config.right_id,
+                     directions=(config.left_direction, config.right_direction),
+                     status_period_s=config.status_period_s, command_timeout_s=config.command_timeout_s,
+                     silence_timeout_s=config.silence_timeout_s, on_fault=on_fault, on_watchdog=on_watchdog,
+                     protocol=protocol)
+        driver.rate_hz = config.rate_hz
+        return driver
 
     # -- readings -------------------------------------------------------------------------------
     def feedback(self) -> WheelSpeeds:
         """Measured wheel speeds (rad/s, forward positive) from the last status-2 replies."""
         return WheelSpeeds(self.states["left"].speed_radps, self.states["right"].speed_radps)
+
+    # -- the device interface (`atemr.io.devices.base.Device`) -------------------------------------
+    @property
+    def latest(self) -> MotorsReading | None:
+        """Both motors after the latest replies, or None before the first."""
+        return self._readings.latest
+
+    @property
+    def count(self) -> int:
+        return self._readings.count
+
+    def subscribe(self, callback: Callable[[MotorsReading], None]) -> None:
+        """Call ``callback`` after every tick that brought replies."""
+        self._readings.subscribe(callback)
+
+    def side_health(self, side: str, now: float) -> ComponentHealth:
+        """One motor's health (the 0x153 hardware bits are per motor): no latched fault, and a reply within
+        twice ``silence_timeout_s``."""
+        if self.fault is not None:
+            return ComponentHealth(False, str(self.fault))
+        return fresh(self.states[side].last_reply_t, now, 2 * self.silence_timeout_s, f"{side} motor reply")
+
+    def health(self, now: float) -> ComponentHealth:
+        """Both motors healthy, or the first problem."""
+        for side in SIDES:
+            health = self.side_health(side, now)
+            if not health.ok:
+                return health
+        return ComponentHealth(True)
+
+    def info(self) -> DeviceInfo:
+        channel = getattr(self.bus, "channel_info", None)
+        return DeviceInfo(kind="motors", driver="rmd", port=str(channel) if channel else None,
+                          model=f"2 x RMD-L-7015 (ids {self.ids['left']}, {self.ids['right']})",
+                          firmware=f"protocol {self.protocol.version}")
 
     @property
     def answering(self) -> bool:
@@ -315,6 +366,7 @@ class RmdDriver(DriveMotors):
             self._send(self.ids[side], command)
 
     def _receive(self, now: float) -> None:
+        replies = 0
         while (msg := self.bus.recv(timeout=0)) is not None:
             side = self._by_reply_id.get(msg.arbitration_id)
             if side is None or msg.is_extended_id:
@@ -327,6 +379,9 @@ class RmdDriver(DriveMotors):
                 continue
             self.states[side] = _updated(replace(self.states[side], last_reply_t=now), reply,
                                          self.directions[side], now)
+            replies += 1
+        if replies:
+            self._readings.publish(MotorsReading(now, self.states["left"], self.states["right"]))
 
     def _health(self, now: float) -> HardwareError | None:
         assert self._started_t is not None
