@@ -75,3 +75,13 @@ def test_power_off_command_runs_only_after_an_acknowledged_power_off(tmp_path):
         robot.run(until=8.0)
         assert robot.parts.agent.halted
     assert after_stop(robot) == 0 and marker.exists()
+
+
+def test_the_parser_imports_no_heavy_library():
+    """``atemr --help`` and every command's start-up import only what the chosen command runs: building the
+    whole parser pulls in none of numpy, scipy, Flask, python-can or filterpy (each costs tenths of a second)."""
+    code = ("import sys; from atemr.cli.main import build_parser; build_parser(); "
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'scipy', 'flask', 'can', 'filterpy', "
+            "'cv2', 'serial', 'py_trees', 'transitions'}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    assert out.stdout.strip() == "[]", out.stdout

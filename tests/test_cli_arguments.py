@@ -55,7 +55,7 @@ def test_a_bad_pose_is_one_line_naming_the_option(argv: list[str], option: str, 
 
 def test_host_and_port_are_command_line_layers(monkeypatch: pytest.MonkeyPatch) -> None:
     """``./run --port 8080 --host ...`` sets ui.port/ui.host above the environment; the dashboard's too."""
-    from atemr.cli import run as run_module
+    import atemr.robot
     from atemr.config import Config
 
     seen: list[Config] = []
@@ -64,7 +64,7 @@ def test_host_and_port_are_command_line_layers(monkeypatch: pytest.MonkeyPatch) 
         seen.append(config)
         raise SystemExit(0)
 
-    monkeypatch.setattr(run_module, "build_robot", build_robot)
+    monkeypatch.setattr(atemr.robot, "build_robot", build_robot)
     monkeypatch.setenv("ATEMR_UI__PORT", "7000")
     with pytest.raises(SystemExit):
         main(["run", "--port", "8080", "--host", "0.0.0.0"])

@@ -20,9 +20,10 @@ import argparse
 import math
 import re
 import sys
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
-from atemr.msgs import Pose2D
+if TYPE_CHECKING:  # numpy comes with it: only a command that reads a pose pays for it
+    from atemr.msgs import Pose2D
 
 #: A token that starts like a negative number (``-1``, ``-.5``, ``-1.625,0.8,2``) is a value.
 NEGATIVE_VALUE = re.compile(r"^-\.?\d")
@@ -51,6 +52,8 @@ class Parser(argparse.ArgumentParser):
 
 def pose_argument(text: str) -> Pose2D:
     """``"X,Y,YAW"`` (metres, metres, radians) → `Pose2D`; argparse names the option in its error."""
+    from atemr.msgs import Pose2D
+
     parts = text.split(",")
     try:
         values = [float(p) for p in parts]

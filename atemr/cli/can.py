@@ -18,18 +18,17 @@ import json
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import can
+if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
+    import can
+
+    from atemr.clock import Clock
+    from atemr.io.can.recording import DescribedFrame
+    from atemr.io.motors.rmd_protocol import RmdProtocol
 
 from atemr.cli.command import commands
-from atemr.clock import Clock, WallClock
-from atemr.config import CanConfig, load_config
 from atemr.errors import ProtocolError
-from atemr.io.can.bus import open_bus
-from atemr.io.can.dbc import dbc_path, dbc_text
-from atemr.io.can.protocol import is_protocol_id
-from atemr.io.can.recording import DescribedFrame, check_log_path, describe, read_log
-from atemr.io.motors.rmd_protocol import PROTOCOL_V1, PROTOCOL_VERSIONS, RmdProtocol, rmd_protocol
 
 
 def describe_frame(msg: can.Message, protocol: str | RmdProtocol = "v1") -> DescribedFrame:
@@ -39,6 +38,10 @@ def describe_frame(msg: can.Message, protocol: str | RmdProtocol = "v1") -> Desc
     0x240 + id) is decoded by the V4.2 codec and everything else, the inter-core protocol's 0x150-0x157
     first (motors 16-23 may not use those IDs), is left to `describe`.
     """
+    from atemr.io.can.protocol import is_protocol_id
+    from atemr.io.can.recording import DescribedFrame, describe
+    from atemr.io.motors.rmd_protocol import PROTOCOL_V1, rmd_protocol
+
     codec = rmd_protocol(protocol)
     motor = codec.motor_of(msg.arbitration_id)
     if (codec is PROTOCOL_V1 or motor is None or is_protocol_id(msg.arbitration_id) or msg.is_extended_id
@@ -68,6 +71,8 @@ def monitor_bus(bus: can.BusABC, write: Callable[[str], object], clock: Clock, *
     Blocks in ``bus.recv`` for at most ``poll_s`` at a time, so Ctrl-C and the duration are honoured.
     Motor frames are decoded in ``protocol`` (``v1`` or ``v4``).
     """
+    from atemr.io.motors.rmd_protocol import rmd_protocol
+
     codec = rmd_protocol(protocol)
     start = clock.now()
     seen = 0
@@ -85,7 +90,12 @@ def monitor_bus(bus: can.BusABC, write: Callable[[str], object], clock: Clock, *
 
 
 def _add_protocol_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--protocol", choices=PROTOCOL_VERSIONS,
+    from typing import get_args, get_type_hints
+
+    from atemr.io.devices.config import MotorsDeviceConfig
+
+    versions = get_args(get_type_hints(MotorsDeviceConfig)["protocol"])  # the setting's own choices
+    parser.add_argument("--protocol", choices=versions,
                         help="RMD protocol of the motor frames: v1 (V1.61) or v4 (V4.2); "
                              "default: devices.motors.protocol of --config, else v1")
     parser.add_argument("--config", type=Path, metavar="FILE",
@@ -94,6 +104,9 @@ def _add_protocol_options(parser: argparse.ArgumentParser) -> None:
 
 def chosen_protocol(protocol: str | None, config: Path | None) -> RmdProtocol:
     """``--protocol`` if given, else ``devices.motors.protocol`` of the ``--config`` file, else V1.61."""
+    from atemr.config import load_config
+    from atemr.io.motors.rmd_protocol import PROTOCOL_V1, rmd_protocol
+
     if protocol is not None:
         return rmd_protocol(protocol)
     if config is not None:
@@ -123,6 +136,8 @@ class CanCommand:
         dbc.add_argument("--print", dest="print_text", action="store_true", help="print the file itself")
 
     def run(self, args: argparse.Namespace) -> int:
+        from atemr.io.can.dbc import dbc_path, dbc_text
+
         action = args.can_action
         if action == "decode":
             return self._decode(args)
@@ -132,6 +147,8 @@ class CanCommand:
         return 0
 
     def _decode(self, args: argparse.Namespace) -> int:
+        from atemr.io.can.recording import read_log
+
         protocol = chosen_protocol(args.protocol, args.config)
         total = bad = 0
         for msg in read_log(args.file):
@@ -142,6 +159,13 @@ class CanCommand:
         return 0
 
     def _monitor(self, args: argparse.Namespace) -> int:
+        import can
+
+        from atemr.clock import WallClock
+        from atemr.config import CanConfig
+        from atemr.io.can.bus import open_bus
+        from atemr.io.can.recording import check_log_path
+
         protocol = chosen_protocol(args.protocol, args.config)
         logger = can.Logger(check_log_path(args.log)) if args.log is not None else None
         config = CanConfig(interface=args.interface, channel=args.channel, bitrate=args.bitrate)

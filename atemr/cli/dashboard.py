@@ -4,15 +4,11 @@ publish into ``ui.message_queue`` (several robots on one page, or several worker
 from __future__ import annotations
 
 import argparse
-import threading
 from pathlib import Path
 
 from atemr.cli.command import commands
 from atemr.cli.signals import stop_on_signals
-from atemr.config import load_config
 from atemr.errors import ConfigError
-from atemr.logsetup import configure_logging
-from atemr.ui.server import DashboardServer
 
 
 class DashboardCommand:
@@ -27,6 +23,12 @@ class DashboardCommand:
         parser.add_argument("--data-dir", type=Path, help="where the users database and the session key live")
 
     def run(self, args: argparse.Namespace) -> int:
+        import threading
+
+        from atemr.config import load_config
+        from atemr.logsetup import configure_logging
+        from atemr.ui.server import DashboardServer
+
         config = load_config(args.config, overrides={
             "log_level": args.log_level, "ui.message_queue": args.message_queue, "ui.host": args.host,
             "ui.port": args.port, "data_dir": args.data_dir,

@@ -13,14 +13,15 @@ import math
 import re
 import sys
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
-import numpy as np
+if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
+    import numpy as np
+
+    from atemr.skills.fuzzy.engine import Engine, InputVariable, OutputVariable
 
 from atemr.cli.command import commands
 from atemr.errors import ConfigError
-from atemr.skills.fuzzy.engine import Engine, InputVariable, OutputVariable
-from atemr.skills.fuzzy.loader import resolve_engine
 
 _SPLIT = re.compile(r"[,\s]+")
 
@@ -44,6 +45,8 @@ def _is_number(word: str) -> bool:
 def read_rows(engine: Engine, stream: TextIO, name: str = "stdin") -> tuple[list[str], np.ndarray]:
     """Parse the input table: (column names in engine order, array rows × inputs); bad lines raise
     `ConfigError` naming the line."""
+    import numpy as np
+
     names = list(engine.input_names)
     order = list(range(len(names)))
     rows: list[list[float]] = []
@@ -89,6 +92,10 @@ def evaluate_table(engine: Engine, stream: TextIO, out: TextIO, name: str = "std
 
 def plot_engine(engine: Engine, path: Path, points: int = 501) -> None:
     """Draw every variable's membership functions into one PNG (needs matplotlib, imported lazily)."""
+    import numpy as np
+
+    from atemr.skills.fuzzy.engine import InputVariable
+
     try:
         import matplotlib
 
@@ -135,6 +142,8 @@ class FuzzyCommand:
         sh.add_argument("--plot", type=Path, metavar="PNG", help="write the membership functions to this PNG")
 
     def run(self, args: argparse.Namespace) -> int:
+        from atemr.skills.fuzzy.loader import resolve_engine
+
         engine = resolve_engine(args.engine)
         if args.fuzzy_action == "eval":
             if args.input is not None:

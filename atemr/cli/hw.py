@@ -15,10 +15,12 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from atemr.cli.command import commands
-from atemr.config import Config, load_config
+
+if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
+    from atemr.config import Config
 from atemr.errors import ConfigError
 from atemr.io.devices.config import SIMULATED_DRIVERS
 
@@ -78,6 +80,8 @@ commands.add("hw", HwCommand())
 
 
 def _config(args: argparse.Namespace) -> Config:
+    from atemr.config import load_config
+
     return load_config(args.config, overrides={"log_level": args.log_level})
 
 

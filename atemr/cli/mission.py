@@ -21,14 +21,14 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from atemr.cli.arguments import kidnap_argument, pose_argument
 from atemr.cli.command import commands
-from atemr.config import load_config
+
+if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
+    from atemr.msgs import Pose2D
 from atemr.errors import ConfigError
-from atemr.msgs import Pose2D
-from atemr.trees.missions import load_mission, mission_from_goals
 
 
 class MissionCommand:
@@ -69,6 +69,8 @@ class MissionCommand:
         _robot_options(cancel)
 
     def run(self, args: argparse.Namespace) -> int:
+        from atemr.trees.missions import load_mission
+
         if args.mission_action == "run":
             return run_command(args)
         if args.mission_action in ("status", "cancel"):
@@ -121,9 +123,11 @@ def _robot_options(parser: argparse.ArgumentParser) -> None:
 def run_command(args: argparse.Namespace) -> int:
     """``atemr mission run``: on the running robot, or build the simulated robot, place it, run the mission,
     report."""
+    from atemr.config import load_config
     from atemr.fsm.agent import Agent
     from atemr.fsm.mission_run import run_mission
     from atemr.robot.headless import TruthWatch, build_headless_robot
+    from atemr.trees.missions import load_mission, mission_from_goals
 
     if (args.file is None) == (not args.goal):
         raise ConfigError("give a mission FILE or one or more --goal X,Y,YAW (not both)", path="atemr mission run")

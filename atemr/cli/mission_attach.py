@@ -16,15 +16,12 @@ import math
 import sys
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from atemr.cli.mission import print_summary
+if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
+    from atemr.io.control_client import ControlClient
 from atemr.cli.signals import Interrupted, interrupt_on_signals
-from atemr.config import load_config
 from atemr.errors import ConfigError, ControlError
-from atemr.io.control_client import ControlClient, checked
-from atemr.io.control_socket import control_socket_path
-from atemr.trees.missions import load_mission, mission_from_goals
 
 #: Real seconds to wait for the robot's last answer after asking it to cancel.
 CANCEL_WAIT_S = 30.0
@@ -32,12 +29,17 @@ CANCEL_WAIT_S = 30.0
 
 def socket_of(args: argparse.Namespace) -> Path:
     """The running robot's control socket: ``--socket``, else from the configuration (``--data-dir``)."""
+    from atemr.config import load_config
+    from atemr.io.control_socket import control_socket_path
+
     config = load_config(args.config, overrides={"data_dir": args.data_dir, "control.socket": args.socket})
     return control_socket_path(config)
 
 
 def start_request(args: argparse.Namespace) -> dict[str, Any]:
     """The ``start`` request, the mission checked here first (the robot checks it again)."""
+    from atemr.trees.missions import load_mission, mission_from_goals
+
     headless_only = (("--world", args.world), ("--seed", args.seed), ("--start", args.start),
                      ("--trace", args.trace), ("--kidnap", args.kidnap))
     given = ", ".join(option for option, value in headless_only if value is not None)
@@ -59,6 +61,9 @@ def start_request(args: argparse.Namespace) -> dict[str, Any]:
 
 def run_attached(args: argparse.Namespace) -> int:
     """``atemr mission run`` without ``--headless``."""
+    from atemr.cli.mission import print_summary
+    from atemr.io.control_client import ControlClient
+
     request = start_request(args)
     path = socket_of(args)
     with ControlClient(path) as client, interrupt_on_signals():
@@ -117,6 +122,8 @@ def cancel_and_wait(path: Path, client: ControlClient, interrupt: Interrupted) -
 
     None when there was nothing to cancel yet: closing this connection then cancels the mission if the
     robot starts it after all (the connection that starts a mission owns it)."""
+    from atemr.io.control_client import ControlClient
+
     print(f"{interrupt.args[0]}: cancelling the mission on the robot...", file=sys.stderr, flush=True)
     try:
         with ControlClient(path) as other:
@@ -130,6 +137,8 @@ def cancel_and_wait(path: Path, client: ControlClient, interrupt: Interrupted) -
 
 def status_command(args: argparse.Namespace) -> int:
     """``atemr mission status``: the agent's state and its task, from the running robot."""
+    from atemr.io.control_client import ControlClient
+
     with ControlClient(socket_of(args)) as client:
         status = client.request({"cmd": "status"})["status"]
     if args.json:
@@ -154,6 +163,8 @@ def status_command(args: argparse.Namespace) -> int:
 
 def cancel_command(args: argparse.Namespace) -> int:
     """``atemr mission cancel``: stop the mission (or the dashboard's task) on the running robot."""
+    from atemr.io.control_client import ControlClient, checked
+
     with ControlClient(socket_of(args)) as client:
         answer = checked(client.request({"cmd": "cancel"}))
     print(f"cancelled '{answer['cancelled']}'")

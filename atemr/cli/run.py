@@ -8,13 +8,14 @@ import shlex
 import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from atemr.cli.command import commands
 from atemr.cli.signals import stop_on_signals
-from atemr.config import Config, load_config
-from atemr.logsetup import configure_logging
-from atemr.robot import build_robot
-from atemr.robot.core import Robot
+
+if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
+    from atemr.config import Config
+    from atemr.robot.core import Robot
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +45,10 @@ class RunCommand:
         )
 
     def run(self, args: argparse.Namespace) -> int:
+        from atemr.config import load_config
+        from atemr.logsetup import configure_logging
+        from atemr.robot import build_robot
+
         config = load_config(
             args.config,
             overrides={

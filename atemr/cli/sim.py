@@ -15,20 +15,14 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from atemr.cli.command import commands
 from atemr.cli.signals import stop_on_signals
-from atemr.clock import RealTimeSimClock, SimClock, WallClock
-from atemr.config import load_config
+
+if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
+    from atemr.io.sim.simulation import Simulation
 from atemr.errors import ConfigError
-from atemr.io.sim.simulation import Simulation, build_simulation, params_from_config
-from atemr.msgs import Twist
-from atemr.robot import Robot, build_robot
-from atemr.robot.core import Ticker
-from atemr.robot.headless import agent_summary, build_headless_robot
-from atemr.robot.inputs import MotionInputs
-from atemr.scheduler import Scheduler
 
 
 def summary(sim: Simulation, sim_seconds: float, wall_seconds: float, seed: int) -> dict[str, Any]:
@@ -77,6 +71,16 @@ class SimCommand:
         parser.add_argument("--json", action="store_true", help="print the summary as JSON")
 
     def run(self, args: argparse.Namespace) -> int:
+        from atemr.clock import RealTimeSimClock, SimClock, WallClock
+        from atemr.config import load_config
+        from atemr.io.sim.simulation import build_simulation, params_from_config
+        from atemr.msgs import Twist
+        from atemr.robot import Robot, build_robot
+        from atemr.robot.core import Ticker
+        from atemr.robot.headless import agent_summary, build_headless_robot
+        from atemr.robot.inputs import MotionInputs
+        from atemr.scheduler import Scheduler
+
         config = load_config(args.config, overrides={
             "log_level": args.log_level, "sim.world": args.world, "sim.seed": args.seed,
             "sim.speed": args.speed, "sim.camera_hz": args.camera_hz,

@@ -14,8 +14,6 @@ from pathlib import Path
 from typing import Any
 
 from atemr.cli.command import commands
-from atemr.fsm.trace_timeline import TraceTimeline
-from atemr.io.trace_file import read_trace
 
 
 class TraceCommand:
@@ -28,6 +26,9 @@ class TraceCommand:
         show.add_argument("--json", action="store_true", help="print one JSON document")
 
     def run(self, args: argparse.Namespace) -> int:
+        from atemr.fsm.trace_timeline import TraceTimeline
+        from atemr.io.trace_file import read_trace
+
         contents = read_trace(args.file)
         timeline = TraceTimeline(contents.records, name=str(args.file), warnings=contents.warnings)
         report = {"file": str(args.file), **{k: v for k, v in timeline.summary().items() if k != "name"}}

@@ -8,17 +8,22 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from atemr.cli.command import commands
-from atemr.fsm.spec import AgentSpec, parse_agent
-from atemr.trees.export import Drawing, ExportError, drawing_of, exporters
-from atemr.trees.missions import Mission, parse_mission
-from atemr.yamlsafe import load_yaml
+
+if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
+    from atemr.fsm.spec import AgentSpec
+    from atemr.trees.export import Drawing
+    from atemr.trees.missions import Mission
 
 
 def load_document(path: Path) -> AgentSpec | Mission:
     """An agent document or a mission, told apart by the top-level ``mission`` key."""
+    from atemr.fsm.spec import parse_agent
+    from atemr.trees.missions import parse_mission
+    from atemr.yamlsafe import load_yaml
+
     document: Any = load_yaml(path)
     if isinstance(document, dict) and "mission" in document:
         return parse_mission(document, str(path))
@@ -26,6 +31,9 @@ def load_document(path: Path) -> AgentSpec | Mission:
 
 
 def drawing_for(document: AgentSpec | Mission, state: str | None) -> Drawing:
+    from atemr.trees.export import Drawing, ExportError, drawing_of
+    from atemr.trees.missions import Mission
+
     if isinstance(document, Mission):
         if state not in (None, "mission"):
             raise ExportError("a mission file has one tree; --state does not apply")
@@ -35,6 +43,8 @@ def drawing_for(document: AgentSpec | Mission, state: str | None) -> Drawing:
 
 def summary(document: AgentSpec | Mission) -> str:
     """One line that says what was validated."""
+    from atemr.trees.missions import Mission
+
     if isinstance(document, Mission):
         missing = document.missing_behaviours()
         runnable = "runnable" if not missing else f"not runnable in this build (needs {', '.join(missing)})"
@@ -54,12 +64,17 @@ class TreeCommand:
         validate.add_argument("file", type=Path)
         export = sub.add_parser("export", help="draw the machine and trees")
         export.add_argument("file", type=Path)
-        export.add_argument("--format", "-f", default="ascii", choices=sorted(exporters),
-                            help="ascii, mermaid, json and dot always work; svg and png need Graphviz's dot")
+        export.add_argument("--format", "-f", default="ascii",
+                            help="ascii, mermaid, json and dot always work; svg and png need Graphviz's dot "
+                                 "(plugins add more: the atemr.exporters entry points)")
         export.add_argument("--state", "-s", help="draw only this state's tree ('monitor' for the Monitor)")
         export.add_argument("--output", "-o", type=Path, help="write here instead of standard output")
 
     def run(self, args: argparse.Namespace) -> int:
+        from atemr.trees.export import ExportError, exporters
+
+        if args.tree_action == "export" and args.format not in exporters:
+            raise ExportError(exporters.unknown_message(args.format))
         document = load_document(args.file)
         if args.tree_action == "validate":
             print(f"{args.file}: OK, {summary(document)}")

@@ -8,10 +8,7 @@ import sys
 from pathlib import Path
 
 from atemr.cli.command import commands
-from atemr.config import load_config
 from atemr.errors import AtemrError
-from atemr.ui.app import database_path
-from atemr.ui.users import UserStore
 
 
 def read_new_password(prompt: str = "New password: ") -> str:
@@ -40,6 +37,10 @@ class UserCommand:
         sub.add_parser("list", help="list users and their roles")
 
     def run(self, args: argparse.Namespace) -> int:
+        from atemr.config import load_config
+        from atemr.ui.app import database_path
+        from atemr.ui.users import UserStore
+
         config = load_config(args.config, overrides={"data_dir": args.data_dir})
         store = UserStore(database_path(config))
         if args.action == "list":

@@ -10,13 +10,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-from atemr.skills.localization.amcl import AmclParams
-from atemr.skills.localization.covariance_monitor import MonitorParams
-from atemr.skills.localization.likelihood_field import FieldParams
-from atemr.skills.localization.localizer import LocalizerParams
-from atemr.skills.localization.motion_model import OdometryNoise
-from atemr.skills.slam import SlamParams
+if TYPE_CHECKING:  # the skills import filterpy and scipy.stats (a second): only what builds them pays for it
+    from atemr.skills.localization.localizer import LocalizerParams
+    from atemr.skills.slam import SlamParams
 
 
 @dataclass(frozen=True)
@@ -49,6 +47,12 @@ class LocalizationConfig:
 
     def localizer_params(self) -> LocalizerParams:
         """The `Localizer`'s parameters (raises `ConfigError` on inconsistent values)."""
+        from atemr.skills.localization.amcl import AmclParams
+        from atemr.skills.localization.covariance_monitor import MonitorParams
+        from atemr.skills.localization.likelihood_field import FieldParams
+        from atemr.skills.localization.localizer import LocalizerParams
+        from atemr.skills.localization.motion_model import OdometryNoise
+
         amcl = AmclParams(
             min_particles=self.min_particles, max_particles=self.max_particles,
             global_particles=self.global_particles, max_beams=self.max_beams,
@@ -61,6 +65,8 @@ class LocalizationConfig:
         return LocalizerParams(amcl=amcl, monitor=monitor, relocalize_window_m=self.relocalize_window_m)
 
     def slam_params(self) -> SlamParams:
+        from atemr.skills.slam import SlamParams
+
         return SlamParams(resolution_m=self.map_resolution_m, size_m=self.map_size_m)
 
 

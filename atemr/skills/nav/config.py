@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 from atemr.errors import ConfigError, NavigationError
-from atemr.skills.nav.costmap import CostmapParams
-from atemr.skills.nav.global_planner import Algorithm
-from atemr.skills.nav.local_planner import LocalPlannerParams
-from atemr.skills.nav.navigator import NavParams
 from atemr.skills.ramp import MotionLimits
+
+if TYPE_CHECKING:  # the planners import scipy.ndimage (most of a second): only what builds them pays for it
+    from atemr.skills.nav.navigator import NavParams
 
 
 @dataclass(frozen=True)
@@ -45,6 +44,11 @@ class NavConfig:
     def nav_params(self, motion: MotionLimits | None = None) -> NavParams:
         """The navigator's parameters, with the stop zone of ``motion`` (raises `ConfigError` on inconsistent
         values, naming the ``nav`` key)."""
+        from atemr.skills.nav.costmap import CostmapParams
+        from atemr.skills.nav.global_planner import Algorithm
+        from atemr.skills.nav.local_planner import LocalPlannerParams
+        from atemr.skills.nav.navigator import NavParams
+
         m = motion or MotionLimits()
         try:
             base = NavParams()
