@@ -103,6 +103,10 @@ class UiConfig:
         default=None, metadata={"help": "session signing key, generated on first start (default data_dir/ui.key)"}
     )
     max_upload_mb: float = field(default=50.0, metadata={"min": 0.001, "max": 4096.0, "help": "largest upload"})
+    max_map_cells: int = field(default=4_000_000, metadata={
+        "min": 10_000, "max": 50_000_000,
+        "help": "largest map read (uploaded, stored or selected), in cells: width x height of its image, checked "
+                "from the header before decoding (4 M = 2000 x 2000, 100 m x 100 m at 5 cm)"})
     login_max_failures: int = field(default=5, metadata={"min": 1, "help": "failed logins before HTTP 429"})
     login_lockout_s: float = field(default=300.0, metadata={"min": 1.0, "help": "how long a lockout lasts"})
     message_queue: str | None = field(
@@ -111,6 +115,13 @@ class UiConfig:
                           "every dashboard worker on it delivers it; unset: one process",
                   "prefixes": QUEUE_SCHEMES},
     )
+    login_max_failures_per_address: int = field(default=20, metadata={
+        "min": 1, "help": "failed logins from one address (any usernames) within login_lockout_s before HTTP 429"})
+    trusted_hosts: tuple[str, ...] = field(default=(), metadata={
+        "help": "host names the dashboard answers to besides localhost, 127.0.0.1, ::1 and ui.host (others: "
+                "HTTP 400, against DNS rebinding); comma-separated in the environment"})
+    max_connections: int = field(default=64, metadata={
+        "min": 4, "max": 10_000, "help": "connections served at once (pages, sockets, streams); more: HTTP 503"})
 
 
 @dataclass(frozen=True)

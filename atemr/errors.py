@@ -6,7 +6,46 @@ classifies a failure by its type and its ``critical`` flag instead of parsing me
 
 from __future__ import annotations
 
+import reprlib
 from pathlib import Path
+from typing import Any
+
+#: Longest value shown in an error message (`brief`).
+BRIEF_LIMIT = 80
+
+
+def _brief_repr() -> reprlib.Repr:
+    r = reprlib.Repr()
+    r.maxlevel = 3
+    r.maxtuple = r.maxlist = r.maxarray = r.maxdeque = r.maxset = r.maxfrozenset = r.maxdict = 4
+    r.maxstring = r.maxother = BRIEF_LIMIT
+    r.maxlong = 40
+    return r
+
+
+_REPR = _brief_repr()
+
+
+def brief(value: Any, limit: int = BRIEF_LIMIT) -> str:
+    """``repr(value)`` cut to at most ``limit`` characters, for error messages about input from outside.
+
+    Never builds the whole repr: containers show their first few items and at most three levels (a YAML
+    document whose aliases expand to millions of items costs as little as a short one), strings and
+    numbers are cut. An error message that quotes what it was given uses this, so its size is bounded
+    whatever the input (it may end up in a log line, an event or a session cookie).
+    """
+    try:
+        text = _REPR.repr(value)
+    except Exception:  # a broken __repr__ must not hide the error being reported
+        text = f"<{type(value).__name__}>"
+    if len(text) > limit:
+        text = text[: max(limit - 3, 0)] + "..."
+    return text
+
+
+def brief_text(text: str, limit: int = 300) -> str:
+    """``text`` itself (not its repr) cut to at most ``limit`` characters: a message built elsewhere."""
+    return text if len(text) <= limit else text[: max(limit - 3, 0)] + "..."
 
 
 class AtemrError(Exception):

@@ -2,8 +2,13 @@
 
 Every document the framework reads (config, agent, missions, worlds, fuzzy engines) goes through
 `load_yaml`: ``yaml.SafeLoader`` only (no ``!!python/object``), duplicate keys rejected, size, depth and
-alias counts bounded, and each mapping and list remembers the line and column of its items, so a
-validator can raise `ConfigError` pointing at ``file:line:column`` and the YAML path.
+aliases bounded, and each mapping and list remembers the line and column of its items, so a validator can
+raise `ConfigError` pointing at ``file:line:column`` and the YAML path.
+
+Aliases are bounded twice: their number (`MAX_ALIASES`) and the nodes they stand for once expanded
+(`MAX_ALIAS_NODES`). A few hundred bytes of nested aliases can stand for billions of values: free to
+parse (PyYAML shares them), but everything that walks the result pays for each one, a ``repr`` in an
+error message first of all. A structure that contains itself (an alias inside its own anchor) is refused.
 """
 
 from __future__ import annotations
@@ -13,13 +18,16 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from yaml.nodes import MappingNode, Node, SequenceNode
+from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
-from atemr.errors import ConfigError
+from atemr.errors import ConfigError, brief
 
 MAX_BYTES = 1_000_000
 MAX_DEPTH = 64
 MAX_ALIASES = 100
+#: Most nodes all the aliases of a document may stand for together, counted expanded (an alias to a list
+#: of 9 aliases to lists of 9 scalars stands for 1 + 9 * (1 + 9) = 91 nodes).
+MAX_ALIAS_NODES = 100_000
 
 
 class MarkedDict(dict[str, Any]):
@@ -54,9 +62,13 @@ class _Loader(yaml.SafeLoader):
         super().__init__(stream)
         self._depth = 0
         self._aliases = 0
+        self._alias_nodes = 0
+        #: Expanded size (nodes) of each composed node, by id: what an alias to it stands for.
+        self._sizes: dict[int, int] = {}
 
     def compose_node(self, parent: Node | None, index: Any) -> Node | None:
-        if self.check_event(yaml.AliasEvent):
+        alias = self.check_event(yaml.AliasEvent)
+        if alias:
             self._aliases += 1
             if self._aliases > MAX_ALIASES:
                 event = self.peek_event()
@@ -64,6 +76,7 @@ class _Loader(yaml.SafeLoader):
                     f"more than {MAX_ALIASES} aliases: refusing a document that may expand without bound",
                     file=self.source, line=event.start_mark.line + 1, column=event.start_mark.column + 1,
                 )
+            start = self.peek_event().start_mark
         self._depth += 1
         if self._depth > MAX_DEPTH:
             event = self.peek_event()
@@ -72,9 +85,33 @@ class _Loader(yaml.SafeLoader):
                 file=self.source, line=event.start_mark.line + 1, column=event.start_mark.column + 1,
             )
         try:
-            return super().compose_node(parent, index)
+            node = super().compose_node(parent, index)
         finally:
             self._depth -= 1
+        if node is None:
+            return node
+        if alias:
+            size = self._sizes.get(id(node))
+            if size is None:  # an alias inside the node it names: a structure that contains itself
+                raise ConfigError("an alias refers to a node that contains it (a recursive structure)",
+                                  file=self.source, line=start.line + 1, column=start.column + 1)
+            self._alias_nodes += size
+            if self._alias_nodes > MAX_ALIAS_NODES:
+                raise ConfigError(
+                    f"aliases expand to more than {MAX_ALIAS_NODES} nodes: refusing a document that may expand "
+                    "without bound", file=self.source, line=start.line + 1, column=start.column + 1,
+                )
+        else:
+            self._sizes[id(node)] = self._size_of(node)
+        return node
+
+    def _size_of(self, node: Node) -> int:
+        """Nodes ``node`` stands for once its aliases are expanded (its children are composed already)."""
+        if isinstance(node, SequenceNode):
+            return 1 + sum(self._sizes.get(id(child), 1) for child in node.value)
+        if isinstance(node, MappingNode):
+            return 1 + sum(self._sizes.get(id(k), 1) + self._sizes.get(id(v), 1) for k, v in node.value)
+        return 1
 
     def construct_marked_mapping(self, node: MappingNode) -> Iterator[MarkedDict]:
         result = MarkedDict()
@@ -97,12 +134,21 @@ class _Loader(yaml.SafeLoader):
                 line, col = _mark(key_node)
                 first = result.key_marks[key]
                 raise ConfigError(
-                    f"duplicate key '{key}' (first defined at line {first[0]})",
+                    f"duplicate key {brief(key)} (first defined at line {first[0]})",
                     file=self.source, line=line, column=col,
                 )
             result[key] = self.construct_object(value_node, deep=True)
             result.key_marks[key] = _mark(key_node)
             result.value_marks[key] = _mark(value_node)
+
+    def construct_bounded_int(self, node: ScalarNode) -> int:
+        """An integer, or `ConfigError` for one Python refuses to read (more than 4300 digits)."""
+        try:
+            return int(super().construct_yaml_int(node))
+        except ValueError:
+            line, col = _mark(node)
+            raise ConfigError(f"an integer of {len(str(node.value))} characters is too long to read",
+                              file=self.source, line=line, column=col) from None
 
     def construct_marked_sequence(self, node: SequenceNode) -> Iterator[MarkedList]:
         result = MarkedList()
@@ -115,6 +161,7 @@ class _Loader(yaml.SafeLoader):
 
 _Loader.add_constructor("tag:yaml.org,2002:map", _Loader.construct_marked_mapping)
 _Loader.add_constructor("tag:yaml.org,2002:seq", _Loader.construct_marked_sequence)
+_Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_bounded_int)
 
 
 def load_yaml(source: str | Path, *, text: str | None = None, max_bytes: int = MAX_BYTES) -> Any:

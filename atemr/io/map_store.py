@@ -11,6 +11,9 @@ inside ``maps/``, names pass through `werkzeug.utils.secure_filename`, the YAML'
 one of the uploaded files (never a path elsewhere on the robot), the map must load with `load_map`,
 and only then is it written under its name. A refused upload raises `ConfigError` saying why and
 leaves the store exactly as it was.
+
+Every map the store reads (an upload, a stored map, a built-in) is refused above ``max_cells`` cells
+(``ui.max_map_cells``, 4 M by default) from its image's header, before anything is decoded.
 """
 
 from __future__ import annotations
@@ -24,8 +27,8 @@ from pathlib import Path
 
 from werkzeug.utils import secure_filename
 
-from atemr.errors import ConfigError
-from atemr.io.sim.maps import OccupancyMap, load_map, save_map
+from atemr.errors import ConfigError, brief, brief_text
+from atemr.io.sim.maps import DEFAULT_MAX_MAP_CELLS, OccupancyMap, load_map, save_map
 from atemr.yamlsafe import load_yaml
 
 #: The shipped default world's map: a built-in every store offers.
@@ -36,6 +39,8 @@ BUILTIN_MAPS: dict[str, Path] = {
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 #: Largest upload accepted (all files together), bytes.
 MAX_UPLOAD_BYTES = 50 * 1024 * 1024
+#: Longest uploaded file name (what a file system holds).
+MAX_NAME_BYTES = 255
 
 
 @dataclass(frozen=True)
@@ -59,7 +64,7 @@ def clean_name(name: str) -> str:
         if safe.lower().endswith(suffix):
             safe = safe[: -len(suffix)]
     if not _NAME.match(safe):
-        raise ConfigError(f"invalid map name {name!r}: use 1-64 letters, digits, '.', '_' or '-' "
+        raise ConfigError(f"invalid map name {brief(name)}: use 1-64 letters, digits, '.', '_' or '-' "
                           f"(starting with a letter or digit)", path="map.name")
     return safe
 
@@ -68,11 +73,13 @@ class MapStore:
     """Maps in ``<data_dir>/maps``; see the module docstring."""
 
     def __init__(self, data_dir: str | Path, *, builtins: Mapping[str, Path] | None = None,
-                 max_upload_bytes: int = MAX_UPLOAD_BYTES) -> None:
+                 max_upload_bytes: int = MAX_UPLOAD_BYTES, max_cells: int = DEFAULT_MAX_MAP_CELLS) -> None:
         self.dir = Path(data_dir) / "maps"
         self.dir.mkdir(parents=True, exist_ok=True)
         self.builtins = dict(BUILTIN_MAPS if builtins is None else builtins)
         self.max_upload_bytes = max_upload_bytes
+        #: Largest map read, in cells (``ui.max_map_cells``).
+        self.max_cells = max_cells
         self._active_file = self.dir / "active"
 
     # -- queries -----------------------------------------------------------------------------------
@@ -95,12 +102,13 @@ class MapStore:
         clean = clean_name(name)
         path = self.dir / f"{clean}.yaml"
         if clean != name or not path.is_file():
-            raise ConfigError(f"no map named {name!r}; known maps: {', '.join(self.names())}", path="map.name")
+            raise ConfigError(f"no map named {brief(name)}; known maps: {', '.join(self.names())}", path="map.name")
         return path
 
     def load(self, name: str) -> OccupancyMap:
-        """Map ``name`` (`ConfigError` if unknown or unreadable)."""
-        return load_map(self.path(name))
+        """Map ``name`` (`ConfigError` if unknown, unreadable or larger than ``max_cells``). Reading a map
+        is heavy (up to ``max_cells`` decoded): the robot does it off its control loop."""
+        return load_map(self.path(name), max_cells=self.max_cells)
 
     # -- the active map ----------------------------------------------------------------------------
     def selected_name(self) -> str | None:
@@ -129,10 +137,16 @@ class MapStore:
     def select(self, name: str) -> OccupancyMap:
         """Make ``name`` the active map (it must load); persisted atomically. Returns the map."""
         grid = self.load(name)
+        self.set_active(name)
+        return grid
+
+    def set_active(self, name: str) -> None:
+        """Persist ``name`` (a map that exists, loaded already by the caller) as the active map, atomically."""
+        if not self.exists(name):
+            raise ConfigError(f"no map named {brief(name)}; known maps: {', '.join(self.names())}", path="map.name")
         tmp = self._active_file.with_name("active.tmp")
         tmp.write_text(name + "\n", encoding="utf-8")
         tmp.replace(self._active_file)
-        return grid
 
     # -- changes -----------------------------------------------------------------------------------
     def save(self, name: str, grid: OccupancyMap, *, overwrite: bool = False, activate: bool = False) -> str:
@@ -182,7 +196,9 @@ class MapStore:
         for raw, content in files.items():
             fname = secure_filename(str(raw))
             if not fname or fname in safe:
-                raise ConfigError(f"unusable or duplicate file name {raw!r}", path="map.upload")
+                raise ConfigError(f"unusable or duplicate file name {brief(raw)}", path="map.upload")
+            if len(fname.encode("utf-8")) > MAX_NAME_BYTES:
+                raise ConfigError(f"file name {brief(raw)} is longer than {MAX_NAME_BYTES} bytes", path="map.upload")
             safe[fname] = bytes(content)
         yamls = [f for f in safe if f.lower().endswith((".yaml", ".yml"))]
         if len(yamls) != 1:
@@ -197,18 +213,23 @@ class MapStore:
         staging = Path(tempfile.mkdtemp(prefix=".upload-", dir=self.dir))
         try:
             for fname, content in safe.items():
-                (staging / fname).write_bytes(content)
+                try:
+                    (staging / fname).write_bytes(content)
+                except OSError as exc:
+                    raise ConfigError(f"cannot store the upload: {exc.strerror}", path="map.upload") from None
             yaml_path = staging / yamls[0]
             try:
                 doc = load_yaml(yaml_path)
                 image = doc.get("image") if isinstance(doc, dict) else None
                 if isinstance(image, str) and (Path(image).name != image or image not in safe):
-                    raise ConfigError(f"the map's image {image!r} must be one of the uploaded files "
-                                      f"({', '.join(sorted(safe))})", path="image")
-                grid = load_map(yaml_path)  # every other check: keys, thresholds, origin, a readable image
+                    raise ConfigError(f"the map's image {brief(image)} must be one of the uploaded files "
+                                      f"({brief_text(', '.join(sorted(safe)), 160)})", path="image")
+                # every other check: keys, thresholds, origin, a readable image of at most max_cells
+                grid = load_map(yaml_path, max_cells=self.max_cells)
             except ConfigError as exc:  # name the uploaded file, not the staging directory
                 reason = exc.reason.replace(f"{staging}/", "")
-                raise ConfigError(reason, file=yamls[0], line=exc.line, column=exc.column, path=exc.path) from None
+                raise ConfigError(reason, file=brief_text(yamls[0], 100), line=exc.line, column=exc.column,
+                                  path=exc.path) from None
             return self.save(target, grid, overwrite=overwrite)
         finally:
             shutil.rmtree(staging, ignore_errors=True)

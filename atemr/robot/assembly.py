@@ -87,6 +87,17 @@ def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = 
     scheduler = Scheduler(clock, realtime=realtime or not config.simulation)
     robot = Robot(config, clock, scheduler)
     scheduler.on_error = lambda component, exc: _on_component_error(robot, component, exc)
+    try:
+        _wire(robot)
+    except BaseException:
+        robot.close_buses()  # a robot that could not be built leaves no bus open behind it
+        raise
+    return robot
+
+
+def _wire(robot: Robot) -> None:
+    """Every part of ``robot``, in the order the module docstring explains."""
+    config, clock = robot.config, robot.clock
     settings = SettingsStore(config.data_dir)
     inputs = MotionInputs()
     health = HealthBoard(clock.now)
@@ -117,7 +128,6 @@ def build_robot(config: Config, *, realtime: bool = True, clock: Clock | None = 
     robot.add(SystemMonitor(config.data_dir), RATES["system_monitor"])
     if config.control.enabled:
         _add_control(robot)
-    return robot
 
 
 def _add_control(robot: Robot) -> None:
@@ -139,7 +149,8 @@ def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
     builtins = dict(BUILTIN_MAPS) if sim is not None else {}
     if sim is not None and sim.world.source is not None:
         builtins.setdefault(sim.world.name, sim.world.source)
-    store = MapStore(cfg.data_dir, builtins=builtins)
+    store = MapStore(cfg.data_dir, builtins=builtins, max_cells=cfg.ui.max_map_cells,
+                     max_upload_bytes=int(cfg.ui.max_upload_mb * 1024 * 1024))
     rng = np.random.default_rng(cfg.localization.seed)
     localization = LocalizationPipeline(None, rng, localizer=cfg.localization.localizer_params())
     maps = MapService(store, localization, cfg.localization.slam_params(), on_event=robot.event)

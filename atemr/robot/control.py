@@ -36,7 +36,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import asdict
 from typing import Any, cast
 
-from atemr.errors import ControlError
+from atemr.errors import ControlError, brief
 from atemr.fsm.agent import Agent
 from atemr.fsm.codes import top_level
 from atemr.fsm.mission_run import MissionRun
@@ -216,7 +216,7 @@ class RobotControl:
         timeout_s = number_of(request, "timeout_s", 600.0, MAX_TIMEOUT_S)
         follow = request.get("follow", True)
         if not isinstance(follow, bool):
-            raise ControlError(f"'follow' must be true or false, got {follow!r}")
+            raise ControlError(f"'follow' must be true or false, got {brief(follow)}")
         session: _Session = self._call(lambda now: self._begin(mission, timeout_s, conn.number))
         if follow:
             self._follow(session, conn, owner=True)
@@ -313,10 +313,10 @@ def mission_of(request: dict[str, Any]) -> Mission:
     poses = []
     for i, goal in enumerate(goals):
         if not isinstance(goal, dict) or set(goal) != {"x_m", "y_m", "yaw_rad"}:
-            raise ControlError(f"goals[{i}] must be {{\"x_m\", \"y_m\", \"yaw_rad\"}}, got {goal!r}")
+            raise ControlError(f"goals[{i}] must be {{\"x_m\", \"y_m\", \"yaw_rad\"}}, got {brief(goal)}")
         values = [goal["x_m"], goal["y_m"], goal["yaw_rad"]]
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-            raise ControlError(f"goals[{i}] coordinates must be numbers, got {goal!r}")
+            raise ControlError(f"goals[{i}] coordinates must be numbers, got {brief(goal)}")
         poses.append(Pose2D(*(float(v) for v in values)))
     return mission_from_goals(poses)
 
@@ -325,7 +325,7 @@ def number_of(request: dict[str, Any], key: str, default: float, maximum: float)
     value = request.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
             or not 0 < value <= maximum:
-        raise ControlError(f"'{key}' must be a number of seconds in (0, {maximum:g}], got {value!r}")
+        raise ControlError(f"'{key}' must be a number of seconds in (0, {maximum:g}], got {brief(value)}")
     return float(value)
 
 

@@ -114,6 +114,10 @@ class Robot:
     def shutdown(self) -> None:
         """Shut components down in reverse order, then close the buses; idempotent."""
         self.scheduler.shutdown()
+        self.close_buses()
+
+    def close_buses(self) -> None:
+        """Close every bus opened for the parts (after they have shut down, or when building failed)."""
         while self.buses:
             bus = self.buses.pop()
             try:

@@ -8,6 +8,12 @@ interventions through `Simulation.submit`, and the few actions that touch the co
 for the gateway's own scheduler component, ``dashboard_gateway``, which runs them on the robot's thread.
 What can be checked at once (a finite pose, a map that exists, limits within bounds) is checked at once.
 
+Nothing heavy runs on the robot's thread on a web request's behalf: the queued actions are cheap, at most
+`MAX_ACTIONS_PER_TICK` of them run per tick and at most `MAX_QUEUED_ACTIONS` wait (more are refused). A map
+selection reads, decodes and prepares the map (`MapService.prepare`: localization's likelihood field,
+navigation's costmap) in the gateway's own worker thread, one map at a time, while the robot goes on;
+only the finished map is queued, and the pump swaps it in between two ticks (`MapService.swap`).
+
 Building the gateway schedules two small components on the robot: the pump above and, when the robot
 has a camera, the `VideoRecorder`. Build it before the robot starts (`atemr.robot.dashboard.add_dashboard`
 does).
@@ -21,7 +27,7 @@ import queue
 import threading
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from pathlib import Path
 from typing import Any, cast
@@ -30,11 +36,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from atemr.clock import WallClock
-from atemr.errors import AtemrError, ConfigError
+from atemr.errors import AtemrError, ConfigError, brief, brief_text
 from atemr.fsm.agent import DEFAULT_AGENT_FILE
 from atemr.io.devices.drivers import camera_rate_hz
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
+from atemr.robot.mapping import PreparedMap
 from atemr.robot.port import jpeg
 from atemr.robot.reload import ReloadWatcher
 from atemr.robot.video import VideoRecorder
@@ -53,6 +60,12 @@ WIFI_WAIT_S = 10.0
 MAX_BUTTON_HOLD_S = 10.0
 #: Events shown on the dashboard.
 EVENTS_SHOWN = 30
+#: Longest a web request waits for a map to be read and prepared before answering "still loading".
+MAP_WAIT_S = 30.0
+#: Queued actions the pump runs per tick at most (the rest wait for the next tick) ...
+MAX_ACTIONS_PER_TICK = 16
+#: ... and actions that may wait at most: a flood of requests is refused, not queued without end.
+MAX_QUEUED_ACTIONS = 256
 
 
 def _ok(result: bool, reason: str = "") -> CommandResult:
@@ -115,6 +128,10 @@ class RobotGatewayImpl:
         self._listing: dict[str, tuple[int, list[str]]] = {}
         self._wifi = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-wifi")
         self._wifi_ssid: str | None = None
+        #: Reads and prepares selected maps off the robot's thread, one at a time.
+        self._loader = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-maps")
+        #: The map being loaded or waiting for its swap (another selection is refused meanwhile).
+        self._map_loading: str | None = None
         robot.add(_Pump(self), pump_rate_hz)
         self.recorder: VideoRecorder | None = None
         if self.camera is not None:
@@ -124,8 +141,9 @@ class RobotGatewayImpl:
 
     # -- the robot's thread ------------------------------------------------------------------------------
     def _pump(self, now: float) -> None:
-        """Run the queued actions, report the agent's refusals, collect localization events."""
-        while True:
+        """Run the queued actions (`MAX_ACTIONS_PER_TICK` at most), report the agent's refusals, collect
+        localization events."""
+        for _ in range(MAX_ACTIONS_PER_TICK):
             try:
                 what, action = self._actions.get_nowait()
             except queue.Empty:
@@ -149,8 +167,12 @@ class RobotGatewayImpl:
         for event in self.robot.parts.localization.drain_events():
             self.robot.event(f"localization {event.kind}", event.detail)
 
-    def _queue(self, what: str, action: Callable[[float], object]) -> None:
+    def _queue(self, what: str, action: Callable[[float], object]) -> CommandResult:
+        """Queue ``action(now)`` for the robot's thread; refused when `MAX_QUEUED_ACTIONS` wait already."""
+        if self._actions.qsize() >= MAX_QUEUED_ACTIONS:
+            return CommandResult.refused(f"{what}: the robot has {MAX_QUEUED_ACTIONS} requests waiting; try again")
         self._actions.put((what, action))
+        return CommandResult.accepted()
 
     def _submit(self, trigger: str, **kwargs: Any) -> CommandResult:
         """Queue ``trigger`` for the agent if it may be taken in the current state; else refuse at once."""
@@ -288,7 +310,7 @@ class RobotGatewayImpl:
     # -- driving -----------------------------------------------------------------------------------------
     def joystick(self, twist: Twist) -> CommandResult:
         if not isinstance(twist, Twist) or not _finite(twist.linear_mps, twist.angular_radps):
-            return CommandResult.refused(f"joystick: a finite velocity is needed, got {twist!r}")
+            return CommandResult.refused(f"joystick: a finite velocity is needed, got {brief(twist)}")
         if self.inputs.mode == "AUTO":
             return CommandResult.refused("joystick ignored in AUTO: switch to MANUAL to drive")
         self.inputs.operate(twist, self.robot.clock.now())
@@ -296,7 +318,7 @@ class RobotGatewayImpl:
 
     def set_mode(self, mode: Mode) -> CommandResult:
         if mode not in ("MANUAL", "AUTO"):
-            return CommandResult.refused(f"mode must be MANUAL or AUTO, got {mode!r}")
+            return CommandResult.refused(f"mode must be MANUAL or AUTO, got {brief(mode)}")
         state = self.agent.state
         if state == f"IDLE.{mode}":
             return CommandResult.accepted()
@@ -330,8 +352,7 @@ class RobotGatewayImpl:
         row, col = grid.world_to_cell(pose.x_m, pose.y_m)
         if not grid.contains(row, col):
             return CommandResult.refused(f"({pose.x_m:.2f}, {pose.y_m:.2f}) is outside the map {self.maps.active_name}")
-        self._queue("initial pose", lambda now: localization.set_initial_pose(now, pose))
-        return CommandResult.accepted()
+        return self._queue("initial pose", lambda now: localization.set_initial_pose(now, pose))
 
     def localize_globally(self) -> CommandResult:
         localization = self.robot.parts.localization
@@ -339,8 +360,8 @@ class RobotGatewayImpl:
             return CommandResult.refused("this robot has no localization")
         if self.maps.active is None:
             return CommandResult.refused("no active map: select or build a map first")
-        self._queue("global localization", lambda now: localization.start_global(now, "requested by the operator"))
-        return CommandResult.accepted()
+        return self._queue("global localization",
+                           lambda now: localization.start_global(now, "requested by the operator"))
 
     def cancel_goal(self) -> CommandResult:
         return self._submit("cancel")
@@ -365,7 +386,7 @@ class RobotGatewayImpl:
         except ConfigError as exc:
             return CommandResult.refused(exc.reason)
         if clean != name:
-            return CommandResult.refused(f"invalid map name {name!r}: use {clean!r}")
+            return CommandResult.refused(f"invalid map name {brief(name)}: use {brief(clean)}")
         if name in self.store.builtins:
             return CommandResult.refused(f"'{name}' is a built-in map and cannot be replaced; choose another name")
         if self.store.exists(name):
@@ -376,26 +397,88 @@ class RobotGatewayImpl:
         return self._submit("discard_map")
 
     def select_map(self, name: str) -> CommandResult:
+        """Read and prepare map ``name`` in the gateway's worker (the robot goes on meanwhile), then queue the
+        swap for the robot's thread. Answers when the map is ready (or refused: unreadable, too large, ...),
+        or after `MAP_WAIT_S` with "still loading" (the outcome is then an event)."""
         if not isinstance(name, str) or not self.store.exists(name):
-            return CommandResult.refused(f"no map named {name!r}; known maps: {', '.join(self.store.names())}")
+            return CommandResult.refused(f"no map named {brief(name)}; known maps: {', '.join(self.store.names())}")
         top = self.agent.state.split(".")[0]
         if top != "IDLE":
             return CommandResult.refused(f"maps are switched in IDLE only (now {self.agent.state})")
-        if name == self.maps.active_name:
-            return CommandResult.accepted()
+        with self._lock:
+            if self._map_loading is not None:
+                return CommandResult.refused(f"map {self._map_loading} is still loading: select again when it is "
+                                             "active")
+            if name == self.maps.active_name:
+                return CommandResult.accepted()
+            self._map_loading = name
+            waiting = [True]  # the request answers; after MAP_WAIT_S the worker's callback reports instead
         try:
-            grid = self.store.load(name)
+            future: Future[PreparedMap] = self._loader.submit(self.maps.prepare, name)
+        except RuntimeError:  # the gateway is closing
+            with self._lock:
+                self._map_loading = None
+            return CommandResult.refused("the robot is stopping")
+
+        def done(f: Future[PreparedMap]) -> None:
+            with self._lock:
+                if waiting[0]:
+                    return
+            result = self._map_ready(name, f)
+            if not result.ok:
+                self.robot.event("refused", f"select map: {result.reason}")
+
+        future.add_done_callback(done)
+        try:
+            future.exception(timeout=MAP_WAIT_S)
+        except CancelledError:  # the gateway closed before the load began
+            with self._lock:
+                self._map_loading = None
+            return CommandResult.refused("the robot is stopping")
+        except FutureTimeout:
+            with self._lock:
+                if not future.done():
+                    waiting[0] = False
+                    return CommandResult(True, f"still loading map {name}; it becomes active when it is ready "
+                                               "(see the events)")
+        return self._map_ready(name, future)
+
+    def _map_ready(self, name: str, future: Future[PreparedMap]) -> CommandResult:
+        """A finished load: queue the swap, or refuse with the reason (the loading slot is freed then)."""
+        try:
+            prepared = future.result()
         except ConfigError as exc:
-            return CommandResult.refused(f"map {name!r} cannot be loaded: {exc.reason}")
-        del grid  # loaded to refuse a broken map at once; `activate` loads and persists it on the robot's thread
-        self._queue("select map", lambda now: self.maps.activate(name))
-        return CommandResult.accepted()
+            reason = f"map {name} cannot be loaded: {exc.reason}"
+        except Exception as exc:  # a broken map must not leave the slot taken
+            log.exception("loading map %s failed", name)
+            reason = f"map {name} cannot be loaded: {type(exc).__name__}: {brief_text(str(exc), 200)}"
+        else:
+            queued = self._queue("select map", lambda now: self._swap_map(prepared))
+            if queued.ok:
+                return queued
+            reason = queued.reason
+        with self._lock:
+            self._map_loading = None
+        return CommandResult.refused(reason)
+
+    def _swap_map(self, prepared: PreparedMap) -> None:
+        """Robot's thread: make the prepared map active, if the agent is still in IDLE (cheap: assignments)."""
+        try:
+            state = self.agent.state
+            if state.split(".")[0] != "IDLE":
+                self.robot.event("refused", f"select map: maps are switched in IDLE only (now {state}); "
+                                            f"map {prepared.name} not selected")
+                return
+            self.maps.swap(prepared)
+        finally:
+            with self._lock:
+                self._map_loading = None
 
     def validate_map(self, yaml_path: Path) -> CommandResult:
         from atemr.io.sim.maps import load_map
 
         try:
-            load_map(Path(yaml_path))
+            load_map(Path(yaml_path), max_cells=self.store.max_cells)
         except ConfigError as exc:
             return CommandResult.refused(f"not a valid ROS map: {exc.reason}")
         return CommandResult.accepted()
@@ -427,7 +510,7 @@ class RobotGatewayImpl:
 
     def set_awareness(self, enabled: bool) -> CommandResult:
         if not isinstance(enabled, bool):
-            return CommandResult.refused(f"awareness is on or off (true/false), got {enabled!r}")
+            return CommandResult.refused(f"awareness is on or off (true/false), got {brief(enabled)}")
         self.inputs.awareness = enabled
         try:
             self.settings.update("reactive", {"awareness": enabled})
@@ -483,14 +566,15 @@ class RobotGatewayImpl:
         from atemr.trees.missions import load_mission
 
         if not isinstance(name, str) or name not in self.missions():
-            return CommandResult.refused(f"no mission named {name!r}; known: {', '.join(self.missions()) or 'none'}")
+            known = ", ".join(self.missions()) or "none"
+            return CommandResult.refused(f"no mission named {brief(name)}; known: {known}")
         why = self.agent.precheck("start_mission")
         if why is not None:
             return CommandResult.refused("switch to AUTO first" if self.agent.state == "IDLE.MANUAL" else why)
         try:
             mission = load_mission(self.missions_dir / f"{name}.yaml")
         except ConfigError as exc:
-            return CommandResult.refused(f"mission {name!r} is not valid: {exc}")
+            return CommandResult.refused(f"mission {brief(name)} is not valid: {exc}")
         return self._submit("start_mission", mission=mission)
 
     def stop_mission(self) -> CommandResult:
@@ -538,13 +622,13 @@ class RobotGatewayImpl:
         if self.sim is None or core is None:
             return CommandResult.refused("not a simulation")
         if not _finite(hold_s) or not 0 < hold_s <= MAX_BUTTON_HOLD_S:
-            return CommandResult.refused(f"a button press lasts 0-{MAX_BUTTON_HOLD_S:g} s, got {hold_s!r}")
+            return CommandResult.refused(f"a button press lasts 0-{MAX_BUTTON_HOLD_S:g} s, got {brief(hold_s)}")
         cast(Any, core).button.hold(float(hold_s))
         return CommandResult.accepted()
 
     def _in_world(self, x_m: float, y_m: float) -> str | None:
         if not _finite(x_m, y_m):
-            return f"a position must be finite numbers, got ({x_m!r}, {y_m!r})"
+            return f"a position must be finite numbers, got ({brief(x_m)}, {brief(y_m)})"
         if self.sim is None:
             return "not a simulation"
         world = self.sim.world.map
@@ -574,8 +658,10 @@ class RobotGatewayImpl:
         return self._sim_action("kidnap", lambda: sim.kidnap(pose))
 
     def close(self) -> None:
-        """Stop the WiFi worker (done by the robot's shutdown; idempotent)."""
+        """Stop the WiFi and map workers (done by the robot's shutdown; idempotent). A map being read is left
+        to finish on its own; nothing swaps it in any more."""
         self._wifi.shutdown(wait=False)
+        self._loader.shutdown(wait=False, cancel_futures=True)
 
 
-__all__ = ["PUMP_RATE_HZ", "RobotGatewayImpl"]
+__all__ = ["MAP_WAIT_S", "MAX_ACTIONS_PER_TICK", "MAX_QUEUED_ACTIONS", "PUMP_RATE_HZ", "RobotGatewayImpl"]

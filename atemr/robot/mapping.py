@@ -4,6 +4,12 @@
 agent is in MAPPING (scans come from the lidar's subscription, odometry from the localization's
 ``odom`` history). It is the one object that changes the active map, so localization, navigation and the
 dashboard always agree on it; ``version`` changes whenever the map to draw changes.
+
+A map change has a heavy half and a cheap one. `prepare` reads the map (up to the store's ``max_cells``)
+and builds what localization and every map user (navigation's costmap) derive from it; it changes
+nothing here, so any thread may run it: the dashboard gateway runs it in its own worker, off the control
+loop. `swap` then installs the prepared map on the robot's thread between two ticks: a few assignments.
+`activate` does both at once (start-up).
 """
 
 from __future__ import annotations
@@ -11,11 +17,14 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
 
 from atemr.errors import NavigationError
 from atemr.io.map_store import MapStore
 from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D
+from atemr.skills.localization.localizer import Localizer
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.slam import OccupancyGridSlam, SlamParams
 
@@ -23,6 +32,42 @@ log = logging.getLogger(__name__)
 
 #: Redraw the growing map on the dashboard every this many integrated scans.
 REDRAW_EVERY = 5
+
+
+class MapUser(Protocol):
+    """A part that derives something heavy from the active map (navigation's costmap and planners)."""
+
+    def prepare_map(self, grid: OccupancyMap) -> object:
+        """What this part derives from ``grid``; may run on any thread, so it must change nothing shared."""
+        ...
+
+    def use_map(self, grid: OccupancyMap, prepared: object | None) -> None:
+        """Switch to ``grid`` (robot's thread); ``prepared`` is ``prepare_map(grid)``, or None: derive it now."""
+        ...
+
+
+class _Listener:
+    """A plain ``listener(map)`` as a `MapUser` with nothing to prepare."""
+
+    def __init__(self, listener: Callable[[OccupancyMap], None]) -> None:
+        self.listener = listener
+
+    def prepare_map(self, grid: OccupancyMap) -> object:
+        return None
+
+    def use_map(self, grid: OccupancyMap, prepared: object | None) -> None:
+        self.listener(grid)
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedMap:
+    """A map read and ready to become the active one (`MapService.prepare`): hand it to `MapService.swap` once."""
+
+    name: str
+    grid: OccupancyMap
+    localizer: Localizer
+    #: What each map user prepared, in the order they were added.
+    derived: tuple[object, ...]
 
 
 class MapService:
@@ -41,24 +86,50 @@ class MapService:
         self.collecting = False
         self._registering = False
         self._lock = threading.RLock()
-        self._listeners: list[Callable[[OccupancyMap], None]] = []
+        self._users: list[MapUser] = []
 
     # -- the active map --------------------------------------------------------------------------------
     def on_map_change(self, listener: Callable[[OccupancyMap], None]) -> None:
-        """Call ``listener(map)`` whenever the active map changes (navigation rebuilds its costmap)."""
-        self._listeners.append(listener)
+        """Call ``listener(map)`` whenever the active map changes (cheap work only: it runs in the swap)."""
+        self.add_map_user(_Listener(listener))
+
+    def add_map_user(self, user: MapUser) -> None:
+        """``user`` prepares its part of each new map in `prepare` and switches to it in `swap`."""
+        with self._lock:
+            self._users.append(user)
+
+    def prepare(self, name: str, grid: OccupancyMap | None = None) -> PreparedMap:
+        """Read map ``name`` from the store (or take ``grid``) and build what localization and the map users
+        need of it. Heavy (up to the store's ``max_cells`` decoded, distance transforms) and changes nothing
+        here: run it off the robot's thread. Raises `ConfigError` (unknown, unreadable, too large, or a map
+        that cannot be localized against)."""
+        grid = self.store.load(name) if grid is None else grid
+        with self._lock:
+            users = list(self._users)
+        localizer = self.localization.prepare_map(grid)
+        return PreparedMap(name, grid, localizer, tuple(user.prepare_map(grid) for user in users))
+
+    def swap(self, prepared: PreparedMap, *, persist: bool = True) -> OccupancyMap:
+        """Make a prepared map the active one (robot's thread, between ticks): assignments only. ``persist``
+        records it as the selected map first (`ConfigError` if it was deleted meanwhile; nothing changes)."""
+        if persist:
+            self.store.set_active(prepared.name)
+        grid = prepared.grid
+        with self._lock:
+            self.localization.set_map(grid, prepared.localizer)
+            self.active_name, self.active = prepared.name, grid
+            self.version += 1
+            derived = prepared.derived if len(prepared.derived) == len(self._users) else (None,) * len(self._users)
+            for user, made in zip(self._users, derived, strict=True):
+                user.use_map(grid, made)
+        self.on_event("map", f"active map: {prepared.name}")
+        return grid
 
     def activate(self, name: str, grid: OccupancyMap | None = None) -> OccupancyMap:
-        """Make stored map ``name`` active (persisted) and localize against it; raises `ConfigError`."""
-        with self._lock:
-            grid = self.store.select(name) if grid is None else grid
-            self.active_name, self.active = name, grid
-            self.localization.set_map(grid)
-            self.version += 1
-            for listener in self._listeners:
-                listener(grid)
-        self.on_event("map", f"active map: {name}")
-        return grid
+        """Make map ``name`` active and localize against it, here and now: read from the store and persisted
+        as the selection, or ``grid`` as given (not persisted). Raises `ConfigError`. Heavy: start-up only;
+        a running robot uses `prepare` off its thread, then `swap`."""
+        return self.swap(self.prepare(name, grid), persist=grid is None)
 
     # -- mapping -----------------------------------------------------------------------------------------
     def begin(self) -> None:
@@ -125,8 +196,8 @@ class MapService:
             self.slam, self.collecting = None, False
             self.active_name, self.active = stored, grid
             self.version += 1
-            for listener in self._listeners:
-                listener(grid)
+            for user in self._users:
+                user.use_map(grid, None)
             self.localization.set_initial_pose(now, slam.current_pose)
         self.on_event("mapping", f"map saved as {stored}")
         return stored

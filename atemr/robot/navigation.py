@@ -2,7 +2,8 @@
 
 `atemr.trees.navigator_port.NavigatorPort` adapts a `Navigator` to the agent's `NavigationPort`; this
 module gives it its inputs on the robot (the localized map pose, the latest scan, the localization flag,
-the measured twist) and rebuilds the navigator's costmap whenever the map service switches maps.
+the measured twist) and gives the navigator each new map's costmap, prepared off the robot's thread when
+the map service switches maps (`atemr.robot.mapping.MapUser`).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.robot.mapping import MapService
 from atemr.skills.localization.pipeline import LocalizationPipeline
-from atemr.skills.nav.navigator import Navigator, NavParams
+from atemr.skills.nav.navigator import Navigator, NavMap, NavParams
 from atemr.trees.navigator_port import NavigatorPort
 
 
@@ -27,15 +28,22 @@ class RobotNavigation(NavigatorPort):
                          velocity=velocity)
         self.params = params
         if maps.active is not None:
-            self._use_map(maps.active)
-        maps.on_map_change(self._use_map)
+            self.use_map(maps.active, None)
+        maps.add_map_user(self)
 
-    def _use_map(self, grid: OccupancyMap) -> None:
+    # -- the map service's MapUser -------------------------------------------------------------------
+    def prepare_map(self, grid: OccupancyMap) -> NavMap:
+        """The costmap and planners of ``grid`` (any thread; nothing here changes)."""
+        navigator = self.navigator
+        return Navigator.prepare_map(grid, navigator.params if navigator is not None else self.params)
+
+    def use_map(self, grid: OccupancyMap, prepared: object | None) -> None:
         """The navigator plans on the active map; a robot that starts without one gets it with the first map."""
+        nav_map = prepared if isinstance(prepared, NavMap) else None
         if self.navigator is None:
-            self.navigator = Navigator(grid, self.params)
+            self.navigator = Navigator(grid, self.params, prepared=nav_map)
         else:
-            self.navigator.set_map(grid)
+            self.navigator.set_map(grid, nav_map)
 
     @property
     def goal(self) -> Pose2D | None:

@@ -17,6 +17,7 @@ from typing import Any
 
 from flask import Flask, redirect, request, url_for
 from flask_socketio import SocketIO
+from markupsafe import escape
 from werkzeug.wrappers import Response
 
 from atemr import __version__
@@ -27,8 +28,17 @@ from atemr.io.map_store import MapStore
 from atemr.ui import sockets
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.media import files as media_files
-from atemr.ui.security import LoginRateLimiter, check_csrf, csrf_token, current_user
-from atemr.ui.users import HASH_METHOD, UserStore
+from atemr.ui.payload import PacketJSON
+from atemr.ui.security import (
+    LoginRateLimiter,
+    TrustedHostMiddleware,
+    check_csrf,
+    csrf_token,
+    current_user,
+    html_response,
+    trusted_hosts,
+)
+from atemr.ui.users import HASH_METHOD, PasswordHashBusy, UserStore
 
 #: Endpoints reachable before the root admin has a password (everything else redirects to first start).
 FIRST_START_OPEN = frozenset({"auth.first_start", "static"})
@@ -78,22 +88,30 @@ def create_app(
     """
     config = config or Config()
     app = Flask(__name__, static_folder="static", template_folder="templates")
+    lifetime = timedelta(hours=12)
     app.config.update(
         SECRET_KEY=secret_key(config),
         SESSION_COOKIE_NAME="atemr_session",
         SESSION_COOKIE_HTTPONLY=True,
         SESSION_COOKIE_SAMESITE="Lax",
-        PERMANENT_SESSION_LIFETIME=timedelta(hours=12),
+        PERMANENT_SESSION_LIFETIME=lifetime,
         MAX_CONTENT_LENGTH=int(config.ui.max_upload_mb * 1024 * 1024),
         ATEMR_CONFIG=config,
         ATEMR_VERSION=__version__,
     )
-    app.extensions["atemr.users"] = UserStore(database_path(config), hash_method=hash_method)
+    app.extensions["atemr.users"] = UserStore(database_path(config), hash_method=hash_method,
+                                              session_lifetime_s=lifetime.total_seconds())
     app.extensions["atemr.gateway"] = gateway
+    clock = clock or WallClock()
     app.extensions["atemr.limiter"] = LoginRateLimiter(
-        clock or WallClock(), max_failures=config.ui.login_max_failures, lockout_s=config.ui.login_lockout_s
+        clock, max_failures=config.ui.login_max_failures, lockout_s=config.ui.login_lockout_s,
+        max_failures_per_address=config.ui.login_max_failures_per_address,
     )
-    maps = map_store or MapStore(config.data_dir)
+    # New accounts: as many per address and lockout period as failed logins per user.
+    app.extensions["atemr.register_limiter"] = LoginRateLimiter(
+        clock, max_failures=config.ui.login_max_failures, lockout_s=config.ui.login_lockout_s
+    )
+    maps = map_store or MapStore(config.data_dir, max_cells=config.ui.max_map_cells)
     app.extensions["atemr.maps"] = maps
     app.extensions["atemr.media"] = media_files.MediaStore(config.data_dir, maps)
     app.extensions["atemr.stopping"] = threading.Event()  # set by the server's shutdown: streams end
@@ -101,6 +119,7 @@ def create_app(
     app.before_request(check_csrf)
     app.after_request(_security_headers)
     app.before_request(_first_start_gate)
+    app.register_error_handler(PasswordHashBusy, _busy)
     app.jinja_env.globals["csrf_token"] = csrf_token
     app.context_processor(_template_globals)
 
@@ -122,11 +141,21 @@ def create_app(
         manage_session=True,
         message_queue=config.ui.message_queue,
         max_http_buffer_size=1_000_000,  # events are small; uploads go over HTTP with their own limit
+        json=PacketJSON,  # huge integer literals are refused by the payload checks, not logged as errors
         logger=False,
         engineio_logger=False,
     )
     sockets.init_app(app, socketio)
+    # Outermost: a foreign Host header (DNS rebinding) reaches neither the pages nor Socket.IO.
+    app.wsgi_app = TrustedHostMiddleware(  # type: ignore[method-assign]
+        app.wsgi_app, trusted_hosts(config.ui.host, config.ui.trusted_hosts)
+    )
     return app
+
+
+def _busy(exc: PasswordHashBusy) -> Response:
+    """Every password-hashing slot is taken: "busy, try again in a second", at once (no queue)."""
+    return html_response(f"<p>{escape(str(exc))}</p>", 503, headers={"Retry-After": "1"})
 
 
 #: Scripts, styles, frames and connections from this origin only; images also as data: (camera frames).

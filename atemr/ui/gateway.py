@@ -180,7 +180,8 @@ class RobotGateway(Protocol):
         ...
 
     def select_map(self, name: str) -> CommandResult:
-        """Make the stored map ``name`` the active one."""
+        """Make the stored map ``name`` the active one. The map is read off the robot's control loop; the answer
+        comes when it is ready (or refused), or says it is still loading (the outcome is then an event)."""
         ...
 
     def validate_map(self, yaml_path: Path) -> CommandResult:

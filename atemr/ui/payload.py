@@ -1,16 +1,54 @@
 """Checking what a browser sends in a Socket.IO event: every field typed, finite and in range.
 
 A bad payload raises `ProtocolError` naming the event and the field; the event wrapper turns it into
-a refusal the page shows, and nothing reaches the robot.
+a refusal the page shows (and logs one WARNING line), and nothing reaches the robot.
+
+`PacketJSON` reads the Socket.IO packets: an integer literal of more than `MAX_INT_DIGITS` digits becomes
+a `TooLargeInteger` (which every check here refuses) instead of an exception that the Socket.IO server
+would log as an ERROR with a traceback for each such packet.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from typing import Any
 
 from atemr.errors import ProtocolError
 from atemr.msgs import Pose2D
+
+#: Longest integer literal read as a number (python-engineio's own limit; longer ones cost quadratic time).
+MAX_INT_DIGITS = 100
+
+
+class TooLargeInteger:
+    """An integer literal too long to read (its digits are never converted)."""
+
+    __slots__ = ("digits",)
+
+    def __init__(self, digits: int) -> None:
+        self.digits = digits
+
+    def __repr__(self) -> str:
+        return f"<an integer of {self.digits} digits>"
+
+
+def _parse_int(literal: str) -> int | TooLargeInteger:
+    digits = len(literal.lstrip("-"))
+    return TooLargeInteger(digits) if digits > MAX_INT_DIGITS else int(literal)
+
+
+class PacketJSON:
+    """The ``json`` module given to the Socket.IO server (``dumps`` and ``loads``)."""
+
+    @staticmethod
+    def dumps(*args: Any, **kwargs: Any) -> str:
+        return json.dumps(*args, **kwargs)
+
+    @staticmethod
+    def loads(*args: Any, **kwargs: Any) -> Any:
+        kwargs.setdefault("parse_int", _parse_int)
+        return json.loads(*args, **kwargs)
 
 
 def mapping(event: str, data: Any) -> dict[str, Any]:
@@ -24,7 +62,10 @@ def number(event: str, data: Any, key: str, *, lo: float = -math.inf, hi: float 
     value = mapping(event, data).get(key)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ProtocolError(f"{event}.{key}: expected a number, got {value!r}")
-    result = float(value)
+    try:
+        result = float(value)
+    except OverflowError:
+        raise ProtocolError(f"{event}.{key}: expected a finite number, got an integer too large") from None
     if not math.isfinite(result):
         raise ProtocolError(f"{event}.{key}: expected a finite number, got {value!r}")
     if not lo <= result <= hi:

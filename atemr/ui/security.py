@@ -1,4 +1,5 @@
-"""What keeps the dashboard closed: CSRF tokens, the login rate limit, role checks, the localhost rule.
+"""What keeps the dashboard closed: CSRF tokens, the login rate limit, sessions, role checks, the
+localhost rule, the trusted host names and safe post-login targets.
 
 Everything here works on the Flask session (signed cookie, HttpOnly, SameSite=Lax) and on an
 injected clock, so the rate limit is tested by advancing a `SimClock`, never by sleeping.
@@ -11,9 +12,10 @@ import hmac
 import ipaddress
 import secrets
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any, TypeVar, cast
+from urllib.parse import urlsplit
 
 from flask import abort, current_app, g, redirect, request, session, url_for
 from werkzeug.wrappers import Response
@@ -26,6 +28,8 @@ F = TypeVar("F", bound=Callable[..., Any])
 CSRF_SESSION_KEY = "csrf_token"
 CSRF_FORM_FIELD = "csrf_token"
 CSRF_HEADER = "X-CSRF-Token"
+#: The session key holding the session token (the users database knows which are live).
+SESSION_KEY = "sid"
 #: Methods that change something and so must carry the CSRF token.
 UNSAFE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 
@@ -56,49 +60,200 @@ def check_csrf() -> None:
 # -- login rate limit ---------------------------------------------------------------------------------
 @dataclass
 class LoginRateLimiter:
-    """Counts failed logins per (username, address); ``max_failures`` within ``lockout_s`` locks that
-    pair out until ``lockout_s`` after the last failure. Thread-safe; time comes from ``clock``."""
+    """Counts failed logins per (username, address) and per address alone.
+
+    ``max_failures`` within ``lockout_s`` lock that pair out, and ``max_failures_per_address`` (None: no
+    such limit) lock the whole address out (random usernames from one address), each until ``lockout_s``
+    after the last failure. `attempt` checks and counts in one step, before the password is hashed, so
+    concurrent tries cannot outrun the limit; a correct password (`succeeded`) or a try that was never
+    checked (`forgive`) takes its count back. Thread-safe; time comes from ``clock``; memory is bounded
+    (``max_keys`` pairs and addresses).
+    """
 
     clock: Clock
     max_failures: int = 5
     lockout_s: float = 300.0
+    max_failures_per_address: int | None = None
     max_keys: int = 10_000
     _failures: dict[tuple[str, str], list[float]] = field(default_factory=dict)
+    _by_address: dict[str, list[float]] = field(default_factory=dict)
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
-    def _recent(self, key: tuple[str, str], now: float) -> list[float]:
-        times = [t for t in self._failures.get(key, []) if now - t < self.lockout_s]
+    def _recent(self, table: dict[Any, list[float]], key: Any, now: float) -> list[float]:
+        times = [t for t in table.get(key, []) if now - t < self.lockout_s]
         if times:
-            self._failures[key] = times
+            table[key] = times
         else:
-            self._failures.pop(key, None)
+            table.pop(key, None)
         return times
 
+    def _wait(self, username: str, address: str, now: float) -> float:
+        wait = 0.0
+        times = self._recent(self._failures, (username.lower(), address), now)
+        if len(times) >= self.max_failures:
+            wait = times[-1] + self.lockout_s - now
+        if self.max_failures_per_address is not None:
+            times = self._recent(self._by_address, address, now)
+            if len(times) >= self.max_failures_per_address:
+                wait = max(wait, times[-1] + self.lockout_s - now)
+        return max(0.0, wait)
+
     def retry_after(self, username: str, address: str) -> float:
-        """Seconds until this pair may try again; 0 when it is not locked out."""
+        """Seconds until this pair may try again; 0 when neither it nor its address is locked out."""
+        with self._lock:
+            return self._wait(username, address, self.clock.now())
+
+    def attempt(self, username: str, address: str) -> float:
+        """Check and count one try at once: 0 when it may go ahead (counted as a failure until
+        `succeeded` or `forgive`), else the seconds to wait (nothing counted)."""
         with self._lock:
             now = self.clock.now()
-            times = self._recent((username.lower(), address), now)
-            if len(times) < self.max_failures:
-                return 0.0
-            return max(0.0, times[-1] + self.lockout_s - now)
+            wait = self._wait(username, address, now)
+            if wait <= 0.0:
+                self._record(username, address, now)
+            return wait
+
+    @staticmethod
+    def _append(table: dict[Any, list[float]], key: Any, now: float, keep: int, max_keys: int) -> None:
+        if len(table) >= max_keys and key not in table:
+            # Bounded memory under a flood of invented names: forget the stalest entries.
+            for stale in sorted(table, key=lambda k: table[k][-1])[: max_keys // 10]:
+                del table[stale]
+        table.setdefault(key, []).append(now)
+        del table[key][:-keep]
+
+    def _record(self, username: str, address: str, now: float) -> None:
+        self._append(self._failures, (username.lower(), address), now, self.max_failures, self.max_keys)
+        if self.max_failures_per_address is not None:
+            self._append(self._by_address, address, now, self.max_failures_per_address, self.max_keys)
 
     def failed(self, username: str, address: str) -> None:
         """Record a failed attempt."""
         with self._lock:
-            now = self.clock.now()
-            key = (username.lower(), address)
-            if len(self._failures) >= self.max_keys and key not in self._failures:
-                # Bounded memory under a flood of invented names: forget the stalest pairs.
-                for stale in sorted(self._failures, key=lambda k: self._failures[k][-1])[: self.max_keys // 10]:
-                    del self._failures[stale]
-            self._failures.setdefault(key, []).append(now)
-            del self._failures[key][: -self.max_failures]
+            self._record(username, address, self.clock.now())
+
+    def forgive(self, username: str, address: str) -> None:
+        """Take back the newest count of this pair and its address (a try that was never checked)."""
+        with self._lock:
+            self._take_back(self._failures, (username.lower(), address))
+            self._take_back(self._by_address, address)
+
+    @staticmethod
+    def _take_back(table: dict[Any, list[float]], key: Any) -> None:
+        times = table.get(key)
+        if times:
+            times.pop()
+            if not times:
+                del table[key]
 
     def succeeded(self, username: str, address: str) -> None:
-        """A correct password clears the pair's failures."""
+        """A correct password clears the pair's failures and takes back this try's count of the address
+        (its older failures stay: one known password does not reset the address)."""
         with self._lock:
             self._failures.pop((username.lower(), address), None)
+            self._take_back(self._by_address, address)
+
+
+# -- which host names this dashboard answers to (DNS rebinding) ------------------------------------------
+#: Always trusted: this machine.
+LOCAL_HOSTS = ("localhost", "127.0.0.1", "::1")
+#: Listening addresses that mean "every interface".
+WILDCARD_HOSTS = frozenset({"", "0.0.0.0", "::"})
+
+
+def normalize_host(name: str) -> str | None:
+    """``name`` (a host name or address, IPv6 with or without brackets, no port) in one spelling: lower
+    case, no trailing dot, addresses in their compressed form; None if it is not a plausible host."""
+    name = name.strip().lower().removesuffix(".")
+    if name.startswith("[") and name.endswith("]"):
+        name = name[1:-1]
+    try:
+        return ipaddress.ip_address(name).compressed
+    except ValueError:
+        pass
+    if not name or len(name) > 253 or not all(c.isalnum() or c in "-." for c in name) or not name.isascii():
+        return None
+    return name
+
+
+def host_of(header: str) -> str | None:
+    """The host of a ``Host`` header (``name``, ``name:port``, ``[v6]:port``), normalized; None if malformed."""
+    header = header.strip()
+    if header.startswith("["):
+        end = header.find("]")
+        if end < 0:
+            return None
+        host, rest = header[: end + 1], header[end + 1:]
+    else:
+        host, _, port = header.partition(":")
+        rest = f":{port}" if port or header.endswith(":") else ""
+    if rest and not (rest.startswith(":") and rest[1:].isdigit() and 0 < int(rest[1:]) < 65536):
+        return None
+    return normalize_host(host)
+
+
+def machine_hosts() -> set[str]:
+    """This machine's names and interface addresses (trusted when the dashboard listens on every
+    interface: that is how the robot is reached on its own network)."""
+    import socket
+
+    import psutil
+
+    names = {socket.gethostname()}
+    names |= {f"{n}.local" for n in names if "." not in n}
+    try:
+        for addresses in psutil.net_if_addrs().values():
+            names.update(a.address for a in addresses if a.family in (socket.AF_INET, socket.AF_INET6))
+    except OSError:
+        pass
+    return {h for h in map(normalize_host, names) if h}
+
+
+def trusted_hosts(host: str, extra: Collection[str] = ()) -> frozenset[str]:
+    """The host names the dashboard answers to: this machine (localhost, 127.0.0.1, ::1), the listening
+    address ``host`` (every name and address of the machine when that is a wildcard such as 0.0.0.0), and
+    ``extra`` (``ui.trusted_hosts``: the names a reverse proxy or the robot's network use)."""
+    hosts = {h for h in map(normalize_host, LOCAL_HOSTS) if h}
+    if host.strip() in WILDCARD_HOSTS:
+        hosts |= machine_hosts()
+    elif (name := normalize_host(host)) is not None:
+        hosts.add(name)
+    hosts |= {h for h in map(normalize_host, extra) if h}
+    return frozenset(hosts)
+
+
+class TrustedHostMiddleware:
+    """WSGI middleware in front of everything (pages, Socket.IO, static files): a request whose ``Host``
+    is not one of ``hosts`` gets 400, so a page on another name that resolves to this robot (DNS rebinding)
+    cannot talk to it. A request without a ``Host`` (HTTP/1.0, never a browser) passes."""
+
+    BODY = b"Bad Request: this dashboard does not answer to that host name (see ui.trusted_hosts).\n"
+
+    def __init__(self, app: Any, hosts: Collection[str]) -> None:
+        self.app = app
+        self.hosts = frozenset(hosts)
+
+    def __call__(self, environ: dict[str, Any], start_response: Any) -> Any:
+        header = environ.get("HTTP_HOST")
+        if header is None or host_of(header) in self.hosts:
+            return self.app(environ, start_response)
+        start_response("400 Bad Request", [("Content-Type", "text/plain; charset=utf-8"),
+                                           ("Content-Length", str(len(self.BODY))), ("Connection", "close")])
+        return [self.BODY]
+
+
+# -- where to go after logging in -----------------------------------------------------------------------
+def safe_next(target: str | None) -> str | None:
+    """``target`` if it is a path on this site (``/...``: printable ASCII, no backslash, no scheme or host
+    however it is spelled), else None (the caller goes home)."""
+    if not target or not target.startswith("/") or target.startswith("//"):
+        return None
+    if not all(32 < ord(c) < 127 for c in target) or "\\" in target:
+        return None  # control characters, spaces, non-ASCII: browsers drop or rewrite them
+    parts = urlsplit(target)
+    if parts.scheme or parts.netloc or not parts.path.startswith("/") or parts.path.startswith("//"):
+        return None
+    return target
 
 
 # -- who is asking ------------------------------------------------------------------------------------
@@ -119,31 +274,45 @@ def user_store() -> UserStore:
     return cast(UserStore, current_app.extensions["atemr.users"])
 
 
+def session_token() -> str | None:
+    """The session token the signed cookie carries (see `UserStore.open_session`), or None."""
+    token = session.get(SESSION_KEY)
+    return token if isinstance(token, str) else None
+
+
 def current_user() -> User | None:
-    """The logged-in user (re-read from the database on every request, so a revoked role or a removed
-    user takes effect at once), or None."""
+    """The logged-in user, or None: the cookie's session token is looked up in the users database on
+    every request and Socket.IO event, so a logout, a password or role change, or a removal takes effect
+    at once (and a cookie from before is worth nothing)."""
     if "user" in g:
         return cast("User | None", g.user)
-    name = session.get("user")
-    user = user_store().get(name) if isinstance(name, str) else None
-    if user is None and name is not None:
-        session.pop("user", None)
+    token = session_token()
+    user = user_store().session_user(token) if token is not None else None
+    if user is None and (SESSION_KEY in session or "user" in session):
+        session.pop(SESSION_KEY, None)
+        session.pop("user", None)  # a cookie of an older version (name only): no longer a session
     g.user = user
     return user
 
 
 def login_user(user: User) -> None:
-    """Start a fresh session for ``user`` (a new CSRF token too: no session fixation)."""
+    """Start a fresh session for ``user`` (a new token and CSRF token too: no session fixation)."""
     session.clear()
-    session["user"] = user.username
+    session[SESSION_KEY] = user_store().open_session(user.username)
     session.permanent = True
     g.user = user
     csrf_token()
 
 
-def logout_user() -> None:
+def logout_user() -> str | None:
+    """End this session (its token is deleted: the cookie is worth nothing, even replayed); returns the
+    ended token, if there was one."""
+    token = session_token()
+    if token is not None:
+        user_store().close_session(token)
     session.clear()
     g.user = None
+    return token
 
 
 def role_required(role: Role) -> Callable[[F], F]:

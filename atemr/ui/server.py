@@ -1,7 +1,9 @@
 """The dashboard as a robot component: serves the app in a background thread and pushes state at 10 Hz.
 
 ``start()`` binds ``ui.host:ui.port`` (port 0 picks a free port, see `port`) and serves Flask-SocketIO
-(threading async mode) with werkzeug's threaded server in a daemon thread; ``tick(now)`` — scheduled by
+(threading async mode) with werkzeug's threaded server, bounded (`BoundedWSGIServer`: at most
+``ui.max_connections`` connections at once, the rest answered 503 at once; time limits on reading a
+request), in a daemon thread; ``tick(now)`` — scheduled by
 the robot at `PUSH_RATE_HZ` — sends the gateway's snapshot to every logged-in browser and camera frames
 to those watching; ``shutdown()`` ends the camera streams, stops the server and joins the thread
 (idempotent). With ``ui.message_queue`` set, ``start()`` first checks the queue is reachable. The pushes ride on
@@ -12,11 +14,12 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import socket
 import threading
 from typing import Any
 
 from flask import Flask
-from werkzeug.serving import BaseWSGIServer, WSGIRequestHandler, make_server
+from werkzeug.serving import ThreadedWSGIServer, WSGIRequestHandler
 
 from atemr.clock import Clock
 from atemr.config import Config
@@ -84,13 +87,87 @@ class CloseEarly:
             body.close()
 
 
+#: Seconds a client may take to send each line of a request's head (one that sends nothing is dropped).
+HEADER_TIMEOUT_S = 10.0
+#: Seconds one read or write of a body may block (a stalled reader of a stream is dropped); WebSockets: none.
+IO_TIMEOUT_S = 60.0
+_BUSY_BODY = b"The dashboard is serving as many connections as it may: try again in a moment.\n"
+BUSY_RESPONSE = (
+    b"HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain; charset=utf-8\r\nRetry-After: 1\r\n"
+    b"Content-Length: " + str(len(_BUSY_BODY)).encode() + b"\r\nConnection: close\r\n\r\n" + _BUSY_BODY
+)
+
+
 class _RequestHandler(WSGIRequestHandler):
     """werkzeug's handler, logging through ``atemr.ui.http`` (requests at DEBUG) instead of attaching its
-    own stderr handler, so the robot's log configuration decides what is shown."""
+    own stderr handler, so the robot's log configuration decides what is shown; with time limits on the
+    socket: `HEADER_TIMEOUT_S` while the request's head arrives, `IO_TIMEOUT_S` for its body and response,
+    none for a WebSocket (it idles between messages by design)."""
 
     def log(self, type: str, message: str, *args: Any) -> None:
         level = logging.DEBUG if type == "info" else logging.WARNING
         http_log.log(level, "%s %s", self.address_string(), message % args)
+
+    def handle_one_request(self) -> None:
+        self.connection.settimeout(HEADER_TIMEOUT_S)
+        super().handle_one_request()
+
+    def run_wsgi(self) -> None:
+        websocket = self.headers.get("Upgrade", "").strip().lower() == "websocket"
+        self.connection.settimeout(None if websocket else IO_TIMEOUT_S)
+        super().run_wsgi()
+
+
+class BoundedWSGIServer(ThreadedWSGIServer):
+    """werkzeug's threaded WSGI server (what Flask-SocketIO's threading mode runs on: WebSockets through
+    simple-websocket, streamed responses) with at most ``max_connections`` connections served at once.
+
+    Each accepted connection takes a slot of a bounded semaphore and is served in its own thread; when no
+    slot is free the connection gets a fixed ``503 Service Unavailable`` (``Retry-After: 1``) written by
+    the accepting thread and is closed: no thread, no queue, no parsing. A WebSocket or a camera stream
+    holds its slot for as long as it lasts; werkzeug closes every other connection after one request.
+    """
+
+    def __init__(self, host: str, port: int, app: Any, *, max_connections: int,
+                 handler: type[WSGIRequestHandler] | None = None) -> None:
+        self.max_connections = max_connections
+        self.refused = 0
+        self._slots = threading.BoundedSemaphore(max_connections)
+        super().__init__(host, port, app, handler=handler)
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        if not self._slots.acquire(blocking=False):
+            self.refused += 1
+            self._refuse(request)
+            return
+        try:
+            threading.Thread(target=self._serve, args=(request, client_address), name="atemr-dashboard-conn",
+                             daemon=True).start()
+        except RuntimeError:  # no thread could be started: as busy as it gets
+            self._slots.release()
+            self.refused += 1
+            self._refuse(request)
+
+    def _serve(self, request: Any, client_address: Any) -> None:
+        try:
+            self.process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
+
+    def _refuse(self, request: socket.socket) -> None:
+        try:
+            request.setblocking(False)
+            try:  # read what has arrived: closing over unread bytes would reset the connection before the 503
+                while request.recv(65536):
+                    pass
+            except (BlockingIOError, InterruptedError):
+                pass
+            request.send(BUSY_RESPONSE)
+        except OSError:
+            pass
+        finally:
+            self.shutdown_request(request)
+
 
 #: How often the robot should tick the server (state pushes per second).
 PUSH_RATE_HZ = 10.0
@@ -115,8 +192,11 @@ class DashboardServer:
     ) -> None:
         self.config = config
         self.gateway = gateway
+        if map_store is None:  # a dashboard without a robot (atemr dashboard): the configured map limits still hold
+            map_store = MapStore(config.data_dir, max_cells=config.ui.max_map_cells,
+                                 max_upload_bytes=int(config.ui.max_upload_mb * 1024 * 1024))
         self.app: Flask = create_app(config, gateway, clock=clock, hash_method=hash_method, map_store=map_store)
-        self._server: BaseWSGIServer | None = None
+        self._server: BoundedWSGIServer | None = None
         self._thread: threading.Thread | None = None
         self.pushes = 0
 
@@ -144,9 +224,9 @@ class DashboardServer:
             check_reachable(self.config.ui.message_queue, self.name)
         self.app.extensions["atemr.stopping"].clear()
         try:
-            self._server = make_server(
-                self.config.ui.host, self.config.ui.port, CloseEarly(self.app), threaded=True,
-                request_handler=_RequestHandler,
+            self._server = BoundedWSGIServer(
+                self.config.ui.host, self.config.ui.port, CloseEarly(self.app),
+                max_connections=self.config.ui.max_connections, handler=_RequestHandler,
             )
         except (OSError, SystemExit) as exc:  # werkzeug exits (!) when the port is taken
             why = exc.strerror if isinstance(exc, OSError) else "the address is in use or not available"

@@ -3,8 +3,12 @@
 A client without a logged-in session with at least the ``user`` role is refused in the connect
 handler. Every event is declared with `on_event`, which re-reads the user from the database (so a
 revoked role takes effect on the next event), validates nothing else and turns the handler's
-`CommandResult` (or an `AtemrError`) into the acknowledgement the page shows. Logging out, a role
-change or a removal disconnects that user's sockets at once (`disconnect_user`).
+`CommandResult` (or an `AtemrError`) into the acknowledgement the page shows; a malformed payload is
+refused with one WARNING line. Each socket remembers its session token: logging out closes that session's
+sockets, a password or role change or a removal all of that user's sockets at once (`disconnect_session`,
+`disconnect_user`), and the pushes check twice a second (`REVOKE_CHECK_S`) that every socket's session is
+still live in the users database, so a change made elsewhere (``atemr user set-password``, another worker)
+closes the sockets within a second too.
 
 Rooms: every accepted client joins ``operators`` (state at 10 Hz); a client that turned its camera on
 also joins ``camera`` (JPEG frames, base64 in JSON, only while someone watches), and the Agent view joins
@@ -20,6 +24,7 @@ from __future__ import annotations
 import base64
 import functools
 import logging
+import sqlite3
 import threading
 import time
 from collections.abc import Callable
@@ -28,16 +33,18 @@ from typing import Any, cast
 from flask import Flask, current_app, request
 from flask_socketio import SocketIO, join_room, leave_room
 
-from atemr.errors import AtemrError
+from atemr.errors import AtemrError, ProtocolError
 from atemr.ui.gateway import NO_ROBOT, CommandResult, RobotGateway
-from atemr.ui.security import current_user
-from atemr.ui.users import Role
+from atemr.ui.security import current_user, session_token
+from atemr.ui.users import Role, UserStore
 
 log = logging.getLogger(__name__)
 
 OPERATORS = "operators"
 CAMERA = "camera"
 AGENT = "agent"
+#: How often the pushes check that every socket's session is still live (seconds).
+REVOKE_CHECK_S = 0.5
 
 Handler = Callable[..., CommandResult | dict[str, Any]]
 _registrations: list[Callable[[SocketIO], None]] = []
@@ -48,13 +55,14 @@ class Sessions:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._by_sid: dict[str, str] = {}
+        self._by_sid: dict[str, tuple[str, str]] = {}  # sid → (username, session token)
         self.camera: set[str] = set()
         self.agent: set[str] = set()
+        self.checked_at = -float("inf")  # monotonic time of the last revocation check
 
-    def add(self, sid: str, username: str) -> None:
+    def add(self, sid: str, username: str, token: str) -> None:
         with self._lock:
-            self._by_sid[sid] = username
+            self._by_sid[sid] = (username, token)
 
     def remove(self, sid: str) -> None:
         with self._lock:
@@ -64,7 +72,16 @@ class Sessions:
 
     def of(self, username: str) -> list[str]:
         with self._lock:
-            return [sid for sid, name in self._by_sid.items() if name == username]
+            return [sid for sid, (name, _) in self._by_sid.items() if name == username]
+
+    def of_token(self, token: str) -> list[str]:
+        with self._lock:
+            return [sid for sid, (_, tok) in self._by_sid.items() if tok == token]
+
+    def tokens(self) -> dict[str, str]:
+        """sid → session token of every socket."""
+        with self._lock:
+            return {sid: tok for sid, (_, tok) in self._by_sid.items()}
 
     def __len__(self) -> int:
         with self._lock:
@@ -102,6 +119,11 @@ def on_event(event: str, role: Role = "user") -> Callable[[Handler], Handler]:
                 return NO_ROBOT.to_json()
             try:
                 result = handler(robot, data)
+            except ProtocolError as exc:
+                reason = str(exc)
+                log.warning("socket event %r from %s refused: %s", event, user.username,
+                            reason if len(reason) <= 300 else reason[:300] + "...")
+                return CommandResult.refused(str(exc)).to_json()
             except AtemrError as exc:
                 return CommandResult.refused(str(exc)).to_json()
             return result.to_json() if isinstance(result, CommandResult) else result
@@ -117,11 +139,12 @@ def on_event(event: str, role: Role = "user") -> Callable[[Handler], Handler]:
 
 def _connect(auth: Any = None) -> bool:
     user = current_user()
-    if user is None or not user.can("user"):
+    token = session_token()
+    if user is None or token is None or not user.can("user"):
         log.info("socket connection refused from %s: no session with access", request.remote_addr)
         return False
     sid = cast(str, request.sid)  # type: ignore[attr-defined]
-    sessions_of(current_app).add(sid, user.username)
+    sessions_of(current_app).add(sid, user.username, token)
     join_room(OPERATORS)
     return True
 
@@ -171,12 +194,36 @@ def init_app(app: Flask, socketio: SocketIO) -> None:
         register(socketio)
 
 
-def disconnect_user(app: Flask, username: str) -> None:
-    """Close every socket of ``username`` (after logout, a role change or removal)."""
+def _close(app: Flask, sids: list[str]) -> None:
     socketio = socketio_of(app)
-    for sid in sessions_of(app).of(username):
+    for sid in sids:
         socketio.server.disconnect(sid, namespace="/")
         sessions_of(app).remove(sid)
+
+
+def disconnect_user(app: Flask, username: str) -> None:
+    """Close every socket of ``username`` (after a password change, a role change or removal)."""
+    _close(app, sessions_of(app).of(username))
+
+
+def disconnect_session(app: Flask, token: str) -> None:
+    """Close the sockets of one session (after its logout)."""
+    _close(app, sessions_of(app).of_token(token))
+
+
+def disconnect_revoked(app: Flask) -> int:
+    """Close every socket whose session is no longer live in the users database (logged out, expired,
+    revoked elsewhere, user removed or without access); returns how many were closed."""
+    by_sid = sessions_of(app).tokens()
+    if not by_sid:
+        return 0
+    store = cast(UserStore, app.extensions["atemr.users"])
+    live = store.live_sessions(set(by_sid.values()))
+    revoked = [sid for sid, token in by_sid.items() if token not in live]
+    if revoked:
+        log.info("closing %d socket(s) whose session ended", len(revoked))
+        _close(app, revoked)
+    return len(revoked)
 
 
 def state_message(robot: RobotGateway) -> dict[str, Any]:
@@ -201,6 +248,13 @@ def push(app: Flask, robot: RobotGateway | None) -> int:
     belong to this robot, and frames are too heavy for the queue).
     """
     sessions = sessions_of(app)
+    now = time.monotonic()
+    if now - sessions.checked_at >= REVOKE_CHECK_S:
+        sessions.checked_at = now
+        try:
+            disconnect_revoked(app)
+        except (sqlite3.Error, OSError) as exc:  # a busy or unreadable database must not stop the pushes
+            log.warning("cannot check the sockets' sessions: %s", exc)
     clients = len(sessions)
     queued = app.config["ATEMR_CONFIG"].ui.message_queue is not None
     if robot is None or (clients == 0 and not queued):

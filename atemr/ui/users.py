@@ -6,15 +6,28 @@ nobody can log in as ``admin`` until its password is set (from the console with
 admin can be neither removed nor demoted. New users get the role ``none``: they exist but see only the
 no-access page until an admin grants them access.
 
+Sessions live here too (table ``sessions``): a login stores the SHA-256 of a random token that the signed
+session cookie carries, and every request and Socket.IO event looks the token up (one primary-key read
+joined with the user's row). Logging out deletes the token; a password change, a role change and a removal
+delete every token of that user, and a re-created user starts with none, so an old cookie never works again.
+
+Password hashing (scrypt, ~32 MB and ~85 ms each) runs at most `HASH_SLOTS` at a time; a call that cannot
+get a slot within `HASH_WAIT_S` raises `PasswordHashBusy` instead of queueing.
+
 Each call opens its own short-lived connection, so the store is safe to share between the web
-server's request threads; SQLite serialises the writes.
+server's request threads; SQLite serialises the writes. The file is created 0600 (it holds the hashes).
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
 import re
+import secrets
 import sqlite3
-from collections.abc import Iterator
+import threading
+import time
+from collections.abc import Callable, Collection, Iterator
 from contextlib import closing, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +44,14 @@ MIN_PASSWORD_LENGTH = 8
 MAX_PASSWORD_LENGTH = 256
 USERNAME_RE = re.compile(r"^[A-Za-z0-9_.-]{1,32}$")
 HASH_METHOD = "scrypt"
+#: Password hashes computed at once (each scrypt hash holds ~32 MB for ~85 ms).
+HASH_SLOTS = 2
+#: How long a hash waits for a free slot before `PasswordHashBusy`.
+HASH_WAIT_S = 1.0
+#: A session's lifetime without use (the cookie's too); each use pushes it on.
+SESSION_LIFETIME_S = 12 * 3600.0
+#: Sessions kept per user (the oldest go first).
+MAX_SESSIONS_PER_USER = 32
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS users (
@@ -38,11 +59,44 @@ CREATE TABLE IF NOT EXISTS users (
     password_hash TEXT,
     role TEXT NOT NULL CHECK (role IN ('none', 'user', 'admin'))
 );
+CREATE TABLE IF NOT EXISTS sessions (
+    token_hash TEXT PRIMARY KEY,
+    username TEXT NOT NULL,
+    created REAL NOT NULL,
+    expires REAL NOT NULL
+);
+CREATE INDEX IF NOT EXISTS sessions_by_user ON sessions (username);
 """
 
 
 class UserError(AtemrError):
     """A user operation was refused: bad name or password, unknown user, or a rule about the root admin."""
+
+
+class PasswordHashBusy(AtemrError):  # noqa: N818 (a state, not a mistake: "busy, try again")
+    """Every password-hashing slot stayed taken for `HASH_WAIT_S`: the caller answers "busy, retry"."""
+
+
+def _token_hash(token: str) -> str:
+    return hashlib.sha256(token.encode("utf-8", "surrogatepass")).hexdigest()
+
+
+def _private_file(path: Path) -> None:
+    """Create ``path`` 0600 if it is missing; tighten it (and SQLite's side files) to 0600 if it exists."""
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        pass
+    else:
+        os.close(fd)
+    for file in (path, *(path.with_name(path.name + side) for side in ("-wal", "-shm", "-journal"))):
+        try:
+            if file.stat().st_mode & 0o077:
+                os.chmod(file, 0o600)
+        except FileNotFoundError:
+            continue
+        except PermissionError:  # not ours (a shared, read-only install): leave it as it is
+            continue
 
 
 @dataclass(frozen=True)
@@ -82,13 +136,27 @@ class UserStore:
     """Users in the SQLite file at ``path``; the schema and the password-less root admin are created on
     first use."""
 
-    def __init__(self, path: Path | str, *, hash_method: str = HASH_METHOD) -> None:
+    def __init__(
+        self,
+        path: Path | str,
+        *,
+        hash_method: str = HASH_METHOD,
+        session_lifetime_s: float = SESSION_LIFETIME_S,
+        hash_slots: int = HASH_SLOTS,
+        hash_wait_s: float = HASH_WAIT_S,
+        now: Callable[[], float] = time.time,
+    ) -> None:
         if not hash_method.startswith("scrypt"):
             raise UserError(f"passwords are hashed with scrypt, not {hash_method!r}")
         self.path = Path(path)
         self.hash_method = hash_method  # "scrypt" or "scrypt:n:r:p" (cheaper parameters make tests fast)
+        self.session_lifetime_s = float(session_lifetime_s)
+        self.hash_wait_s = float(hash_wait_s)
+        self._hash_slots = threading.BoundedSemaphore(hash_slots)
+        self._now = now  # wall clock: session expiry outlives a restart
         self._dummy_hash = generate_password_hash("not-a-real-password", hash_method)
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        _private_file(self.path)
         with self._db() as db:
             db.executescript(_SCHEMA)
             db.execute(
@@ -101,6 +169,24 @@ class UserStore:
     def _db(self) -> Iterator[sqlite3.Connection]:
         with closing(sqlite3.connect(self.path, timeout=10.0)) as conn, conn:
             yield conn
+
+    @contextmanager
+    def _hashing(self) -> Iterator[None]:
+        """One of `HASH_SLOTS` password-hashing slots, or `PasswordHashBusy` after ``hash_wait_s``."""
+        if not self._hash_slots.acquire(timeout=self.hash_wait_s):
+            raise PasswordHashBusy("the dashboard is busy checking passwords: try again in a moment")
+        try:
+            yield
+        finally:
+            self._hash_slots.release()
+
+    def _hash(self, password: str) -> str:
+        with self._hashing():
+            return generate_password_hash(password, self.hash_method)
+
+    def _check(self, password_hash: str, password: str) -> bool:
+        with self._hashing():
+            return check_password_hash(password_hash, password)
 
     # -- reading -----------------------------------------------------------------------------------
     def get(self, username: str) -> User | None:
@@ -134,9 +220,9 @@ class UserStore:
                 "SELECT username, role, password_hash FROM users WHERE username = ?", (username,)
             ).fetchone()
         if row is None or row[2] is None:
-            check_password_hash(self._dummy_hash, password)
+            self._check(self._dummy_hash, password)
             return None
-        if not check_password_hash(row[2], password):
+        if not self._check(row[2], password):
             return None
         return User(row[0], cast(Role, row[1]), True)
 
@@ -147,45 +233,111 @@ class UserStore:
         check_password(password)
         if role not in ROLES:
             raise UserError(f"unknown role {role!r}: one of {', '.join(ROLES)}")
+        password_hash = self._hash(password)
         try:
             with self._db() as db:
                 db.execute(
                     "INSERT INTO users (username, password_hash, role) VALUES (?, ?, ?)",
-                    (username, generate_password_hash(password, self.hash_method), role),
+                    (username, password_hash, role),
                 )
+                db.execute("DELETE FROM sessions WHERE username = ?", (username,))  # a new account starts fresh
         except sqlite3.IntegrityError:
             raise UserError(f"the username {username!r} is taken") from None
         return User(username, role, True)
 
     def set_password(self, username: str, password: str) -> None:
-        """Replace ``username``'s password (also how the root admin's first password is set)."""
+        """Replace ``username``'s password (also how the root admin's first password is set); every
+        session of that user ends."""
         check_password(password)
+        password_hash = self._hash(password)
         with self._db() as db:
-            cur = db.execute(
-                "UPDATE users SET password_hash = ? WHERE username = ?",
-                (generate_password_hash(password, self.hash_method), username),
-            )
+            cur = db.execute("UPDATE users SET password_hash = ? WHERE username = ?", (password_hash, username))
+            db.execute("DELETE FROM sessions WHERE username = ?", (username,))
         if cur.rowcount == 0:
             raise UserError(f"no user called {username!r}")
 
     def set_role(self, username: str, role: Role) -> None:
-        """Grant or revoke access (``user``/``none``) or admin rights; the root admin stays admin."""
+        """Grant or revoke access (``user``/``none``) or admin rights; the root admin stays admin. Every
+        session of that user ends (they log in again with the new role)."""
         if role not in ROLES:
             raise UserError(f"unknown role {role!r}: one of {', '.join(ROLES)}")
         if username == ROOT_USER and role != "admin":
             raise UserError("the root admin cannot be demoted")
         with self._db() as db:
             cur = db.execute("UPDATE users SET role = ? WHERE username = ?", (role, username))
+            db.execute("DELETE FROM sessions WHERE username = ?", (username,))
         if cur.rowcount == 0:
             raise UserError(f"no user called {username!r}")
 
     def remove(self, username: str) -> None:
-        """Delete a user; the root admin cannot be removed."""
+        """Delete a user and their sessions; the root admin cannot be removed."""
         if username == ROOT_USER:
             raise UserError("the root admin cannot be removed")
         with self._db() as db:
             cur = db.execute("DELETE FROM users WHERE username = ?", (username,))
+            db.execute("DELETE FROM sessions WHERE username = ?", (username,))
         if cur.rowcount == 0:
             raise UserError(f"no user called {username!r}")
+
+    # -- sessions ----------------------------------------------------------------------------------------
+    def open_session(self, username: str) -> str:
+        """A new session of ``username``: the token its cookie carries (only its hash is stored)."""
+        token = secrets.token_urlsafe(32)
+        now = self._now()
+        with self._db() as db:
+            db.execute("DELETE FROM sessions WHERE expires <= ?", (now,))
+            db.execute("INSERT INTO sessions (token_hash, username, created, expires) VALUES (?, ?, ?, ?)",
+                       (_token_hash(token), username, now, now + self.session_lifetime_s))
+            db.execute(
+                "DELETE FROM sessions WHERE username = ? AND token_hash NOT IN "
+                "(SELECT token_hash FROM sessions WHERE username = ? ORDER BY created DESC LIMIT ?)",
+                (username, username, MAX_SESSIONS_PER_USER),
+            )
+        return token
+
+    def session_user(self, token: str) -> User | None:
+        """The user of the live session ``token``, or None (logged out, expired, revoked, user gone).
+
+        A session used after half its lifetime is extended (one write per half lifetime at most)."""
+        now = self._now()
+        key = _token_hash(token)
+        with self._db() as db:
+            row = db.execute(
+                "SELECT u.username, u.role, u.password_hash IS NOT NULL, s.expires FROM sessions s "
+                "JOIN users u ON u.username = s.username WHERE s.token_hash = ? AND s.expires > ?",
+                (key, now),
+            ).fetchone()
+            if row is None:
+                return None
+            if row[3] - now < self.session_lifetime_s / 2:
+                db.execute("UPDATE sessions SET expires = ? WHERE token_hash = ?", (now + self.session_lifetime_s, key))
+        return User(row[0], cast(Role, row[1]), bool(row[2]))
+
+    def live_sessions(self, tokens: Collection[str]) -> set[str]:
+        """Those of ``tokens`` that are live sessions of users with access (role ``user`` or more)."""
+        by_hash = {_token_hash(t): t for t in tokens}
+        keys = list(by_hash)
+        live: set[str] = set()
+        now = self._now()
+        with self._db() as db:
+            for i in range(0, len(keys), 500):
+                chunk = keys[i:i + 500]
+                rows = db.execute(
+                    f"SELECT s.token_hash FROM sessions s JOIN users u ON u.username = s.username "
+                    f"WHERE s.expires > ? AND u.role != 'none' AND s.token_hash IN ({','.join('?' * len(chunk))})",
+                    (now, *chunk),
+                ).fetchall()
+                live.update(by_hash[r[0]] for r in rows)
+        return live
+
+    def close_session(self, token: str) -> None:
+        """End one session (logout)."""
+        with self._db() as db:
+            db.execute("DELETE FROM sessions WHERE token_hash = ?", (_token_hash(token),))
+
+    def end_sessions(self, username: str) -> None:
+        """End every session of ``username``."""
+        with self._db() as db:
+            db.execute("DELETE FROM sessions WHERE username = ?", (username,))
 
 

@@ -61,8 +61,8 @@ def test_refused_for_a_user_without_access(app, camera, ui):
     assert client.get(URL).status_code == 401
     app.extensions["atemr.users"].set_role("bob", "user")
     ui.login(client, "bob", ui.USER_PW)
-    app.extensions["atemr.users"].set_role("bob", "none")  # revoked while logged in
-    assert client.get(URL).status_code == 403
+    app.extensions["atemr.users"].set_role("bob", "none")  # revoked while logged in: the session ends
+    assert client.get(URL).status_code == 401
     assert camera.frames == 0
 
 

@@ -28,14 +28,17 @@ def test_every_non_public_route_refuses_anonymous_and_no_access_users(app, ui):
     bob = app.test_client()
     app.extensions["atemr.users"].set_role("bob", "user")
     ui.login(bob, "bob", ui.USER_PW)
-    app.extensions["atemr.users"].set_role("bob", "none")  # logged in, then access revoked
+    bob_token = ui.csrf_of(bob, "/settings")
+    app.extensions["atemr.users"].set_role("bob", "none")  # logged in, then access revoked: the session ends
     for rule in rules:
         path = _url_for_rule(rule)
         method = "POST" if "POST" in rule.methods else "GET"
-        # anonymous POSTs are refused by the CSRF check (400) before anything else
-        for client, allowed in ((anon, {400} if method == "POST" else {302, 401}), (bob, {403})):
+        # anonymous POSTs are refused by the CSRF check (400) before anything else; bob's form token is
+        # still good, but his session is not
+        for client, allowed in ((anon, {400} if method == "POST" else {302, 401}), (bob, {302, 401})):
             if method == "POST":
-                response = ui.post(client, path) if client is bob else client.post(path, data={})
+                data = {"csrf_token": bob_token} if client is bob else {}
+                response = client.post(path, data=data)
             else:
                 response = client.get(path)
             response.close()

@@ -108,8 +108,8 @@ def test_refused_without_a_session_or_without_access(app, recorded, ui, path) ->
     assert bob.get(path).status_code in (401, 403)
     alice = app.test_client()
     ui.login(alice, "alice", ui.USER_PW)
-    app.extensions["atemr.users"].set_role("alice", "none")  # revoked: takes effect on the next request
-    assert alice.get(path).status_code == 403
+    app.extensions["atemr.users"].set_role("alice", "none")  # revoked: the session ends at once
+    assert alice.get(path).status_code == 401
 
 
 def upload(client, ui, name: str, data: bytes, *, csrf: bool = True):

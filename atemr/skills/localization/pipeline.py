@@ -67,11 +67,22 @@ class LocalizationPipeline:
             self.set_map(grid)
 
     # -- control -----------------------------------------------------------------------------------
-    def set_map(self, grid: OccupancyMap) -> None:
-        """Localize against ``grid`` from now on (the operator selected another map): pose unknown again."""
+    def prepare_map(self, grid: OccupancyMap) -> Localizer:
+        """The localizer of ``grid`` (likelihood field, scan-to-map matcher: the heavy part of a map change),
+        built without touching this pipeline, so any thread may call it; hand it to `set_map`. Raises
+        `ConfigError` when the map cannot be localized against (no occupied or no free cell)."""
+        return Localizer(grid, self.rng, self.localizer_params)  # the rng is only kept here, drawn from later
+
+    def set_map(self, grid: OccupancyMap, prepared: Localizer | None = None) -> None:
+        """Localize against ``grid`` from now on (the operator selected another map): pose unknown again.
+
+        ``prepared``: ``prepare_map(grid)``, built beforehand; the change is then only a swap."""
+        if prepared is not None and prepared.map is not grid:
+            raise ValueError("set_map: the prepared localizer belongs to another map")
+        localizer = prepared if prepared is not None else self.prepare_map(grid)
         if self.localizer is not None:
             self._events.extend(self.localizer.events)
-        self.localizer = Localizer(grid, self.rng, self.localizer_params)
+        self.localizer = localizer
 
     def _need(self) -> Localizer:
         if self.localizer is None:

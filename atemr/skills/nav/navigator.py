@@ -114,32 +114,59 @@ class NavStatus:
     recovery: str | None = None
 
 
+@dataclass(frozen=True, eq=False)
+class NavMap:
+    """What a navigator derives from one map (costmap, planners, the map's connected free parts): the heavy part
+    of a map change, built by `Navigator.prepare_map` on any thread and handed to one navigator's `set_map`
+    (its costmap then takes that navigator's scans: use it once)."""
+
+    occupancy: OccupancyMap
+    costmap: Costmap
+    planner: GlobalPlanner
+    local: LocalPlanner
+    static_parts: NDArray[np.int32]
+
+
 class Navigator:
     """Drives the base to one goal at a time on one map; see the module doc."""
 
-    def __init__(self, occupancy: OccupancyMap, params: NavParams | None = None) -> None:
+    def __init__(self, occupancy: OccupancyMap, params: NavParams | None = None, *,
+                 prepared: NavMap | None = None) -> None:
         self.params = params or NavParams()
         self.events: list[NavEvent] = []
         self.goal: Pose2D | None = None
         self.route: Route | None = None
         self.state: NavState = "IDLE"
         self._route_refused: str | None = None
-        self.set_map(occupancy)
+        self.set_map(occupancy, prepared)
         self._reset()
 
     # -- set-up --------------------------------------------------------------------------------------------
-    def set_map(self, occupancy: OccupancyMap) -> None:
-        """Use another map (the operator selected one); cancels nothing, but the next plan uses it. A route being
-        driven that the new map rules out fails the goal at the next update, with the reason."""
-        p = self.params
-        self.costmap = Costmap(occupancy, p.costmap)
-        self.planner = GlobalPlanner(self.costmap, p.planner)
-        self.local = LocalPlanner(self.costmap, p.local)
-        self.tracker = ObstacleTracker(p.tracker)
-        self._path: GlobalPath | None = None
+    @staticmethod
+    def prepare_map(occupancy: OccupancyMap, params: NavParams | None = None) -> NavMap:
+        """The costmap and planners of ``occupancy`` for a navigator with ``params``; touches no navigator."""
+        p = params or NavParams()
+        costmap = Costmap(occupancy, p.costmap)
         # Connected parts of the map's own free space (4-connected: the planner cuts no corners), to tell "no
         # path on the map" from "no path past what the scan sees now".
-        self._static_parts, _ = ndimage.label(self.costmap.static_cost < INSCRIBED)
+        static_parts, _ = ndimage.label(costmap.static_cost < INSCRIBED)
+        return NavMap(occupancy, costmap, GlobalPlanner(costmap, p.planner), LocalPlanner(costmap, p.local),
+                      static_parts)
+
+    def set_map(self, occupancy: OccupancyMap, prepared: NavMap | None = None) -> None:
+        """Use another map (the operator selected one); cancels nothing, but the next plan uses it. A route being
+        driven that the new map rules out fails the goal at the next update, with the reason.
+
+        ``prepared``: ``Navigator.prepare_map(occupancy, params)``, built beforehand: the change is then a swap."""
+        if prepared is not None and prepared.occupancy is not occupancy:
+            raise ValueError("set_map: the prepared costmap belongs to another map")
+        nav_map = prepared if prepared is not None else self.prepare_map(occupancy, self.params)
+        self.costmap = nav_map.costmap
+        self.planner = nav_map.planner
+        self.local = nav_map.local
+        self.tracker = ObstacleTracker(self.params.tracker)
+        self._path: GlobalPath | None = None
+        self._static_parts = nav_map.static_parts
         if self.route is not None and self.state == "RUNNING":
             why = self.route.refusal(self.costmap)
             if why is not None:

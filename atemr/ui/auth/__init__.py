@@ -3,6 +3,11 @@
 The first-start page sets the root admin's password; it is served only to loopback addresses, so
 nobody on the network can claim a fresh robot. From elsewhere the page says how to do it on the console
 (``atemr user set-password admin``).
+
+Failed logins are limited per (username, address) and per address (``ui.login_max_failures`` and
+``ui.login_max_failures_per_address`` within ``ui.login_lockout_s``); each try is counted before its
+password is hashed. Creating a user answers the same whether the name was free or taken (nothing tells
+which names exist) and is limited per address, every try counted.
 """
 
 from __future__ import annotations
@@ -28,16 +33,19 @@ from atemr.ui.security import (
     is_local_address,
     login_user,
     logout_user,
+    safe_next,
     user_store,
 )
-from atemr.ui.users import ROOT_USER, UserError
+from atemr.ui.users import ROOT_USER, PasswordHashBusy, UserError, check_password, check_username
 
 bp = Blueprint("auth", __name__, url_prefix="/auth", template_folder="templates")
 
 REMEMBER_COOKIE = "atemr_username"
 REMEMBER_DAYS = 30
-#: Rate-limit key of registrations (not a valid username, so it never collides with a login).
+#: Rate-limit key of registrations (the register limiter counts per address only).
 REGISTER_KEY = " register"
+#: What a registration answers, whether the name was free or taken.
+REGISTERED = "Request received for {name}. An administrator must grant access before you can log in."
 
 
 def _limiter() -> LoginRateLimiter:
@@ -45,11 +53,20 @@ def _limiter() -> LoginRateLimiter:
     return limiter
 
 
+def _register_limiter() -> LoginRateLimiter:
+    limiter: LoginRateLimiter = current_app.extensions["atemr.register_limiter"]
+    return limiter
+
+
 def _safe_next(target: str | None) -> str:
-    """Only same-site relative paths as a post-login target (no open redirect)."""
-    if target and target.startswith("/") and not target.startswith("//") and "\\" not in target:
-        return target
-    return url_for("control.page")
+    """Only same-site relative paths as a post-login target (no open redirect); else the home page."""
+    return safe_next(target) or url_for("control.page")
+
+
+def _too_many(template: str, wait: float, **context: Any) -> Response:
+    seconds = int(wait) + 1
+    body = render_template(template, error=f"Too many attempts from here: try again in {seconds} s.", **context)
+    return html_response(body, status=429, headers={"Retry-After": str(seconds)})
 
 
 @bp.route("/login", methods=["GET", "POST"])
@@ -61,16 +78,15 @@ def login() -> Any:
     password = request.form.get("password", "")
     remember = request.form.get("remember") == "on"
     address = request.remote_addr or "?"
-    wait = _limiter().retry_after(username, address)
+    wait = _limiter().attempt(username, address)  # counted as a failure until the password is right
     if wait > 0:
-        body = render_template(
-            "auth/login.html", username=username, remember=remember,
-            error=f"Too many failed attempts: try again in {int(wait) + 1} s.",
-        )
-        return html_response(body, status=429, headers={"Retry-After": str(int(wait) + 1)})
-    user = user_store().verify(username, password)
+        return _too_many("auth/login.html", wait, username=username, remember=remember)
+    try:
+        user = user_store().verify(username, password)
+    except PasswordHashBusy:
+        _limiter().forgive(username, address)  # never checked: not a failure
+        raise
     if user is None:
-        _limiter().failed(username, address)
         body = render_template("auth/login.html", username=username, remember=remember,
                                error="Wrong username or password.")
         return html_response(body, status=401)
@@ -90,37 +106,45 @@ def login() -> Any:
 
 @bp.route("/logout", methods=["POST"])
 def logout() -> Response:
-    user = current_user()
-    logout_user()
-    if user is not None:
-        sockets.disconnect_user(current_app._get_current_object(), user.username)  # type: ignore[attr-defined]
+    """End this session: its token is deleted (a replayed cookie is worth nothing) and its sockets close."""
+    token = logout_user()
+    if token is not None:
+        sockets.disconnect_session(current_app._get_current_object(), token)  # type: ignore[attr-defined]
     return redirect(url_for("auth.login"))
 
 
 @bp.route("/register", methods=["GET", "POST"])
 def register() -> Any:
-    """Create a user; new users have no access until an admin grants it."""
+    """Ask for an account; new users have no access until an admin grants it.
+
+    Whether the name was free or taken, the answer is the same (no list of names to probe), and every
+    well-formed request from an address counts towards its limit (as many per lockout period as failed
+    logins allowed per user)."""
     if request.method == "GET":
         return render_template("auth/register.html")
-    # Anyone who can reach the page may register (thesis fig. 3.37), so one address gets only as many
-    # new accounts per lockout period as it gets failed logins.
-    address = request.remote_addr or "?"
-    wait = _limiter().retry_after(REGISTER_KEY, address)
-    if wait > 0:
-        return html_response(render_template("auth/register.html", error=f"Too many new users from this address: "
-                                             f"try again in {int(wait) + 1} s."), status=429,
-                             headers={"Retry-After": str(int(wait) + 1)})
     username = request.form.get("username", "").strip()
     password = request.form.get("password", "")
-    if password != request.form.get("confirm", ""):
-        return html_response(render_template("auth/register.html", username=username,
-                                        error="The two passwords differ."), status=400)
     try:
-        user_store().create(username, password)
+        check_username(username)
+        check_password(password)
     except UserError as exc:
         return html_response(render_template("auth/register.html", username=username, error=str(exc)), status=400)
-    _limiter().failed(REGISTER_KEY, address)
-    flash(f"User {username} created. An administrator must grant access before you can log in.", "ok")
+    if password != request.form.get("confirm", ""):
+        return html_response(render_template("auth/register.html", username=username,
+                                             error="The two passwords differ."), status=400)
+    # Anyone who can reach the page may register (thesis fig. 3.37), so each address gets only so many.
+    address = request.remote_addr or "?"
+    wait = _register_limiter().attempt(REGISTER_KEY, address)
+    if wait > 0:
+        return _too_many("auth/register.html", wait)
+    try:
+        user_store().create(username, password)
+    except UserError:
+        pass  # taken: say nothing that a free name would not get
+    except PasswordHashBusy:
+        _register_limiter().forgive(REGISTER_KEY, address)
+        raise
+    flash(REGISTERED.format(name=username), "ok")
     return redirect(url_for("auth.login"))
 
 

@@ -1,5 +1,8 @@
 """The Mapping page (begin/end mapping, save/discard dialog, live map, map list and select) and the map
-upload, which goes through the robot's map store (validated before anything is stored)."""
+upload, which goes through the robot's map store (validated before anything is stored).
+
+A refused upload's reason is flashed cut to `MAX_FLASH_CHARS`: flashes live in the session cookie until the
+page shows them, so what an upload may put there is bounded whatever the upload was."""
 
 from __future__ import annotations
 
@@ -7,9 +10,13 @@ from typing import Any, cast
 
 from flask import Blueprint, current_app, flash, redirect, render_template, request, url_for
 
+from atemr.errors import brief_text
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.media.files import MapExistsError, MediaError, MediaStore
 from atemr.ui.security import role_required
+
+#: Longest flash message of an upload (it rides in the session cookie until shown).
+MAX_FLASH_CHARS = 300
 
 bp = Blueprint("mapping", __name__, template_folder="templates", static_folder="static",
                static_url_path="/static/mapping")
@@ -43,13 +50,13 @@ def upload() -> Any:
     try:
         name = _store().upload_map(yaml_file.filename, yaml_file.read(), image_file.filename, image_file.read())
     except MapExistsError as exc:
-        flash(f"Map upload refused: {exc}", "error")
+        flash(brief_text(f"Map upload refused: {exc}", MAX_FLASH_CHARS), "error")
         return redirect(url_for("mapping.page")), 409
     except MediaError as exc:
-        flash(f"Map upload refused: {exc}", "error")
+        flash(brief_text(f"Map upload refused: {exc}", MAX_FLASH_CHARS), "error")
         return redirect(url_for("mapping.page")), 400
     robot = _gateway()
     if robot is not None:
         robot.maps_changed()
-    flash(f"Map {name} uploaded.", "ok")
+    flash(brief_text(f"Map {name} uploaded.", MAX_FLASH_CHARS), "ok")
     return redirect(url_for("mapping.page"))

@@ -37,6 +37,18 @@ EXTENSIONS: dict[Kind, frozenset[str]] = {
 }
 MAP_IMAGE_EXTENSIONS = frozenset({".pgm", ".png", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"})
 PAGE_SIZE = 10
+#: Longest file name asked for (a name the file system cannot hold is simply not there).
+MAX_NAME_BYTES = 255
+
+
+def _plain_name(name: str) -> bool:
+    """A plain file name (what `secure_filename` leaves as it is) the file system can hold."""
+    return bool(name) and len(name.encode("utf-8", "surrogatepass")) <= MAX_NAME_BYTES and secure_filename(name) == name
+
+
+def _shown(name: str, limit: int = 80) -> str:
+    """``name`` quoted for a message, cut to ``limit`` characters."""
+    return repr(name) if len(name) <= limit else repr(name[:limit]) + f"... ({len(name)} characters)"
 
 
 class MediaError(AtemrError):
@@ -83,18 +95,23 @@ class MediaStore:
         return path
 
     def path(self, kind: str, name: str) -> Path:
-        """The file ``name`` of ``kind``; `MediaError` if the name is not a plain, listed file name."""
+        """The file ``name`` of ``kind``; `MediaError` if the name is not a plain, listed file name (or one
+        the file system cannot hold: too long, odd bytes)."""
         if check_kind(kind) == "maps":
             return self.maps.path(self.map_name(name)) if self._is_map(name) else self._no_map(name)
         folder = self.dir(kind)
-        if not name or secure_filename(name) != name or Path(name).suffix.lower() not in EXTENSIONS[check_kind(kind)]:
-            raise MediaError(f"not a valid {kind} file name: {name!r}")
+        if not _plain_name(name) or Path(name).suffix.lower() not in EXTENSIONS[check_kind(kind)]:
+            raise MediaError(f"not a valid {kind} file name: {_shown(name)}")
         joined = safe_join(str(folder), name)
         if joined is None:
-            raise MediaError(f"not a valid {kind} file name: {name!r}")
+            raise MediaError(f"not a valid {kind} file name: {_shown(name)}")
         path = Path(joined)
-        if not path.is_file():
-            raise MediaError(f"no such {kind[:-1]}: {name!r}")
+        try:
+            found = path.is_file()
+        except (OSError, ValueError):  # ENAMETOOLONG and kin: no such file
+            found = False
+        if not found:
+            raise MediaError(f"no such {kind[:-1]}: {_shown(name)}")
         return path
 
     def newest(self, kind: str, offset: int = 0, limit: int = PAGE_SIZE) -> tuple[list[MediaFile], int]:
@@ -115,17 +132,17 @@ class MediaStore:
         return name[: -len(Path(name).suffix)] if Path(name).suffix.lower() in EXTENSIONS["maps"] else name
 
     def _is_map(self, name: str) -> bool:
-        if not name or secure_filename(name) != name or Path(name).suffix.lower() not in EXTENSIONS["maps"]:
+        if not _plain_name(name) or Path(name).suffix.lower() not in EXTENSIONS["maps"]:
             return False
         stem = self.map_name(name)
         try:
             return (stem in self.maps.builtins or clean_name(stem) == stem) and self.maps.exists(stem)
-        except ConfigError:
+        except (ConfigError, OSError, ValueError):
             return False
 
     @staticmethod
     def _no_map(name: str) -> Path:
-        raise MediaError(f"no such map: {name!r}")
+        raise MediaError(f"no such map: {_shown(name)}")
 
     def _maps_listing(self, offset: int, limit: int) -> tuple[list[MediaFile], int]:
         """Stored maps newest first, then the built-ins."""
@@ -229,8 +246,9 @@ class MediaStore:
         from atemr.fsm.trace_timeline import TraceTimeline
 
         safe = secure_filename(name or "")
-        if not safe or Path(safe).suffix.lower() != SUFFIX:
-            raise MediaError(f"a trace upload is a file name ending in {SUFFIX}, got {name!r}")
+        if not _plain_name(safe) or Path(safe).suffix.lower() != SUFFIX:
+            raise MediaError(f"a trace upload is a file name of at most {MAX_NAME_BYTES} bytes ending in {SUFFIX}, "
+                             f"got {_shown(name or '')}")
         folder = self.dir("traces")
         try:
             contents = decode_trace(data, Path(safe))

@@ -11,7 +11,7 @@ from werkzeug.wrappers import Response
 
 from atemr.ui import sockets
 from atemr.ui.gateway import NO_ROBOT, CommandResult, RobotGateway
-from atemr.ui.security import current_user, role_required, user_store
+from atemr.ui.security import current_user, login_user, role_required, user_store
 from atemr.ui.users import ROLES, UserError
 
 bp = Blueprint("settings", __name__, url_prefix="/settings", template_folder="templates")
@@ -106,11 +106,13 @@ def password() -> Response:
         flash("Password: the two new passwords differ.", "error")
         return _back()
     try:
-        store.set_password(user.username, request.form.get("new", ""))
+        store.set_password(user.username, request.form.get("new", ""))  # ends every session of the user
     except UserError as exc:
         flash(f"Password: {exc}", "error")
         return _back()
-    flash("Password changed.", "ok")
+    sockets.disconnect_user(current_app._get_current_object(), user.username)  # type: ignore[attr-defined]
+    login_user(user)  # this browser goes on in a fresh session; every other one is logged out
+    flash("Password changed. Every other session of yours is logged out.", "ok")
     return _back()
 
 
