@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from atemr.config import SimConfig
 from atemr.errors import ConfigError
+from atemr.io.devices.base import Subscribers
 from atemr.io.sim.base import BaseParams, Collision, DiffDriveBase, MountedWheel, WheelMotor
 from atemr.io.sim.camera import Camera, CameraParams
 from atemr.io.sim.cliff import CliffParams, CliffSensors
@@ -83,32 +84,29 @@ class Fall:
 
 class PeriodicSource(Generic[T]):
     """A scheduler component that produces one reading per tick (a scan, an IMU sample, the true pose...),
-    keeps the latest and tells subscribers.
-
-    A subscriber that raises is logged and does not stop the others (as a python-can listener must not
-    stop a Notifier).
+    keeps the latest and tells subscribers (`atemr.io.devices.base.Subscribers`: one that raises is logged
+    and does not stop the others).
     """
 
     def __init__(self, name: str, read: Callable[[float], T]) -> None:
         self.name = name
         self._read = read
-        self.latest: T | None = None
-        self.count = 0
-        self._subscribers: list[Callable[[T], None]] = []
+        self._out: Subscribers[T] = Subscribers(name)
+
+    @property
+    def latest(self) -> T | None:
+        return self._out.latest
+
+    @property
+    def count(self) -> int:
+        return self._out.count
 
     def subscribe(self, callback: Callable[[T], None]) -> None:
         """Call ``callback(reading)`` after every tick."""
-        self._subscribers.append(callback)
+        self._out.subscribe(callback)
 
     def tick(self, now: float) -> None:
-        reading = self._read(now)
-        self.latest = reading
-        self.count += 1
-        for callback in self._subscribers:
-            try:
-                callback(reading)
-            except Exception:
-                log.exception("%s: a subscriber failed", self.name)
+        self._out.publish(self._read(now))
 
 
 @dataclass(frozen=True)
