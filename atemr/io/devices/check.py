@@ -150,7 +150,6 @@ class _CanCheck:
         self.bus: Any = None
         self.driver: Any = None
         self.link: Any = None
-        self._ir = 0
         port = f"{config.can.interface}:{config.can.channel}"
         try:
             self.bus = open_bus(config.can)
@@ -183,11 +182,7 @@ class _CanCheck:
         if self.driver is not None:
             self.driver.tick(now)
         if self.link is not None:
-            before = self.link.latest_cliff()
             self.link.tick(now)
-            after = self.link.latest_cliff()
-            if after is not None and after is not before:
-                self._ir += 1
 
     def _motor_state(self, now: float) -> tuple[bool, str]:
         silent = [s.side for s in self.driver.states.values()
@@ -200,11 +195,11 @@ class _CanCheck:
             return False, str(self.driver.fault)
         return True, ""
 
-    def _link_state(self) -> tuple[bool, str]:
-        if self.link.heartbeat_ok:
+    def _link_state(self, now: float) -> tuple[bool, str]:
+        health = self.link.health(now)
+        if health.ok:
             return True, ""
-        return False, (f"no heartbeat answer from the secondary core on {self.config.can.channel}: is the ESP32 "
-                       "powered and on the bus?")
+        return False, f"{health.detail} on {self.config.can.channel}: is the ESP32 powered and on the bus?"
 
     def all_ok(self, now: float) -> bool:
         if self.bus is None:
@@ -213,7 +208,7 @@ class _CanCheck:
         if self.driver is not None:
             ok = ok and self._motor_state(now)[0]
         if self.link is not None:
-            ok = ok and self._link_state()[0] and self._ir > 0
+            ok = ok and self._link_state(now)[0] and self.link.count > 0  # an IR reading came too
         return ok
 
     def report(self, now: float) -> None:
@@ -228,7 +223,7 @@ class _CanCheck:
             self.rows["motors"] = CheckRow("motors", self.parts["motors"], port, model,
                                            self.config.motors.rate_hz if ok else None, ok, detail, True)
         if self.link is not None:
-            ok, detail = self._link_state()
+            ok, detail = self._link_state(now)
             self.rows["secondary"] = CheckRow("secondary", self.parts["secondary"], port, None, None, ok, detail,
                                               True)
 
