@@ -21,6 +21,7 @@ from atemr.skills.localization.config import LocalizationConfig
 from atemr.skills.nav.config import NavConfig
 from atemr.skills.ramp import MotionLimits
 from atemr.typed import Source, field_paths, merge_into, nest
+from atemr.ui.permissions import PERMISSIONS, Permission
 from atemr.yamlsafe import load_yaml
 
 ENV_PREFIX = "ATEMR_"
@@ -122,6 +123,9 @@ class UiConfig:
                 "HTTP 400, against DNS rebinding); comma-separated in the environment"})
     max_connections: int = field(default=64, metadata={
         "min": 4, "max": 10_000, "help": "connections served at once (pages, sockets, streams); more: HTTP 503"})
+    user_permissions: tuple[Permission, ...] = field(default=(), metadata={
+        "help": "destructive or safety actions the user role may do too (admin always may): any of "
+                + ", ".join(PERMISSIONS) + "; comma-separated in the environment"})
 
 
 @dataclass(frozen=True)

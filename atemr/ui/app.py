@@ -36,6 +36,8 @@ from atemr.ui.security import (
     csrf_token,
     current_user,
     html_response,
+    may,
+    refusal,
     trusted_hosts,
 )
 from atemr.ui.users import HASH_METHOD, PasswordHashBusy, UserStore
@@ -193,4 +195,4 @@ def _template_globals() -> dict[str, Any]:
     config: Config = current_app.config["ATEMR_CONFIG"]
     own = current_app.extensions["atemr.gateway"] is not None
     return {"current_user": current_user(), "version": __version__, "simulation": config.simulation,
-            "robot_name": config.secondary.robot_name if own else ""}
+            "robot_name": config.secondary.robot_name if own else "", "may": may, "refusal": refusal}

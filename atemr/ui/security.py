@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import hmac
 import ipaddress
+import logging
 import secrets
 import threading
 from collections.abc import Callable, Collection
@@ -17,11 +18,14 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar, cast
 from urllib.parse import urlsplit
 
-from flask import abort, current_app, g, redirect, request, session, url_for
+from flask import abort, current_app, flash, g, redirect, request, session, url_for
 from werkzeug.wrappers import Response
 
 from atemr.clock import Clock
-from atemr.ui.users import Role, User, UserStore
+from atemr.ui.permissions import PERMISSION_LABELS, Permission, Role, needed_role
+from atemr.ui.users import User, UserStore
+
+log = logging.getLogger(__name__)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -336,6 +340,47 @@ def role_required(role: Role) -> Callable[[F], F]:
                     ),
                     403,
                 )
+            return view(*args, **kwargs)
+
+        return cast(F, wrapped)
+
+    return decorate
+
+
+def user_permissions() -> tuple[Permission, ...]:
+    """The actions this robot's configuration grants the user role too (``ui.user_permissions``)."""
+    return tuple(current_app.config["ATEMR_CONFIG"].ui.user_permissions)
+
+
+def may(permission: Permission) -> bool:
+    """Whether the logged-in user may do ``permission`` (False when nobody is logged in)."""
+    user = current_user()
+    return user is not None and user.may(permission, user_permissions())
+
+
+def refusal(permission: Permission) -> str:
+    """Why ``permission`` was refused, naming the role it needs and the setting that could grant it."""
+    return (f"{PERMISSION_LABELS[permission]} needs the {needed_role(permission, user_permissions())} role "
+            f"(an admin can grant it to users with ui.user_permissions: {permission})")
+
+
+def permission_required(permission: Permission, back: str) -> Callable[[F], F]:
+    """Route decorator for a form that does a destructive or safety action: with at least the ``user``
+    role but without ``permission``, the form is refused with a message on the page it came from
+    (``back``, an endpoint), or 403 for JSON; nothing is changed."""
+
+    def decorate(view: F) -> F:
+        @role_required("user")
+        @functools.wraps(view)
+        def wrapped(*args: Any, **kwargs: Any) -> Any:
+            if not may(permission):
+                user = current_user()
+                log.warning("%s refused for %s: needs the permission %r", request.path,
+                            user.username if user else "anonymous", permission)
+                if request.path.startswith("/api/") or request.accept_mimetypes.best == "application/json":
+                    abort(403)
+                flash(f"Refused: {refusal(permission)}.", "error")
+                return redirect(url_for(back))
             return view(*args, **kwargs)
 
         return cast(F, wrapped)

@@ -35,8 +35,9 @@ from flask_socketio import SocketIO, join_room, leave_room
 
 from atemr.errors import AtemrError, ProtocolError
 from atemr.ui.gateway import NO_ROBOT, CommandResult, RobotGateway
-from atemr.ui.security import current_user, session_token
-from atemr.ui.users import Role, UserStore
+from atemr.ui.permissions import Permission, Role
+from atemr.ui.security import current_user, may, refusal, session_token
+from atemr.ui.users import UserStore
 
 log = logging.getLogger(__name__)
 
@@ -100,11 +101,13 @@ def gateway() -> RobotGateway | None:
     return cast("RobotGateway | None", current_app.extensions["atemr.gateway"])
 
 
-def on_event(event: str, role: Role = "user") -> Callable[[Handler], Handler]:
+def on_event(event: str, role: Role = "user", *, permission: Permission | None = None) -> Callable[[Handler], Handler]:
     """Declare a Socket.IO event of a page group; registered on each app by `init_app`.
 
     The handler gets the robot gateway (or the event is refused when there is none) and the event's
-    payload; its return value is the acknowledgement ``{"ok": bool, "reason": str, ...}``.
+    payload; its return value is the acknowledgement ``{"ok": bool, "reason": str, ...}``. An event that
+    does a destructive or safety action names its ``permission``: a user without it is refused, checked
+    on every event like the role.
     """
 
     def decorate(handler: Handler) -> Handler:
@@ -114,6 +117,9 @@ def on_event(event: str, role: Role = "user") -> Callable[[Handler], Handler]:
             if user is None or not user.can(role):
                 log.warning("socket event %r refused for %s", event, user.username if user else "anonymous")
                 return CommandResult.refused(f"'{event}' needs the {role} role").to_json()
+            if permission is not None and not may(permission):
+                log.warning("socket event %r refused for %s: needs the permission %r", event, user.username, permission)
+                return CommandResult.refused(refusal(permission)).to_json()
             robot = gateway()
             if robot is None:
                 return NO_ROBOT.to_json()

@@ -31,14 +31,13 @@ from collections.abc import Callable, Collection, Iterator
 from contextlib import closing, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, cast
+from typing import cast
 
 from werkzeug.security import check_password_hash, generate_password_hash
 
 from atemr.errors import AtemrError
+from atemr.ui.permissions import ROLES, Permission, Role, role_at_least, role_may
 
-Role = Literal["none", "user", "admin"]
-ROLES: tuple[Role, ...] = ("none", "user", "admin")
 ROOT_USER = "admin"
 MIN_PASSWORD_LENGTH = 8
 MAX_PASSWORD_LENGTH = 256
@@ -113,7 +112,11 @@ class User:
 
     def can(self, role: Role) -> bool:
         """True when this user's role is at least ``role`` (none < user < admin)."""
-        return ROLES.index(self.role) >= ROLES.index(role)
+        return role_at_least(self.role, role)
+
+    def may(self, permission: Permission, user_permissions: Collection[Permission]) -> bool:
+        """Whether this user may do a destructive or safety action (see `atemr.ui.permissions`)."""
+        return role_may(self.role, permission, user_permissions)
 
 
 def check_username(username: str) -> str:

@@ -7,6 +7,7 @@ import io
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 from PIL import Image
@@ -222,6 +223,37 @@ def test_change_a_speed_limit_on_the_robot(robot_site, page, shots, helpers):
     assert robot_site.robot.parts.pipeline.limits.max_linear_mps == 0.8
     assert robot_site.robot.parts.settings.load()["motion"]["max_linear_mps"] == 0.8  # persisted
     page.screenshot(path=str(shots / "settings.png"), full_page=True)
+
+
+def test_turning_awareness_on_warns_that_the_robot_may_move_by_itself(ready_site, page, helpers):
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{ready_site.url}/settings")
+    asked: list[str] = []
+
+    def answer(dialog: Any) -> None:
+        asked.append(dialog.message)
+        dialog.dismiss() if len(asked) == 1 else dialog.accept()
+
+    page.on("dialog", answer)
+    page.check("#awareness")
+    page.click("#awareness-form button[type=submit]")
+    page.wait_for_timeout(300)
+    assert ready_site.robot.count("set_awareness") == 0  # dismissed: nothing sent
+    assert len(asked) == 1 and "moves by itself" in asked[0]
+    page.click("#awareness-form button[type=submit]")
+    page.wait_for_selector("text=Awareness on: done")
+    assert ready_site.robot.count("set_awareness") == 1 and len(asked) == 2
+
+
+def test_a_user_sees_the_safety_settings_read_only(ready_site, page, helpers):
+    ready_site.users.create("carer", "carer-pass-1", "user")
+    helpers.login(page, ready_site.url, "carer", "carer-pass-1")
+    page.goto(f"{ready_site.url}/settings")
+    for control in ("#linear-limit", "#awareness", "#wifi-form input[name=ssid]", "#limits-update"):
+        assert page.is_disabled(control), control
+    assert page.locator("text=needs the admin role").count() == 3
+    page.goto(f"{ready_site.url}/control")
+    assert page.is_disabled("#sim-press-5s")
 
 
 def test_new_user_waits_for_an_admin_to_grant_access(ready_site, browser, page, shots, helpers):

@@ -13,7 +13,9 @@ pushed at 10 Hz by a ticker thread as the robot's scheduler would. The findings:
 5. open redirect after login (``next=/%09/evil.example``), and a 500 for ``next=/%0A...``;
 6. registration told which usernames exist;
 7. a 300-character media name answered 500 (ENAMETOOLONG);
-8. ``users.sqlite3`` was created 0644, and each huge integer in a Socket.IO payload logged an ERROR traceback.
+8. ``users.sqlite3`` was created 0644, each huge integer in a Socket.IO payload logged an ERROR traceback, and
+   a user-role account could power the robot off, delete all maps and media, reload the agent, and change the
+   speed limits, awareness and WiFi.
 """
 
 from __future__ import annotations
@@ -84,6 +86,25 @@ class Robot:
     def answer_transition(self, request_id: int, confirm: bool, by: str) -> CommandResult:
         self.calls.append(("answer_transition", (request_id, confirm, by)))
         return CommandResult.accepted()
+
+    def set_awareness(self, enabled: bool) -> CommandResult:
+        self.calls.append(("set_awareness", enabled))
+        return CommandResult.accepted()
+
+    def set_wifi(self, ssid: str, password: str) -> CommandResult:
+        self.calls.append(("set_wifi", ssid))
+        return CommandResult.accepted()
+
+    def sim_button(self, hold_s: float) -> CommandResult:
+        self.calls.append(("sim_button", hold_s))
+        return CommandResult.accepted()
+
+    def reload_agent(self) -> CommandResult:
+        self.calls.append(("reload_agent", None))
+        return CommandResult.accepted()
+
+    def maps_changed(self) -> None:
+        self.calls.append(("maps_changed", None))
 
 
 class Socket:
@@ -600,6 +621,49 @@ def test_a_huge_integer_in_a_payload_is_refused_with_one_warning_line(site: Site
     assert not errors, [r.getMessage() for r in errors]
     warnings = [r for r in caplog.records if r.levelno == logging.WARNING and "refused" in r.getMessage()]
     assert len(warnings) == 2 and all("\n" not in r.getMessage() for r in warnings), [r.getMessage() for r in warnings]
+
+
+# -- finding 8: a user-role account did what only an admin should ---------------------------------------------
+DESTRUCTIVE_FORMS = [
+    ("/settings/limits", {"linear_mps": "1.8", "angular_radps": "4"}),
+    ("/settings/awareness", {"awareness": "on"}),
+    ("/settings/wifi", {"ssid": "evil", "password": "evil-pass-1"}),
+    ("/media/maps/delete-all", {}),
+    ("/media/images/delete-all", {}),
+]
+DESTRUCTIVE_EVENTS = [("sim_button", {"hold_s": 5.2}), ("agent_reload", None)]
+
+
+@pytest.mark.timeout(60)
+def test_a_user_can_neither_power_off_nor_delete_all_nor_change_safety_settings(site: Site) -> None:
+    data = site.server.app.config["ATEMR_CONFIG"].data_dir
+    for kind, name in (("maps", "kitchen.yaml"), ("media/images", "capture-00.jpg")):
+        (data / kind).mkdir(parents=True, exist_ok=True)
+        (data / kind / name).write_bytes(b"kept")
+    alice = site.login("alice", ALICE_PW)
+    token = site.csrf(alice)
+    for path, form in DESTRUCTIVE_FORMS:
+        answer = site.post(alice, path, {**form, "csrf_token": token})
+        assert answer.status_code == 302, (path, answer.status_code)  # back to the page, with the reason
+        page = site.get(alice, answer.headers["Location"]).text
+        assert "needs the admin role" in page, path
+    ws = site.socket(alice)
+    for event, payload in DESTRUCTIVE_EVENTS:
+        ack = ws.client.call(event, payload, timeout=10)
+        assert ack["ok"] is False and "needs the admin role" in ack["reason"], (event, ack)
+    assert site.robot.calls == []
+    assert (data / "maps" / "kitchen.yaml").exists() and (data / "media/images/capture-00.jpg").exists()
+
+    admin = site.login("admin", ADMIN_PW)
+    token = site.csrf(admin)
+    for path, form in DESTRUCTIVE_FORMS:
+        assert site.post(admin, path, {**form, "csrf_token": token}).status_code == 302
+    ws = site.socket(admin)
+    for event, payload in DESTRUCTIVE_EVENTS:
+        assert ws.client.call(event, payload, timeout=10) == {"ok": True, "reason": ""}
+    assert [c[0] for c in site.robot.calls] == ["set_limits", "set_awareness", "set_wifi", "maps_changed",
+                                                 "sim_button", "reload_agent"]
+    assert not (data / "maps" / "kitchen.yaml").exists() and not (data / "media/images/capture-00.jpg").exists()
 
 
 def test_host_names_are_read_in_one_spelling() -> None:

@@ -63,10 +63,10 @@ def test_download_and_delete_one(alice, app, ui):
     assert ui.post(alice, "/media/images/capture-01.jpg/delete").status_code == 404
 
 
-def test_delete_all_of_one_kind(alice, app, ui):
+def test_delete_all_of_one_kind(admin, app, ui):
     fill(data_dir(app), "media/images", 12)
     fill(data_dir(app), "media/videos", 2, ".mp4")
-    ui.post(alice, "/media/images/delete-all")
+    ui.post(admin, "/media/images/delete-all")
     assert not list((data_dir(app) / "media/images").iterdir())
     assert len(list((data_dir(app) / "media/videos").iterdir())) == 2
 
@@ -109,14 +109,14 @@ def test_maps_download_as_zip_and_delete_with_their_image(alice, app, gateway, u
     assert gateway.maps_changed_count == 1
 
 
-def test_built_in_maps_cannot_be_deleted(alice, app, gateway, ui):
+def test_built_in_maps_cannot_be_deleted(admin, app, gateway, ui):
     write_map(data_dir(app) / "maps")
-    assert ui.post(alice, "/media/maps/studio.yaml/delete").status_code == 404
+    assert ui.post(admin, "/media/maps/studio.yaml/delete").status_code == 404
     assert "studio" in app.extensions["atemr.maps"].names()
-    ui.post(alice, "/media/maps/delete-all")  # every stored map, never a built-in
+    ui.post(admin, "/media/maps/delete-all")  # every stored map, never a built-in
     assert not list((data_dir(app) / "maps").iterdir())
     assert app.extensions["atemr.maps"].names() == ["studio"]
-    assert alice.get("/media/maps/studio.yaml").status_code == 200  # still downloadable
+    assert admin.get("/media/maps/studio.yaml").status_code == 200  # still downloadable
 
 
 def test_the_dashboard_and_the_robot_share_one_map_store(alice, app, ui):

@@ -11,8 +11,8 @@ def test_page_shows_limits_from_the_robot(alice, ui):
     assert "Manage users" not in html  # not an admin
 
 
-def test_speed_limits_go_to_the_gateway(alice, gateway, ui):
-    response = ui.post(alice, "/settings/limits", {"linear_mps": "0.8", "angular_radps": "1.2"},
+def test_speed_limits_go_to_the_gateway(admin, gateway, ui):
+    response = ui.post(admin, "/settings/limits", {"linear_mps": "0.8", "angular_radps": "1.2"},
                        follow_redirects=True)
     assert ("set_limits", (0.8, 1.2)) in gateway.calls
     assert b"Speed limits: done" in response.data
@@ -20,27 +20,27 @@ def test_speed_limits_go_to_the_gateway(alice, gateway, ui):
 
 @pytest.mark.parametrize(("linear", "angular"), [("fast", "1"), ("nan", "1"), ("0", "1"), ("2.5", "1"),
                                                  ("0.5", "-1"), ("0.5", "inf")])
-def test_bad_speed_limits_never_reach_the_robot(alice, gateway, ui, linear, angular):
-    response = ui.post(alice, "/settings/limits", {"linear_mps": linear, "angular_radps": angular},
+def test_bad_speed_limits_never_reach_the_robot(admin, gateway, ui, linear, angular):
+    response = ui.post(admin, "/settings/limits", {"linear_mps": linear, "angular_radps": angular},
                        follow_redirects=True)
     assert "set_limits" not in gateway.names()
     assert b"Speed limits: " in response.data and b"expected" in response.data
 
 
-def test_robot_refusal_is_shown(alice, gateway, ui):
+def test_robot_refusal_is_shown(admin, gateway, ui):
     gateway.refuse["set_limits"] = "the motors are in emergency"
-    response = ui.post(alice, "/settings/limits", {"linear_mps": "0.8", "angular_radps": "1.2"},
+    response = ui.post(admin, "/settings/limits", {"linear_mps": "0.8", "angular_radps": "1.2"},
                        follow_redirects=True)
     assert b"refused: the motors are in emergency" in response.data
 
 
-def test_awareness_and_wifi(alice, gateway, ui):
-    ui.post(alice, "/settings/awareness", {"awareness": "on"})
-    ui.post(alice, "/settings/awareness", {})
-    ui.post(alice, "/settings/wifi", {"ssid": "home", "password": "wifi-pass-1"})
-    bad = ui.post(alice, "/settings/wifi", {"ssid": "home", "password": "short"}, follow_redirects=True)
+def test_awareness_and_wifi(admin, gateway, ui):
+    ui.post(admin, "/settings/awareness", {"awareness": "on"})
+    ui.post(admin, "/settings/awareness", {})
+    ui.post(admin, "/settings/wifi", {"ssid": "home", "password": "wifi-pass-1"})
+    bad = ui.post(admin, "/settings/wifi", {"ssid": "home", "password": "short"}, follow_redirects=True)
     assert b"8-63 bytes" in bad.data
-    ui.post(alice, "/settings/wifi", {"ssid": "x" * 33, "password": "wifi-pass-1"})
+    ui.post(admin, "/settings/wifi", {"ssid": "x" * 33, "password": "wifi-pass-1"})
     assert gateway.calls == [("set_awareness", (True,)), ("set_awareness", (False,)),
                              ("set_wifi", ("home", "wifi-pass-1"))]
 
@@ -120,7 +120,7 @@ def test_without_a_robot_settings_are_refused_clearly(tmp_path, ui):
     app.extensions["atemr.users"].create("alice", ui.USER_PW, "user")
     app.extensions["atemr.users"].set_password("admin", ui.ADMIN_PW)
     client = app.test_client()
-    ui.login(client, "alice", ui.USER_PW)
+    ui.login(client, "admin", ui.ADMIN_PW)
     assert b"No robot is connected" in client.get("/settings").data
     response = ui.post(client, "/settings/limits", {"linear_mps": "0.8", "angular_radps": "1.2"},
                        follow_redirects=True)

@@ -12,6 +12,17 @@ from atemr.msgs import Pose2D, Twist
 from atemr.ui import sockets
 
 
+@pytest.fixture
+def fresh_app(tmp_path, gateway, clock, ui):
+    """As conftest's, but every destructive or safety action is granted to the user role too, so alice can
+    send every event here; the default (admin only) is tested in test_permissions.py."""
+    from atemr.ui.app import create_app
+    from atemr.ui.permissions import PERMISSIONS
+
+    config = ui.make_config(tmp_path, login_max_failures=3, login_lockout_s=60.0, user_permissions=PERMISSIONS)
+    return create_app(config, gateway, clock=clock, hash_method=ui.FAST_SCRYPT)
+
+
 def sio(app, client):
     return app.extensions["socketio"].test_client(app, flask_test_client=client)
 

@@ -50,7 +50,7 @@ def autonomy_level(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.set_autonomy(level, _user())
 
 
-@on_event("agent_reload")
+@on_event("agent_reload", permission="agent_reload")
 def agent_reload(robot: RobotGateway, data: Any) -> CommandResult:
     """Re-read the agent document now; the result and the diff appear on the Agent page."""
     return robot.reload_agent()

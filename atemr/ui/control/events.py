@@ -80,7 +80,7 @@ def mission_stop(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.stop_mission()
 
 
-@on_event("sim_button")
+@on_event("sim_button", permission="power")
 def sim_button(robot: RobotGateway, data: Any) -> CommandResult:
     """``{hold_s}``: press the secondary core's button (simulation only)."""
     return robot.sim_button(payload.number("sim_button", data, "hold_s", lo=0.05, hi=15.0))

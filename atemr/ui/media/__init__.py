@@ -10,7 +10,7 @@ from werkzeug.wrappers import Response
 
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.media.files import KINDS, PAGE_SIZE, MediaError, MediaStore
-from atemr.ui.security import role_required
+from atemr.ui.security import permission_required, role_required
 
 bp = Blueprint("media", __name__, template_folder="templates")
 
@@ -77,7 +77,7 @@ def delete(kind: str, name: str) -> Response:
 
 
 @bp.route("/media/<kind>/delete-all", methods=["POST"])
-@role_required("user")
+@permission_required("delete_all", back="media.page")
 def delete_all(kind: str) -> Response:
     try:
         count = _store().delete_all(kind)

@@ -11,8 +11,16 @@ from werkzeug.wrappers import Response
 
 from atemr.ui import sockets
 from atemr.ui.gateway import NO_ROBOT, CommandResult, RobotGateway
-from atemr.ui.security import current_user, login_user, role_required, user_store
-from atemr.ui.users import ROLES, UserError
+from atemr.ui.permissions import PERMISSION_LABELS, PERMISSIONS, ROLE_LABELS, ROLES, role_may
+from atemr.ui.security import (
+    current_user,
+    login_user,
+    permission_required,
+    role_required,
+    user_permissions,
+    user_store,
+)
+from atemr.ui.users import UserError
 
 bp = Blueprint("settings", __name__, url_prefix="/settings", template_folder="templates")
 
@@ -40,7 +48,10 @@ def page() -> str:
     robot = _gateway()
     state = robot.state() if robot else {}
     users = user_store().list() if current_user() and current_user().can("admin") else []  # type: ignore[union-attr]
-    return render_template("settings/settings.html", state=state, users=users, roles=ROLES, connected=robot is not None)
+    granted = user_permissions()
+    return render_template("settings/settings.html", state=state, users=users, roles=ROLES, connected=robot is not None,
+                           role_labels=ROLE_LABELS, permissions=PERMISSIONS, permission_labels=PERMISSION_LABELS,
+                           role_may=lambda role, permission: role_may(role, permission, granted))
 
 
 def _form_number(key: str, hi: float) -> float:
@@ -55,7 +66,7 @@ def _form_number(key: str, hi: float) -> float:
 
 
 @bp.route("/limits", methods=["POST"])
-@role_required("user")
+@permission_required("speed_limits", back="settings.page")
 def limits() -> Response:
     """Linear and angular speed limits, applied by the robot at once (no restart)."""
     try:
@@ -70,7 +81,7 @@ def limits() -> Response:
 
 
 @bp.route("/awareness", methods=["POST"])
-@role_required("user")
+@permission_required("awareness", back="settings.page")
 def awareness() -> Response:
     robot = _gateway()
     on = request.form.get("awareness") == "on"
@@ -79,7 +90,7 @@ def awareness() -> Response:
 
 
 @bp.route("/wifi", methods=["POST"])
-@role_required("user")
+@permission_required("wifi", back="settings.page")
 def wifi() -> Response:
     """SSID 1-32 bytes, password 8-63 bytes (what the secondary core's transfer accepts too)."""
     ssid = request.form.get("ssid", "")

@@ -39,10 +39,14 @@
   };
   window.ATEMR = ATEMR;
 
-  // Forms that destroy something ask first (no inline handlers: the CSP forbids them).
+  // Forms that destroy something ask first (no inline handlers: the CSP forbids them), and so does a
+  // checkbox being switched on that makes the robot act by itself (data-confirm-on, e.g. awareness).
   document.addEventListener("submit", (e) => {
     const question = e.target.dataset && e.target.dataset.confirm;
-    if (question && !window.confirm(question)) e.preventDefault();
+    if (question && !window.confirm(question)) { e.preventDefault(); return; }
+    for (const box of e.target.querySelectorAll ? e.target.querySelectorAll("input[data-confirm-on]") : []) {
+      if (box.checked && !box.defaultChecked && !window.confirm(box.dataset.confirmOn)) { e.preventDefault(); return; }
+    }
   }, true);
 
   const sock = document.getElementById("sock");
