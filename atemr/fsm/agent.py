@@ -19,7 +19,7 @@ timeout. Hot reload (`atemr.fsm.reload`): a new agent document is applied in IDL
 other state), a running mission's later steps are swapped between steps; both keep the blackboard.
 
 Time comes only from ``now``; nothing here blocks or reads a clock. A refused trigger becomes a
-`CommandResult` (for commands) and a `TransitionRecord` in the trace (for everything), never an exception.
+`CommandOutcome` (for commands) and a `TransitionRecord` in the trace (for everything), never an exception.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ _OUTCOMES = {"reached": "reached", "failed": "failed", "cancel": "cancelled"}
 
 
 @dataclass(frozen=True)
-class CommandResult:
+class CommandOutcome:
     """What became of one submitted command (the dashboard shows ``reason`` when refused)."""
 
     id: int
@@ -114,7 +114,7 @@ class Agent:
         self.gate = AutonomyGate(autonomy, confirm_timeout_s)
         self.lifecycle = Lifecycle(spec, self.context, gate=self.gate)
         self.on_halt = on_halt
-        self.results: deque[CommandResult] = deque(maxlen=history)
+        self.results: deque[CommandOutcome] = deque(maxlen=history)
         self.errors: deque[str] = deque(maxlen=history)
         self.listeners: list[Callable[[TransitionRecord], None]] = []
         #: Hooks for observers (the trace recorder): a tree just ticked (state or Monitor tree), and a tick
@@ -244,7 +244,7 @@ class Agent:
         """
         return self.gate.answer(request_id, confirm, by)
 
-    def result(self, command_id: int) -> CommandResult | None:
+    def result(self, command_id: int) -> CommandOutcome | None:
         """The outcome of a submitted command, once its tick has run."""
         return next((r for r in reversed(self.results) if r.id == command_id), None)
 
@@ -354,10 +354,10 @@ class Agent:
                 self.results.append(self._reload_mission(command_id, kwargs["mission"], kwargs["report"], origin))
                 continue
             record = self._fire(Event(trigger, kwargs, "", origin))
-            self.results.append(CommandResult(command_id, record.t, trigger, record.accepted, record.source,
+            self.results.append(CommandOutcome(command_id, record.t, trigger, record.accepted, record.source,
                                               record.dest, record.reason, origin, record.decision))
 
-    def _reload_command(self, command_id: int, kwargs: dict[str, Any], origin: str) -> CommandResult:
+    def _reload_command(self, command_id: int, kwargs: dict[str, Any], origin: str) -> CommandOutcome:
         """Apply a new agent document now (IDLE), defer it until IDLE (any other state), or refuse it."""
         source, now = self.state, self.context.now
         report: ReloadReport | None = kwargs.get("report")
@@ -369,7 +369,7 @@ class Agent:
             except ConfigError as exc:
                 invalid = ReloadReport.invalid("agent", path, now, exc, origin=origin)
                 self.reloads.append(invalid)
-                return CommandResult(command_id, now, RELOAD, False, source, None, invalid.reason, origin)
+                return CommandOutcome(command_id, now, RELOAD, False, source, None, invalid.reason, origin)
             report = ReloadReport("agent", path, now, origin=origin)
             self.reloads.append(report)
         assert report is not None
@@ -382,10 +382,10 @@ class Agent:
             report.reason = (f"deferred: applied when IDLE is reached (now {source})" if top_level(source) != "IDLE"
                              else f"deferred: applied once the operator has answered the waiting transition "
                                   f"(now {source})")
-            return CommandResult(command_id, now, RELOAD, True, source, None, report.reason, origin)
+            return CommandOutcome(command_id, now, RELOAD, True, source, None, report.reason, origin)
         refused = self.reload(spec)
         self._settle_reload(report, refused)
-        return CommandResult(command_id, now, RELOAD, refused is None, source,
+        return CommandOutcome(command_id, now, RELOAD, refused is None, source,
                              self.state if refused is None else None, report.reason, origin)
 
     def _settle_reload(self, report: ReloadReport, why: str | None) -> None:
@@ -403,7 +403,7 @@ class Agent:
         self._settle_reload(report, self.reload(spec))
 
     def _reload_mission(self, command_id: int, mission: Mission, report: ReloadReport,
-                        origin: str) -> CommandResult:
+                        origin: str) -> CommandOutcome:
         """Swap the running mission's later steps (between steps), or note the file for its next start."""
         source, now = self.state, self.context.now
         task = self.context.task
@@ -420,7 +420,7 @@ class Agent:
             else:
                 report.status, report.reason, report.applied_t = "applied", f"between steps: {note}", now
         log.info("mission %s: %s", report.status, report.reason)
-        return CommandResult(command_id, now, RELOAD_MISSION, report.status != "refused", source, None,
+        return CommandOutcome(command_id, now, RELOAD_MISSION, report.status != "refused", source, None,
                              report.reason, origin)
 
     def _resolve_autonomy(self) -> None:

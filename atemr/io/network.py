@@ -57,6 +57,9 @@ def credential_problems(ssid: str, password: str) -> list[str]:
 class NetworkBackend(Protocol):
     """Joins WiFi networks and tells the robot's current IPv4 address."""
 
+    #: The network last joined through this backend (from the dashboard or the captive portal), None before.
+    ssid: str | None
+
     def connect(self, ssid: str, password: str) -> None:
         """Join ``ssid``; may block for as long as joining takes. Raises `HardwareError` on failure."""
         ...
@@ -128,6 +131,7 @@ class NmcliBackend:
         self.timeout_s = timeout_s
         self._run: Runner = runner or subprocess.run
         self._addresses: Callable[[], dict[str, list[Any]]] = psutil.net_if_addrs
+        self.ssid: str | None = None
 
     def _call(self, args: Sequence[str], *, what: str, timeout_s: float, secret: str | None = None) -> str:
         exe = shutil.which(self.nmcli) if "/" not in self.nmcli else self.nmcli
@@ -163,6 +167,7 @@ class NmcliBackend:
         if self.ifname:
             args += ["ifname", self.ifname]
         self._call(args, what=f"join '{ssid}'", timeout_s=self.timeout_s + 5.0, secret=password)
+        self.ssid = ssid
         log.info("joined WiFi network '%s'", ssid)
 
     def ip_address(self) -> str | None:

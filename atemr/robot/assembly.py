@@ -108,10 +108,11 @@ def _wire(robot: Robot) -> None:
     store, localization, maps = _add_localization(robot, sim, devices, primary.driver)
     port, navigation, agent = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
                                          localization=localization, maps=maps)
+    system_monitor = SystemMonitor(config.data_dir)  # scheduled last of the always-present parts, below
     robot.parts = RobotParts(
         settings=settings, inputs=inputs, health=health, devices=devices, driver=primary.driver, link=primary.link,
         pipeline=primary.pipeline, motion=primary.motion, map_store=store, localization=localization, maps=maps,
-        port=port, navigation=navigation, agent=agent, sim=sim,
+        port=port, navigation=navigation, agent=agent, system_monitor=system_monitor, sim=sim,
     )
     _add_recorder(robot)
     if config.ui.enabled:
@@ -125,7 +126,7 @@ def _wire(robot: Robot) -> None:
     else:
         # Headless: no web server is expected, so its absence is not a fault (0x153 bit 5 stays set).
         health.add("webserver", lambda now: ComponentHealth(True, "dashboard disabled (headless run)"))
-    robot.add(SystemMonitor(config.data_dir), RATES["system_monitor"])
+    robot.add(system_monitor, RATES["system_monitor"])
     if config.control.enabled:
         _add_control(robot)
 

@@ -8,7 +8,6 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from types import TracebackType
-from typing import Any
 
 import can
 
@@ -18,6 +17,7 @@ from atemr.io.can.bus import open_bus
 from atemr.io.devices.drivers import Devices
 from atemr.robot.parts import RobotParts
 from atemr.scheduler import Component, Scheduler
+from atemr.ui.state import EventJson
 
 log = logging.getLogger(__name__)
 
@@ -30,7 +30,7 @@ class RobotEvent:
     kind: str
     text: str
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> EventJson:
         return {"t": self.t, "kind": self.kind, "text": self.text}
 
 
@@ -88,7 +88,7 @@ class Robot:
             self.events.append(RobotEvent(self.clock.now(), kind, text))
         log.info("%s: %s", kind, text)
 
-    def recent_events(self, n: int = 20) -> list[dict[str, Any]]:
+    def recent_events(self, n: int = 20) -> list[EventJson]:
         with self._events_lock:
             return [e.as_dict() for e in list(self.events)[-n:]]
 

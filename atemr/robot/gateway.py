@@ -47,8 +47,9 @@ from atemr.robot.reload import ReloadWatcher
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
 from atemr.skills.ramp import checked_limits
-from atemr.ui.gateway import CommandResult, MapImage, Mode
+from atemr.ui.gateway import CommandResult, MapImage
 from atemr.ui.snapshot import points_json, pose_json, render_map, scan_points, status_levels, system_json
+from atemr.ui.state import AgentState, MissionJson, Mode, RobotState
 
 log = logging.getLogger(__name__)
 
@@ -127,7 +128,6 @@ class RobotGatewayImpl:
         self._map_key: tuple[int, int] | None = None
         self._listing: dict[str, tuple[int, list[str]]] = {}
         self._wifi = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-wifi")
-        self._wifi_ssid: str | None = None
         #: Reads and prepares selected maps off the robot's thread, one at a time.
         self._loader = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-maps")
         #: The map being loaded or waiting for its swap (another selection is refused meanwhile).
@@ -225,7 +225,7 @@ class RobotGatewayImpl:
         nav = self.robot.parts.navigation
         return nav.last_status, nav.goal
 
-    def _mission(self, snapshot: dict[str, Any]) -> dict[str, Any] | None:
+    def _mission(self, snapshot: dict[str, Any]) -> MissionJson | None:
         report = snapshot.get("task_progress")
         if not isinstance(report, dict):
             return None
@@ -234,52 +234,48 @@ class RobotGatewayImpl:
         return {"name": report.get("mission"), "progress": round(done / len(steps), 3) if steps else 0.0,
                 "state": report.get("outcome")}
 
-    def state(self) -> dict[str, Any]:
+    def state(self) -> RobotState:
         agent = self.agent.snapshot(transitions=0)
-        pose = self.robot.parts.localization.map_pose()
-        out: dict[str, Any] = {
+        parts = self.robot.parts
+        pose = parts.localization.map_pose()
+        scan = self.robot.devices.lidar.latest
+        status, goal = self._navigation()
+        running = status is not None and status.state == "RUNNING"
+        agent_state = cast(AgentState, str(agent["state"]).split(".")[0])
+        wheels = parts.driver.feedback()
+        last = parts.motion.last
+        level1, level2 = status_levels(self.link.status)
+        limits = self.pipeline.limits
+        autonomy = self.agent.autonomy_state()
+        return {
             "robot": self.config.secondary.robot_name,
-            "agent_state": str(agent["state"]).split(".")[0],
+            "agent_state": agent_state,
             "mode": agent["mode"] or self.inputs.mode,
             "simulation": self.sim is not None,
             "active_map": self.maps.active_name,
             "map_version": self.maps.version,
             "pose": pose_json(pose),
-            "mapping": self.maps.slam is not None,
+            "scan": points_json(scan_points(scan, pose)) if scan is not None and pose is not None else [],
+            "global_path": points_json(status.global_path) if running and status is not None else [],
+            "local_path": points_json(status.local_trajectory) if running and status is not None else [],
+            "goal": pose_json(goal) if running and agent_state == "EXEC" else None,
+            "wheel_speeds": {"left_radps": round(wheels.left_radps, 3), "right_radps": round(wheels.right_radps, 3)},
+            "emergency": bool(last is not None and (last.emergency or last.cliff_stop)),
+            "level1": level1,
+            "level2": level2,
+            "system": system_json(parts.system_monitor.latest),
+            "limits": {"linear_mps": limits.max_linear_mps, "angular_radps": limits.max_angular_radps},
             "awareness": bool(self.inputs.awareness),
+            "wifi_ssid": self.link.network.ssid,
+            "mapping": self.maps.slam is not None,
             "recording": self.recorder is not None and self.recorder.recording,
             "mission": self._mission(agent),
             "missions": self.missions(),
             "maps": self._listing_of("maps", self.store.dir, self.store.names),
+            "events": self.robot.recent_events(EVENTS_SHOWN),
+            "autonomy": {"level": autonomy["level"], "levels": autonomy["levels"], "timeout_s": autonomy["timeout_s"],
+                         "pending": autonomy["pending"], "now": autonomy["now"]},
         }
-        scan = self.robot.devices.lidar.latest
-        if scan is not None and pose is not None:
-            out["scan"] = points_json(scan_points(scan, pose))
-        status, goal = self._navigation()
-        running = status is not None and getattr(status, "state", None) == "RUNNING"
-        out["global_path"] = points_json(getattr(status, "global_path", None)) if running else []
-        out["local_path"] = points_json(getattr(status, "local_trajectory", None)) if running else []
-        out["goal"] = pose_json(goal) if running and out["agent_state"] == "EXEC" else None
-        wheels = self.robot.parts.driver.feedback()
-        out["wheel_speeds"] = {"left_radps": round(wheels.left_radps, 3), "right_radps": round(wheels.right_radps, 3)}
-        last = self.robot.parts.motion.last
-        out["emergency"] = bool(last is not None and (last.emergency or last.cliff_stop))
-        out["level1"], out["level2"] = status_levels(self.link.status)
-        monitor = self.robot.components.get("system_monitor")
-        out["system"] = system_json(getattr(monitor, "latest", None))
-        limits = self.pipeline.limits
-        out["limits"] = {"linear_mps": limits.max_linear_mps, "angular_radps": limits.max_angular_radps}
-        out["wifi_ssid"] = self._current_ssid()
-        out["events"] = self.robot.recent_events(EVENTS_SHOWN)
-        out["autonomy"] = self.agent.autonomy_state()
-        return out
-
-    def _current_ssid(self) -> str | None:
-        ssid = getattr(self.link.network, "ssid", None)
-        if isinstance(ssid, str):
-            return ssid
-        with self._lock:
-            return self._wifi_ssid
 
     def map_image(self) -> MapImage | None:
         """The drawable map, rendered once per map version."""
@@ -530,8 +526,6 @@ class RobotGatewayImpl:
         def done(f: Future[None]) -> None:
             exc = f.exception()
             if exc is None:
-                with self._lock:
-                    self._wifi_ssid = ssid
                 self.robot.event("wifi", f"joined {ssid}")
             else:
                 self.robot.event("wifi", f"joining {ssid} failed: {exc}")

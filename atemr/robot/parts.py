@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from atemr.io.motors.driver import RmdDriver
     from atemr.io.secondary_link import SecondaryLink
     from atemr.io.sim.simulation import Simulation
+    from atemr.io.system_monitor import SystemMonitor
     from atemr.io.trace_file import TraceWriter
     from atemr.robot.control import RobotControl
     from atemr.robot.gateway import RobotGatewayImpl
@@ -54,6 +55,7 @@ class RobotParts:
     port: RobotPortImpl
     navigation: RobotNavigation
     agent: Agent
+    system_monitor: SystemMonitor
     sim: Simulation | None = None
     trace: TraceWriter | None = None
     gateway: RobotGatewayImpl | None = None

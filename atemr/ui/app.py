@@ -147,7 +147,11 @@ def create_app(
         logger=False,
         engineio_logger=False,
     )
-    sockets.init_app(app, socketio)
+    from atemr.ui.agent.events import events as agent_events
+    from atemr.ui.control.events import events as control_events
+    from atemr.ui.mapping.events import events as mapping_events
+
+    sockets.init_app(app, socketio, groups=(control_events, mapping_events, agent_events))
     # Outermost: a foreign Host header (DNS rebinding) reaches neither the pages nor Socket.IO.
     app.wsgi_app = TrustedHostMiddleware(  # type: ignore[method-assign]
         app.wsgi_app, trusted_hosts(config.ui.host, config.ui.trusted_hosts)

@@ -8,57 +8,18 @@ implements this protocol over the real robot; UI tests use small fakes of their 
 be called from the web server's threads, so an implementation must be thread-safe (queue the command
 for the agent's next tick and answer from what it can check at once).
 
-The snapshot (`state()`) is a mapping with these keys; any may be missing when the robot does not know
-it yet, and the page shows "—" for it:
-
-======================  ==========================================================================
-key                     value
-======================  ==========================================================================
-``robot``               str: the robot's name (``secondary.robot_name``); tells robots apart when
-                        several publish into one message queue (``ui.message_queue``)
-``agent_state``         ``"UNDEFINED" | "STARTUP" | "IDLE" | "EXEC" | "MAPPING" | "SHUTDOWN" | "ERROR"``
-``mode``                ``"MANUAL" | "AUTO"``
-``simulation``          bool: the simulation panel is shown when true
-``active_map``          str | None: name of the map in use
-``map_version``         int: changes whenever `map_image` would return a different image
-``pose``                ``{"x_m", "y_m", "yaw_rad"}`` in the map frame, or None when not localized
-``scan``                ``[[x_m, y_m], ...]``: valid lidar returns in the map frame
-``global_path``         ``[[x_m, y_m], ...]``
-``local_path``          ``[[x_m, y_m], ...]``
-``goal``                ``{"x_m", "y_m", "yaw_rad"}`` or None
-``wheel_speeds``        ``{"left_radps", "right_radps"}``
-``emergency``           bool: low-level brakes applied
-``level1``              ``{name: bool}``: agent bits of CAN 0x153 byte 0 (heartbeat, hardware, auto,
-                        connectivity, localization); True means OK
-``level2``              ``{name: bool}``: hardware bits of 0x153 byte 1 (left_motor, right_motor, imu,
-                        lidar, camera, webserver, ir_front, ir_rear)
-``system``              ``{"t", "cpu_percent", "memory_percent", "disk_percent"}`` (1 Hz sample)
-``limits``              ``{"linear_mps", "angular_radps"}``: the speed limits in force
-``awareness``           bool: the reactive engine is enabled
-``wifi_ssid``           str | None
-``mapping``             bool: a mapping session is running
-``recording``           bool: a video is being recorded
-``mission``             ``{"name", "progress", "state"}`` or None
-``missions``            ``[name, ...]``: the missions that can be started
-``maps``                ``[name, ...]``: the stored maps
-``events``              ``[{"t", "kind", "text"}, ...]``: the latest events, oldest first
-``autonomy``            ``{"level", "levels", "timeout_s", "pending", "now"}``: the robot's autonomy level, the
-                        transition waiting for the operator (``{"id", "trigger", "source", "dest", "level",
-                        "deadline", ...}``) or None, and the agent's time (`atemr.fsm.autonomy`)
-======================  ==========================================================================
-
-The ``state`` event adds ``sent_unix_s``, the wall-clock time it was sent (`atemr.ui.sockets.state_message`).
+The snapshot's contract is one type, `atemr.ui.state.RobotState`, shared by the robot, the pages and the
+tests.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal, Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 from atemr.msgs import Pose2D, Twist
-
-Mode = Literal["MANUAL", "AUTO"]
+from atemr.ui.state import Mode, RobotState
 
 
 @dataclass(frozen=True)
@@ -108,8 +69,8 @@ class RobotGateway(Protocol):
     """Everything the dashboard needs from the robot."""
 
     # -- reading -----------------------------------------------------------------------------------
-    def state(self) -> dict[str, Any]:
-        """The JSON-able snapshot described in the module docstring; cheap (called at 10 Hz)."""
+    def state(self) -> RobotState:
+        """The JSON-able snapshot (`RobotState`); cheap (called at 10 Hz)."""
         ...
 
     def map_image(self) -> MapImage | None:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import io
 import math
-from dataclasses import asdict
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -20,6 +19,7 @@ from PIL import Image
 from atemr.errors import ConfigError
 from atemr.msgs import LaserScan, Pose2D
 from atemr.ui.gateway import MapImage
+from atemr.ui.state import PoseJson, SystemJson
 
 if TYPE_CHECKING:
     from atemr.io.can.protocol import PrimaryStatus
@@ -44,7 +44,7 @@ class GridLike(Protocol):
     def origin(self) -> Pose2D: ...
 
 
-def pose_json(pose: Pose2D | None) -> dict[str, float] | None:
+def pose_json(pose: Pose2D | None) -> PoseJson | None:
     """``{"x_m", "y_m", "yaw_rad"}`` rounded for the wire, or None (not localized)."""
     if pose is None:
         return None
@@ -96,9 +96,12 @@ def status_levels(status: PrimaryStatus) -> tuple[dict[str, bool], dict[str, boo
     return level1, level2
 
 
-def system_json(sample: SystemSample | None) -> dict[str, float] | None:
+def system_json(sample: SystemSample | None) -> SystemJson | None:
     """The 1 Hz host sample (`atemr.io.system_monitor.SystemMonitor.latest`) for the graph."""
-    return None if sample is None else {k: round(float(v), 2) for k, v in asdict(sample).items()}
+    if sample is None:
+        return None
+    return {"t": round(sample.t, 2), "cpu_percent": round(sample.cpu_percent, 2),
+            "memory_percent": round(sample.memory_percent, 2), "disk_percent": round(sample.disk_percent, 2)}
 
 
 def render_map(grid: GridLike, version: int) -> MapImage:

@@ -1,10 +1,11 @@
 """Socket.IO plumbing shared by the page groups: the connect check, per-event role checks, the pushes.
 
 A client without a logged-in session with at least the ``user`` role is refused in the connect
-handler. Every event is declared with `on_event`, which re-reads the user from the database (so a
-revoked role takes effect on the next event), validates nothing else and turns the handler's
-`CommandResult` (or an `AtemrError`) into the acknowledgement the page shows; a malformed payload is
-refused with one WARNING line. Each socket remembers its session token: logging out closes that session's
+handler. Every event is declared in its page group's `EventGroup` (handed to `create_app` as a blueprint
+is), which re-reads the user from the database (so a revoked role takes effect on the next event), checks
+the event's permission if it names one, validates nothing else and turns the handler's `CommandResult` (or
+an `AtemrError`) into the acknowledgement the page shows; a malformed payload is refused with one WARNING
+line. Each socket remembers its session token: logging out closes that session's
 sockets, a password or role change or a removal all of that user's sockets at once (`disconnect_session`,
 `disconnect_user`), and the pushes check twice a second (`REVOKE_CHECK_S`) that every socket's session is
 still live in the users database, so a change made elsewhere (``atemr user set-password``, another worker)
@@ -27,7 +28,7 @@ import logging
 import sqlite3
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, cast
 
 from flask import Flask, current_app, request
@@ -48,7 +49,6 @@ AGENT = "agent"
 REVOKE_CHECK_S = 0.5
 
 Handler = Callable[..., CommandResult | dict[str, Any]]
-_registrations: list[Callable[[SocketIO], None]] = []
 
 
 class Sessions:
@@ -101,46 +101,65 @@ def gateway() -> RobotGateway | None:
     return cast("RobotGateway | None", current_app.extensions["atemr.gateway"])
 
 
-def on_event(event: str, role: Role = "user", *, permission: Permission | None = None) -> Callable[[Handler], Handler]:
-    """Declare a Socket.IO event of a page group; registered on each app by `init_app`.
+class EventGroup:
+    """A page group's Socket.IO events, handed to `create_app` as its blueprint is (no import side effect,
+    no module-global registry): ``events = EventGroup("control")``, then ``@events.on("joystick")``."""
 
-    The handler gets the robot gateway (or the event is refused when there is none) and the event's
-    payload; its return value is the acknowledgement ``{"ok": bool, "reason": str, ...}``. An event that
-    does a destructive or safety action names its ``permission``: a user without it is refused, checked
-    on every event like the role.
-    """
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.handlers: dict[str, Acknowledge] = {}
 
-    def decorate(handler: Handler) -> Handler:
-        @functools.wraps(handler)
-        def checked(data: Any = None) -> dict[str, Any]:
-            user = current_user()
-            if user is None or not user.can(role):
-                log.warning("socket event %r refused for %s", event, user.username if user else "anonymous")
-                return CommandResult.refused(f"'{event}' needs the {role} role").to_json()
-            if permission is not None and not may(permission):
-                log.warning("socket event %r refused for %s: needs the permission %r", event, user.username, permission)
-                return CommandResult.refused(refusal(permission)).to_json()
-            robot = gateway()
-            if robot is None:
-                return NO_ROBOT.to_json()
-            try:
-                result = handler(robot, data)
-            except ProtocolError as exc:
-                reason = str(exc)
-                log.warning("socket event %r from %s refused: %s", event, user.username,
-                            reason if len(reason) <= 300 else reason[:300] + "...")
-                return CommandResult.refused(str(exc)).to_json()
-            except AtemrError as exc:
-                return CommandResult.refused(str(exc)).to_json()
-            return result.to_json() if isinstance(result, CommandResult) else result
+    def on(
+        self, event: str, role: Role = "user", *, permission: Permission | None = None
+    ) -> Callable[[Handler], Handler]:
+        """Declare ``event``. The handler gets the robot gateway (or the event is refused when there is none)
+        and the event's payload; its return value is the acknowledgement ``{"ok": bool, "reason": str, ...}``.
+        The user's role is re-read on every event; an event that does a destructive or safety action names
+        its ``permission``, checked the same way."""
 
-        def register(socketio: SocketIO) -> None:
-            socketio.on_event(event, checked)
+        def decorate(handler: Handler) -> Handler:
+            if event in self.handlers:
+                raise ValueError(f"Socket.IO event {event!r} is declared twice in the {self.name} group")
+            self.handlers[event] = _checked(event, role, permission, handler)
+            return handler
 
-        _registrations.append(register)
-        return checked
+        return decorate
 
-    return decorate
+    def register(self, socketio: SocketIO) -> None:
+        for event, handler in self.handlers.items():
+            socketio.on_event(event, handler)
+
+
+Acknowledge = Callable[[Any], dict[str, Any]]
+
+
+def _checked(event: str, role: Role, permission: Permission | None, handler: Handler) -> Acknowledge:
+    """``handler`` behind the role and permission checks, its result or refusal as the acknowledgement."""
+
+    @functools.wraps(handler)
+    def checked(data: Any = None) -> dict[str, Any]:
+        user = current_user()
+        if user is None or not user.can(role):
+            log.warning("socket event %r refused for %s", event, user.username if user else "anonymous")
+            return CommandResult.refused(f"'{event}' needs the {role} role").to_json()
+        if permission is not None and not may(permission):
+            log.warning("socket event %r refused for %s: needs the permission %r", event, user.username, permission)
+            return CommandResult.refused(refusal(permission)).to_json()
+        robot = gateway()
+        if robot is None:
+            return NO_ROBOT.to_json()
+        try:
+            result = handler(robot, data)
+        except ProtocolError as exc:
+            reason = str(exc)
+            log.warning("socket event %r from %s refused: %s", event, user.username,
+                        reason if len(reason) <= 300 else reason[:300] + "...")
+            return CommandResult.refused(str(exc)).to_json()
+        except AtemrError as exc:
+            return CommandResult.refused(str(exc)).to_json()
+        return result.to_json() if isinstance(result, CommandResult) else result
+
+    return checked
 
 
 def _connect(auth: Any = None) -> bool:
@@ -184,20 +203,15 @@ def _subscription(event: str, room: str, members: Callable[[Sessions], set[str]]
     return handler
 
 
-def init_app(app: Flask, socketio: SocketIO) -> None:
-    """Attach the connect check and every page group's events to ``socketio``."""
-    # Importing the page groups' event modules fills `_registrations` (once per process).
-    from atemr.ui.agent import events as _agent_events  # noqa: F401
-    from atemr.ui.control import events as _control_events  # noqa: F401
-    from atemr.ui.mapping import events as _mapping_events  # noqa: F401
-
+def init_app(app: Flask, socketio: SocketIO, groups: Iterable[EventGroup]) -> None:
+    """Attach the connect check, the subscriptions and the page ``groups``' events to ``socketio``."""
     app.extensions["atemr.sockets"] = Sessions()
     socketio.on_event("connect", _connect)
     socketio.on_event("disconnect", _disconnect)
     socketio.on_event("camera", _subscription("camera", CAMERA, lambda s: s.camera))
     socketio.on_event("agent_view", _subscription("agent_view", AGENT, lambda s: s.agent))
-    for register in _registrations:
-        register(socketio)
+    for group in groups:
+        group.register(socketio)
 
 
 def _close(app: Flask, sids: list[str]) -> None:

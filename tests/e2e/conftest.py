@@ -34,6 +34,7 @@ from atemr.msgs import Pose2D, Twist
 from atemr.scheduler import Scheduler
 from atemr.ui.gateway import CommandResult, MapImage
 from atemr.ui.server import PUSH_RATE_HZ, DashboardServer
+from atemr.ui.state import RobotState
 
 CHROMIUM = "/usr/bin/chromium"
 ROOT = Path(__file__).resolve().parents[2]
@@ -105,13 +106,14 @@ class KinematicGateway:
                                self.pose.y_m + twist.linear_mps * dt * math.sin(yaw), yaw)
 
     # -- what the dashboard reads ------------------------------------------------------------------------
-    def state(self) -> dict[str, Any]:
+    def state(self) -> RobotState:
         with self.lock:
             p = self.pose
             scan = [[p.x_m + 1.5 * math.cos(a / 10), p.y_m + 1.5 * math.sin(a / 10)] for a in range(0, 63, 3)]
             goal = self.goal
             return {
-                "agent_state": self.agent, "mode": self.mode, "simulation": True, "active_map": self.active_map,
+                "robot": "KAY", "agent_state": self.agent, "mode": self.mode, "simulation": True,
+                "active_map": self.active_map,
                 "map_version": self.map.version, "pose": {"x_m": p.x_m, "y_m": p.y_m, "yaw_rad": p.yaw_rad},
                 "scan": scan, "global_path": [[p.x_m, p.y_m], [goal.x_m, goal.y_m]] if goal else [],
                 "local_path": [], "goal": goal and {"x_m": goal.x_m, "y_m": goal.y_m, "yaw_rad": goal.yaw_rad},
@@ -128,6 +130,8 @@ class KinematicGateway:
                 "awareness": self.awareness, "wifi_ssid": "lab", "mapping": self.mapping, "recording": False,
                 "mission": None, "missions": ["patrol", "visit_kitchen"], "maps": list(self.maps),
                 "events": [{"t": 0.5, "kind": "info", "text": "agent started"}],
+                "autonomy": {"level": "full", "levels": ["off", "low", "high", "full"], "timeout_s": 30.0,
+                             "pending": None, "now": self.clock.now()},
             }
 
     def map_image(self) -> MapImage | None:

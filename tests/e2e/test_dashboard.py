@@ -12,6 +12,8 @@ from typing import Any
 import pytest
 from PIL import Image
 
+from atemr.ui.state import state_problems
+
 pytestmark = pytest.mark.e2e
 
 
@@ -226,6 +228,7 @@ def test_change_a_speed_limit_on_the_robot(robot_site, page, shots, helpers):
 
 
 def test_turning_awareness_on_warns_that_the_robot_may_move_by_itself(ready_site, page, helpers):
+    assert state_problems(ready_site.robot.state()) == []  # the test robot keeps to the pages' contract
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{ready_site.url}/settings")
     asked: list[str] = []

@@ -19,6 +19,7 @@ from atemr.config import Config, UiConfig
 from atemr.msgs import Pose2D
 from atemr.ui.app import create_app
 from atemr.ui.gateway import CommandResult, MapImage
+from atemr.ui.state import RobotState
 
 FAST_SCRYPT = "scrypt:1024:8:1"
 ADMIN_PW = "root-secret-1"
@@ -31,9 +32,16 @@ class RecordingGateway:
     def __init__(self) -> None:
         self.calls: list[tuple[str, tuple[Any, ...]]] = []
         self.refuse: dict[str, str] = {}
-        self.snapshot: dict[str, Any] = {"agent_state": "IDLE", "mode": "MANUAL", "limits":
-                                         {"linear_mps": 0.5, "angular_radps": 1.0}, "awareness": False,
-                                         "simulation": True, "missions": ["patrol"], "maps": []}
+        self.snapshot: RobotState = {
+            "robot": "KAY", "agent_state": "IDLE", "mode": "MANUAL", "simulation": True, "active_map": None,
+            "map_version": 0, "pose": None, "scan": [], "global_path": [], "local_path": [], "goal": None,
+            "wheel_speeds": {"left_radps": 0.0, "right_radps": 0.0}, "emergency": False, "level1": {}, "level2": {},
+            "system": None, "limits": {"linear_mps": 0.5, "angular_radps": 1.0}, "awareness": False,
+            "wifi_ssid": None, "mapping": False, "recording": False, "mission": None, "missions": ["patrol"],
+            "maps": [], "events": [],
+            "autonomy": {"level": "full", "levels": ["off", "low", "high", "full"], "timeout_s": 30.0,
+                         "pending": None, "now": 0.0},
+        }
         self.map: MapImage | None = None
         self.jpeg: bytes | None = None
         self.screen: bytes | None = None
@@ -49,8 +57,8 @@ class RecordingGateway:
     def names(self) -> list[str]:
         return [c[0] for c in self.calls]
 
-    def state(self) -> dict[str, Any]:
-        return dict(self.snapshot)
+    def state(self) -> RobotState:
+        return self.snapshot.copy()
 
     def map_image(self) -> MapImage | None:
         return self.map

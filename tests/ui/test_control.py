@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from atemr.msgs import Pose2D
 from atemr.ui.gateway import MapImage
+from atemr.ui.state import state_problems
 
 
 def test_pages_render_for_users(alice):
@@ -38,7 +39,27 @@ def test_index_goes_to_control(alice):
 def test_state_json(alice, gateway):
     gateway.snapshot["agent_state"] = "MAPPING"
     body = alice.get("/api/state").get_json()
-    assert body["connected"] is True and body["agent_state"] == "MAPPING"
+    assert body.pop("connected") is True and body["agent_state"] == "MAPPING"
+    assert state_problems(body) == []  # the test robot keeps to the contract the pages read
+
+
+def test_the_state_contract_names_what_is_wrong_and_where(gateway):
+    state = gateway.state()
+    assert state_problems(state) == []
+    del state["pose"]
+    state["mode"] = "TURBO"  # type: ignore[typeddict-item]
+    state["limits"]["linear_mps"] = "fast"  # type: ignore[typeddict-item]
+    state["events"] = [{"t": 1.0, "kind": "info"}]  # type: ignore[typeddict-item]
+    state["level2"] = {"lidar": 1}
+    state["extra"] = 1  # type: ignore[typeddict-unknown-key]
+    assert state_problems(state) == [
+        "state: missing key 'pose'",
+        "state: unexpected key 'extra'",
+        "state.mode: expected one of 'MANUAL', 'AUTO', got 'TURBO'",
+        "state.level2.lidar: expected bool, got 1",
+        "state.limits.linear_mps: expected float, got 'fast'",
+        "state.events[0]: missing key 'text'",
+    ]
 
 
 def test_map_meta_and_png(alice, gateway):

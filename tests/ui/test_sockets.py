@@ -265,3 +265,18 @@ def test_studio_events_are_refused_without_a_session_or_a_role(app, gateway, ui,
     ui.login(client, "bob", ui.USER_PW)  # role none
     assert not sio(app, client).is_connected()
     assert gateway.calls == []
+
+
+def test_page_groups_declare_their_events_once_and_every_event_is_registered(app):
+    from atemr.ui.agent.events import events as agent
+    from atemr.ui.control.events import events as control
+    from atemr.ui.mapping.events import events as mapping
+
+    declared = set(control.handlers) | set(mapping.handlers) | set(agent.handlers)
+    assert declared == {e[0] for e in EVENTS}  # every declared event is tested above, and no other
+    registered = set(app.extensions["socketio"].server.handlers["/"])
+    assert declared | {"connect", "disconnect", "camera", "agent_view"} == registered
+    group = sockets.EventGroup("test")
+    group.on("ping")(lambda robot, data: {"ok": True})
+    with pytest.raises(ValueError, match="'ping' is declared twice in the test group"):
+        group.on("ping")(lambda robot, data: {"ok": True})

@@ -1,7 +1,7 @@
 """Socket.IO events of the Agent studio: confirm or deny a transition waiting for the operator, set the
 robot's autonomy level, reload the agent document now.
 
-Role-checked like every event (`atemr.ui.sockets.on_event`); the confirming user's name goes to the robot
+Role-checked like every event (`atemr.ui.sockets.EventGroup`); the confirming user's name goes to the robot
 and into the agent's transition trace.
 """
 
@@ -14,7 +14,9 @@ from atemr.fsm.autonomy import LEVELS
 from atemr.ui import payload
 from atemr.ui.gateway import CommandResult, RobotGateway
 from atemr.ui.security import current_user
-from atemr.ui.sockets import on_event
+from atemr.ui.sockets import EventGroup
+
+events = EventGroup("agent")
 
 
 def _request_id(event: str, data: Any) -> int:
@@ -29,19 +31,19 @@ def _user() -> str:
     return user.username if user is not None else "?"
 
 
-@on_event("autonomy_confirm")
+@events.on("autonomy_confirm")
 def autonomy_confirm(robot: RobotGateway, data: Any) -> CommandResult:
     """``{id}``: take the waiting transition."""
     return robot.answer_transition(_request_id("autonomy_confirm", data), True, _user())
 
 
-@on_event("autonomy_deny")
+@events.on("autonomy_deny")
 def autonomy_deny(robot: RobotGateway, data: Any) -> CommandResult:
     """``{id}``: do not take it (the safe path: stay, or the transition's ``on_deny``)."""
     return robot.answer_transition(_request_id("autonomy_deny", data), False, _user())
 
 
-@on_event("autonomy_level")
+@events.on("autonomy_level")
 def autonomy_level(robot: RobotGateway, data: Any) -> CommandResult:
     """``{level: "off" | "low" | "high" | "full"}``."""
     level = payload.text("autonomy_level", data, "level")
@@ -50,7 +52,7 @@ def autonomy_level(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.set_autonomy(level, _user())
 
 
-@on_event("agent_reload", permission="agent_reload")
+@events.on("agent_reload", permission="agent_reload")
 def agent_reload(robot: RobotGateway, data: Any) -> CommandResult:
     """Re-read the agent document now; the result and the diff appear on the Agent page."""
     return robot.reload_agent()

@@ -10,14 +10,16 @@ from typing import Any
 from atemr.msgs import Twist
 from atemr.ui import payload
 from atemr.ui.gateway import CommandResult, RobotGateway
-from atemr.ui.sockets import on_event
+from atemr.ui.sockets import EventGroup
 
 #: Largest speeds a joystick event may ask for; the robot clamps to its own (lower) limits.
 MAX_JOYSTICK_LINEAR_MPS = 2.0
 MAX_JOYSTICK_ANGULAR_RADPS = 4.0
 
+events = EventGroup("control")
 
-@on_event("joystick")
+
+@events.on("joystick")
 def joystick(robot: RobotGateway, data: Any) -> CommandResult:
     """``{linear_mps, angular_radps}``: sent at 10 Hz while the stick is held (the robot's 0.5 s timeout)."""
     lin = payload.number("joystick", data, "linear_mps", lo=-MAX_JOYSTICK_LINEAR_MPS, hi=MAX_JOYSTICK_LINEAR_MPS)
@@ -26,7 +28,7 @@ def joystick(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.joystick(Twist(lin, ang))
 
 
-@on_event("mode")
+@events.on("mode")
 def mode(robot: RobotGateway, data: Any) -> CommandResult:
     """``{mode: "MANUAL" | "AUTO"}``."""
     value = payload.text("mode", data, "mode")
@@ -37,56 +39,56 @@ def mode(robot: RobotGateway, data: Any) -> CommandResult:
     return CommandResult.refused(f"unknown mode {value!r}: MANUAL or AUTO")
 
 
-@on_event("goal")
+@events.on("goal")
 def goal(robot: RobotGateway, data: Any) -> CommandResult:
     """``{x_m, y_m, yaw_rad}`` in the map frame."""
     return robot.set_goal(payload.pose("goal", data))
 
 
-@on_event("initial_pose")
+@events.on("initial_pose")
 def initial_pose(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.set_initial_pose(payload.pose("initial_pose", data))
 
 
-@on_event("localize_globally")
+@events.on("localize_globally")
 def localize_globally(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.localize_globally()
 
 
-@on_event("cancel_goal")
+@events.on("cancel_goal")
 def cancel_goal(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.cancel_goal()
 
 
-@on_event("capture_image")
+@events.on("capture_image")
 def capture_image(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.capture_image()
 
 
-@on_event("record_video")
+@events.on("record_video")
 def record_video(robot: RobotGateway, data: Any) -> CommandResult:
     """``{on: bool}``."""
     return robot.record_video(payload.flag("record_video", data, "on"))
 
 
-@on_event("mission_start")
+@events.on("mission_start")
 def mission_start(robot: RobotGateway, data: Any) -> CommandResult:
     """``{name}``: one of the state's ``missions``."""
     return robot.start_mission(payload.text("mission_start", data, "name"))
 
 
-@on_event("mission_stop")
+@events.on("mission_stop")
 def mission_stop(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.stop_mission()
 
 
-@on_event("sim_button", permission="power")
+@events.on("sim_button", permission="power")
 def sim_button(robot: RobotGateway, data: Any) -> CommandResult:
     """``{hold_s}``: press the secondary core's button (simulation only)."""
     return robot.sim_button(payload.number("sim_button", data, "hold_s", lo=0.05, hi=15.0))
 
 
-@on_event("sim_obstacle")
+@events.on("sim_obstacle")
 def sim_obstacle(robot: RobotGateway, data: Any) -> CommandResult:
     """``{x_m, y_m}``: drop an obstacle in the simulated world."""
     x = payload.number("sim_obstacle", data, "x_m", lo=-1e6, hi=1e6)
@@ -94,7 +96,7 @@ def sim_obstacle(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.sim_drop_obstacle(x, y)
 
 
-@on_event("sim_kidnap")
+@events.on("sim_kidnap")
 def sim_kidnap(robot: RobotGateway, data: Any) -> CommandResult:
     """``{x_m, y_m, yaw_rad}``: move the simulated robot behind its localization's back."""
     return robot.sim_kidnap(payload.pose("sim_kidnap", data))

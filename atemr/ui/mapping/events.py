@@ -8,9 +8,11 @@ from typing import Any
 from atemr.errors import ProtocolError
 from atemr.ui import payload
 from atemr.ui.gateway import CommandResult, RobotGateway
-from atemr.ui.sockets import on_event
+from atemr.ui.sockets import EventGroup
 
 MAP_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+
+events = EventGroup("mapping")
 
 
 def map_name(event: str, data: Any) -> str:
@@ -23,28 +25,28 @@ def map_name(event: str, data: Any) -> str:
     return name
 
 
-@on_event("mapping_begin")
+@events.on("mapping_begin")
 def mapping_begin(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.begin_mapping()
 
 
-@on_event("mapping_end")
+@events.on("mapping_end")
 def mapping_end(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.end_mapping()
 
 
-@on_event("map_save")
+@events.on("map_save")
 def map_save(robot: RobotGateway, data: Any) -> CommandResult:
     """``{name}``: store the map just built; it becomes the active map."""
     return robot.save_map(map_name("map_save", data))
 
 
-@on_event("map_discard")
+@events.on("map_discard")
 def map_discard(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.discard_map()
 
 
-@on_event("map_select")
+@events.on("map_select")
 def map_select(robot: RobotGateway, data: Any) -> CommandResult:
     """``{name}``: switch the active map."""
     return robot.select_map(map_name("map_select", data))

@@ -20,6 +20,7 @@ from atemr.ui.security import (
     user_permissions,
     user_store,
 )
+from atemr.ui.state import RobotState
 from atemr.ui.users import UserError
 
 bp = Blueprint("settings", __name__, url_prefix="/settings", template_folder="templates")
@@ -46,7 +47,7 @@ def _report(what: str, result: CommandResult) -> bool:
 @role_required("user")
 def page() -> str:
     robot = _gateway()
-    state = robot.state() if robot else {}
+    state: RobotState | dict[str, Any] = robot.state() if robot else {}  # no robot: every field shows "—"
     users = user_store().list() if current_user() and current_user().can("admin") else []  # type: ignore[union-attr]
     granted = user_permissions()
     return render_template("settings/settings.html", state=state, users=users, roles=ROLES, connected=robot is not None,
