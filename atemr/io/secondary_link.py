@@ -30,6 +30,7 @@ from typing import Any, TypeVar
 
 import can
 
+from atemr.clock import due
 from atemr.config import Config
 from atemr.errors import AtemrError, ProtocolError
 from atemr.io.can import (
@@ -308,7 +309,7 @@ class SecondaryLink(PolledCanEndpoint):
 
     def _send_heartbeat(self, now: float) -> None:
         assert self._next_ping is not None
-        if now + 1e-9 >= self._next_ping:
+        if due(now, self._next_ping):
             if self._send(Heartbeat(from_primary=True).encode()):
                 self._last_ping = now
             self._next_ping += self.heartbeat_period_s
@@ -332,11 +333,11 @@ class SecondaryLink(PolledCanEndpoint):
     def _send_status(self, now: float) -> None:
         with self._lock:
             status, power = self._status, self._power
-        if status != self._sent_status or now + 1e-9 >= self._next_status:
+        if status != self._sent_status or due(now, self._next_status):
             self._send(status.encode())  # a failed send is retried by the 2 Hz repeat, not every tick
             self._sent_status = status
             self._next_status = now + self.status_period_s
-        if power != self._sent_power or now + 1e-9 >= self._next_power:
+        if power != self._sent_power or due(now, self._next_power):
             self._send(Power(power, PowerRequest.NORMAL).encode())
             self._sent_power = power
             self._next_power = now + self.status_period_s

@@ -28,6 +28,7 @@ from typing import Self
 
 import can
 
+from atemr.clock import due
 from atemr.errors import HardwareError, ProtocolError
 from atemr.io.motors.driver import check_motor_ids
 from atemr.io.motors.model import RmdMotorModel
@@ -125,7 +126,7 @@ class RmdMotorEmulator:
             return
         if self._last_speed_t is None:
             self._last_speed_t = now  # powered up: the protection counts from the first tick
-        if now - self._last_speed_t >= self.comm_timeout_s - 1e-9 and not self.model.comm_timed_out:
+        if due(now, self._last_speed_t + self.comm_timeout_s) and not self.model.comm_timed_out:
             self.comm_timeouts += 1
             if self.model.target_radps != 0.0:
                 log.warning("%s: no speed command for %.2f s: stopping (communication timeout)",
