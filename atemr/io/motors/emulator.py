@@ -30,6 +30,7 @@ import can
 
 from atemr.clock import due
 from atemr.errors import HardwareError, ProtocolError
+from atemr.io.can.endpoint import MAX_FRAMES_PER_TICK
 from atemr.io.motors.driver import check_motor_ids
 from atemr.io.motors.model import RmdMotorModel
 from atemr.io.motors.rmd_codec import RmdCommand, RmdRequest
@@ -37,8 +38,6 @@ from atemr.io.motors.rmd_protocol import AnyReply, MotorReading, RmdProtocol, rm
 
 log = logging.getLogger(__name__)
 
-#: Frames handled per tick at most, so a flooded bus cannot stall the scheduler.
-MAX_FRAMES_PER_TICK = 256
 #: Default CAN communication timeout of the motor, s (DESIGN §10: no fresh command for 0.5 s → stop).
 COMM_TIMEOUT_S = 0.5
 
