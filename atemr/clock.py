@@ -9,6 +9,19 @@ from __future__ import annotations
 import time
 from typing import Protocol, runtime_checkable
 
+#: Slack in `due`, s: far below any period the robot uses, far above the rounding of summed tick times.
+DUE_SLACK_S = 1e-9
+
+
+def due(now: float, t: float) -> bool:
+    """Whether the moment ``t`` has come at ``now``.
+
+    With a little slack (`DUE_SLACK_S`) because times are sums of floats: a 0.05 s period ticked at 50 Hz
+    has its deadline land a rounding error after the tick meant to meet it, and without the slack the
+    action would run one tick late. Every periodic action and timeout uses this one test, so they agree.
+    """
+    return now + DUE_SLACK_S >= t
+
 
 @runtime_checkable
 class Clock(Protocol):

@@ -35,6 +35,7 @@ from typing import Any
 import can
 from transitions import Machine
 
+from atemr.clock import due
 from atemr.errors import ProtocolError
 from atemr.io.can import (
     PASSWORD,
@@ -44,14 +45,14 @@ from atemr.io.can import (
     IpRequest,
     IrFront,
     IrRear,
+    Message,
     Power,
     PowerRequest,
     PowerState,
     PrimaryStatus,
-    decode,
     encode_text,
-    is_protocol_id,
 )
+from atemr.io.can.endpoint import EndpointCounters, PolledCanEndpoint
 from atemr.io.motors.rmd_codec import RMD_BASE_ID, RmdCommand, RmdRequest
 from atemr.io.network import credential_problems
 from atemr.io.secondary_link import ir_m_to_cm
@@ -120,14 +121,6 @@ class BoardConfig:
 
 CliffSource = Callable[[], CliffReadings | None]
 
-#: Frames read per tick at most, so a flooded bus cannot stall the scheduler.
-MAX_FRAMES_PER_TICK = 256
-
-
-def _due(now: float, t: float) -> bool:
-    # A tolerance, so that a period of 0.05 s ticked at 50 Hz lands on the ticks instead of one late.
-    return now + 1e-9 >= t
-
 
 def _next(t: float, period_s: float, now: float) -> float:
     """The next time of a periodic action: on its own grid, never in a burst after a pause."""
@@ -136,18 +129,13 @@ def _next(t: float, period_s: float, now: float) -> float:
 
 
 @dataclass
-class _Counters:
-    frames_in: int = 0
-    frames_out: int = 0
-    bad_frames: int = 0
-    bus_errors: int = 0
+class _Counters(EndpointCounters):
     heartbeats_answered: int = 0
     brake_frames: int = 0
     #: Frames asking a braked motor to move seen during a soft emergency (each braked again at once).
     overridden_brakes: int = 0
     wifi_sent: int = 0
     ip_requests: int = 0
-    last_bad_frame: str | None = None
 
 
 @dataclass
@@ -164,7 +152,7 @@ class _Timers:
     pending_ops: list[str] = field(default_factory=list)
 
 
-class SecondaryCore:
+class SecondaryCore(PolledCanEndpoint):
     """The emulated secondary core on ``bus``; tick it at 50 Hz (every 20 ms) with the robot's clock.
 
     ``cliff_source`` gives the latest `CliffReadings` (metres) or None; without one the IR frames are not
@@ -175,6 +163,8 @@ class SecondaryCore:
     # Set by transitions' Machine on the model.
     state: str
     trigger: Callable[..., bool]
+    counters: _Counters
+    logger = log
 
     def __init__(
         self,
@@ -184,13 +174,11 @@ class SecondaryCore:
         config: BoardConfig | None = None,
         name: str = "secondary_core",
     ) -> None:
-        self.name = name
-        self.bus = bus
+        super().__init__(bus, name=name, counters=_Counters())
         self.config = config or BoardConfig()
         self.cliff_source = cliff_source
         self.button = Button()
         self.events = EventLog()
-        self.counters = _Counters()
         self.status: PrimaryStatus | None = None
         self.primary_power = PowerState.INITIALISING
         self.robot_ip: str | None = None
@@ -199,7 +187,6 @@ class SecondaryCore:
         self.now = 0.0
         self._t = _Timers()
         self._started = False
-        self._send_failing = False
         #: A drive command was braked again during the current soft emergency (reported once per emergency).
         self._overridden = False
         self._rebrake: set[int] = set()
@@ -365,45 +352,9 @@ class SecondaryCore:
     def _enter_power_on_sequence(self, now: float) -> None:
         self._power_up(now, announce=False)  # power cycle: the screen event was just emitted
 
-    def _send(self, msg: can.Message) -> bool:
-        try:
-            self.bus.send(msg)
-        except can.CanError as exc:
-            self.counters.bus_errors += 1
-            # Warn when sending starts failing, not on every frame of a bus-off at 50 Hz.
-            level = logging.DEBUG if self._send_failing else logging.WARNING
-            self._send_failing = True
-            log.log(level, "%s: cannot send 0x%03X: %s", self.name, msg.arbitration_id, exc)
-            return False
-        if self._send_failing:
-            self._send_failing = False
-            log.warning("%s: sending works again", self.name)
-        self.counters.frames_out += 1
-        return True
-
-    def _receive(self, now: float) -> None:
-        for _ in range(MAX_FRAMES_PER_TICK):  # a flooded bus cannot stall the scheduler
-            try:
-                frame = self.bus.recv(timeout=0)
-            except can.CanError as exc:
-                self.counters.bus_errors += 1
-                log.warning("%s: receive failed: %s", self.name, exc)
-                return
-            if frame is None:
-                return
-            if not is_protocol_id(frame.arbitration_id):
-                if self.soft_emergency:
-                    self._hold_brake(frame, now)
-                continue  # motor traffic and anything else on the shared bus
-            self.counters.frames_in += 1
-            try:
-                msg = decode(frame)
-            except ProtocolError as exc:
-                self.counters.bad_frames += 1
-                self.counters.last_bad_frame = str(exc)
-                log.debug("%s: bad frame ignored: %s", self.name, exc)
-                continue
-            self._on_message(msg, now)
+    def _on_foreign_frame(self, frame: can.Message, now: float) -> None:
+        if self.soft_emergency:
+            self._hold_brake(frame, now)
 
     def _hold_brake(self, frame: can.Message, now: float) -> None:
         """Brake a motor again at once when a frame on its ID would set it driving (see the module docstring).
@@ -438,7 +389,7 @@ class SecondaryCore:
             if self._send(RmdRequest(motor_id, RmdCommand.MOTOR_STOP).encode()):
                 self.counters.brake_frames += 1
 
-    def _on_message(self, msg: object, now: float) -> None:
+    def _on_message(self, msg: Message, now: float) -> None:
         if isinstance(msg, Heartbeat):
             # Answered in every state: the primary's StartUp checks the heartbeat before it reports running.
             if msg.from_primary:
@@ -558,14 +509,14 @@ class SecondaryCore:
                 self._overridden = False
             self.soft_emergency = reason is not None
             self.emergency_reason = reason
-        if self.soft_emergency and _due(now, self._t.next_brake):
+        if self.soft_emergency and due(now, self._t.next_brake):
             self._brake(self.config.motor_ids)
             self._t.next_brake = _next(self._t.next_brake, self.config.brake_period_s, now)
 
     def _publish_ir(self, now: float) -> None:
         if self.cliff_source is None or self.state in ("power_on_sequence", "shutdown"):
             return
-        if not _due(now, self._t.next_ir):
+        if not due(now, self._t.next_ir):
             return
         self._t.next_ir = _next(self._t.next_ir, self.config.ir_period_s, now)
         readings = self.cliff_source()

@@ -1,6 +1,6 @@
 import pytest
 
-from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
+from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock, due
 
 
 def test_sim_clock_moves_only_when_told():
@@ -40,3 +40,11 @@ def test_realtime_sim_clock_lands_exactly_on_requested_times():
 def test_realtime_sim_clock_rejects_bad_speed():
     with pytest.raises(ValueError):
         RealTimeSimClock(speed=0)
+
+
+def test_due_meets_a_deadline_that_summed_ticks_miss_by_rounding():
+    deadline = sum([0.1] * 3)  # three 0.1 s periods: 0.30000000000000004 ...
+    assert deadline > 0.3
+    assert due(0.3, deadline)  # ... yet the tick at 0.3 meets it
+    assert due(deadline, 0.3) and due(1.0, 1.0)
+    assert not due(0.99, 1.0) and not due(1.0 - 1e-6, 1.0)

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import py_trees
 
+from atemr.clock import due
 from atemr.fsm.machine import TransitionRecord
 from atemr.trees.behaviours import Leaf
 from atemr.trees.blackboard_watch import BlackboardWrite
@@ -153,7 +154,7 @@ class AgentRecorder:
             if write.kind == "UNSET":
                 record["unset"] = True
             self.sink(record)
-        if now - self._last_ticks_t >= TICKS_PERIOD_S - 1e-9:
+        if due(now, self._last_ticks_t + TICKS_PERIOD_S):
             self._last_ticks_t = now
             for seen in self._slots.values():
                 counts = [[i, self.agent.node_ticks(n)] for i, n in enumerate(seen.nodes)]

@@ -30,6 +30,7 @@ from typing import Any, TypeVar
 
 import can
 
+from atemr.clock import due
 from atemr.config import Config
 from atemr.errors import AtemrError, ProtocolError
 from atemr.io.can import (
@@ -42,6 +43,7 @@ from atemr.io.can import (
     IpRequest,
     IrFront,
     IrRear,
+    Message,
     Power,
     PowerRequest,
     PowerState,
@@ -50,9 +52,8 @@ from atemr.io.can import (
     StateCode,
     WifiPasswordSegment,
     WifiSsidSegment,
-    decode,
-    is_protocol_id,
 )
+from atemr.io.can.endpoint import PolledCanEndpoint
 from atemr.io.devices.base import DeviceInfo, Subscribers
 from atemr.io.network import NetworkBackend, NmcliBackend, RecordingNetworkBackend, usable_ipv4
 from atemr.msgs import CliffReadings
@@ -65,9 +66,6 @@ log = logging.getLogger(__name__)
 IR_OUT_OF_RANGE_CM = 999.0
 
 T = TypeVar("T")
-
-#: Frames read per tick at most, so a flooded bus cannot stall the scheduler.
-MAX_FRAMES_PER_TICK = 256
 
 
 def ir_cm_to_m(distance_cm: float) -> float:
@@ -106,7 +104,7 @@ class InlineExecutor(Executor):
         return future
 
 
-class SecondaryLink:
+class SecondaryLink(PolledCanEndpoint):
     """The primary's end of the inter-core link on ``bus``; tick it at 50 Hz.
 
     ``network`` applies WiFi credentials and tells the IP address. ``executor`` runs `NetworkBackend.connect`
@@ -117,6 +115,7 @@ class SecondaryLink:
 
     #: Ticked at 50 Hz (the heartbeat's 0.5 s period and the 2 Hz status need far less; IR frames come at 20 Hz).
     rate_hz: float | None = 50.0
+    logger = log
 
     def __init__(
         self,
@@ -137,8 +136,7 @@ class SecondaryLink:
                             ("status_period_s", status_period_s), ("credentials_pair_s", credentials_pair_s)):
             if not (math.isfinite(value) and value > 0):
                 raise ProtocolError(f"{name}: {what} must be a finite number of seconds > 0, got {value!r}")
-        self.name = name
-        self.bus = bus
+        super().__init__(bus, name=name)
         self.network = network
         self.heartbeat_period_s = heartbeat_period_s
         self.heartbeat_timeout_s = heartbeat_timeout_s
@@ -175,13 +173,6 @@ class SecondaryLink:
         self._wifi_frame_t: float | None = None
         self._applying: deque[tuple[str, Future[None]]] = deque()
         self.wifi_results: deque[WifiResult] = deque(maxlen=50)
-
-        self.frames_in = 0
-        self.frames_out = 0
-        self.bad_frames = 0
-        self.bus_errors = 0
-        self._send_failing = False
-        self.last_bad_frame: str | None = None
 
     # -- the agent's side (any thread) --------------------------------------------------------
     def set_status(self, agent: AgentBits | int, hardware: HardwareBits | int, state: StateCode | int) -> None:
@@ -256,14 +247,36 @@ class SecondaryLink:
         return DeviceInfo(kind="secondary", driver="esp32", port=str(getattr(self.bus, "channel_info", "")) or None,
                           model="ESP32 secondary core")
 
+    # -- the bus counters, by the names the link had before they moved into `counters` -------
+    @property
+    def frames_in(self) -> int:
+        return self.counters.frames_in
+
+    @property
+    def frames_out(self) -> int:
+        return self.counters.frames_out
+
+    @property
+    def bad_frames(self) -> int:
+        return self.counters.bad_frames
+
+    @property
+    def bus_errors(self) -> int:
+        return self.counters.bus_errors
+
+    @property
+    def last_bad_frame(self) -> str | None:
+        return self.counters.last_bad_frame
+
     def diagnostics(self) -> dict[str, Any]:
         """Plain data about the link for tests and tools: counters, heartbeat, power, the last WiFi join."""
         last = self.wifi_results[-1] if self.wifi_results else None
+        c = self.counters
         return {
             "heartbeat_ok": self._heartbeat_ok, "heartbeat_established": self.heartbeat_established,
             "heartbeat_losses": self.heartbeat_losses, "power_off_requested": self.power_off_requested,
-            "power_state": self._power.name, "frames_in": self.frames_in, "frames_out": self.frames_out,
-            "bad_frames": self.bad_frames, "bus_errors": self.bus_errors, "last_bad_frame": self.last_bad_frame,
+            "power_state": self._power.name, "frames_in": c.frames_in, "frames_out": c.frames_out,
+            "bad_frames": c.bad_frames, "bus_errors": c.bus_errors, "last_bad_frame": c.last_bad_frame,
             "wifi": None if last is None else {"ssid": last.ssid, "ok": last.ok, "error": last.error, "t": last.t},
         }
 
@@ -294,25 +307,9 @@ class SecondaryLink:
         if reading is not None:
             self._cliff.publish(reading)
 
-    def _send(self, msg: can.Message) -> bool:
-        try:
-            self.bus.send(msg)
-        except can.CanError as exc:
-            self.bus_errors += 1
-            # Warn when sending starts failing, not on every frame of a bus-off at 50 Hz.
-            level = logging.DEBUG if self._send_failing else logging.WARNING
-            self._send_failing = True
-            log.log(level, "%s: cannot send 0x%03X: %s", self.name, msg.arbitration_id, exc)
-            return False
-        if self._send_failing:
-            self._send_failing = False
-            log.warning("%s: sending works again", self.name)
-        self.frames_out += 1
-        return True
-
     def _send_heartbeat(self, now: float) -> None:
         assert self._next_ping is not None
-        if now + 1e-9 >= self._next_ping:
+        if due(now, self._next_ping):
             if self._send(Heartbeat(from_primary=True).encode()):
                 self._last_ping = now
             self._next_ping += self.heartbeat_period_s
@@ -336,40 +333,20 @@ class SecondaryLink:
     def _send_status(self, now: float) -> None:
         with self._lock:
             status, power = self._status, self._power
-        if status != self._sent_status or now + 1e-9 >= self._next_status:
+        if status != self._sent_status or due(now, self._next_status):
             self._send(status.encode())  # a failed send is retried by the 2 Hz repeat, not every tick
             self._sent_status = status
             self._next_status = now + self.status_period_s
-        if power != self._sent_power or now + 1e-9 >= self._next_power:
+        if power != self._sent_power or due(now, self._next_power):
             self._send(Power(power, PowerRequest.NORMAL).encode())
             self._sent_power = power
             self._next_power = now + self.status_period_s
 
-    def _receive(self, now: float) -> None:
-        for _ in range(MAX_FRAMES_PER_TICK):  # a flooded bus cannot stall the scheduler
-            try:
-                frame = self.bus.recv(timeout=0)
-            except can.CanError as exc:
-                self.bus_errors += 1
-                log.warning("%s: receive failed: %s", self.name, exc)
-                return
-            if frame is None:
-                return
-            if not is_protocol_id(frame.arbitration_id):
-                continue  # motor traffic shares the bus
-            self.frames_in += 1
-            try:
-                msg = decode(frame)
-            except ProtocolError as exc:
-                self.bad_frames += 1
-                self.last_bad_frame = str(exc)
-                log.debug("%s: bad frame ignored: %s", self.name, exc)
-                if frame.arbitration_id == SSID.arbitration_id:
-                    self._ssid = None  # a broken SSID transfer must not pair with the next password
-                continue
-            self._on_message(msg, now)
+    def _on_bad_frame(self, frame: can.Message, now: float) -> None:
+        if frame.arbitration_id == SSID.arbitration_id:
+            self._ssid = None  # a broken SSID transfer must not pair with the next password
 
-    def _on_message(self, msg: object, now: float) -> None:
+    def _on_message(self, msg: Message, now: float) -> None:
         if isinstance(msg, Heartbeat):
             if not msg.from_primary and self._last_ping is not None:
                 self._last_exchange = now

@@ -42,6 +42,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from atemr.clock import due
 from atemr.msgs import ZERO_TWIST, Twist
 from atemr.typed import Source, merge_into
 
@@ -128,10 +129,6 @@ class RampOutput:
     guard_m: float
 
 
-#: Tolerance on time comparisons: tick times are sums of floats, and 2 s after t=3.02 is t=5.02.
-_TIME_EPS = 1e-9
-
-
 def _signs(*values: float) -> set[int]:
     return {1 if v > 0 else -1 for v in values if v != 0.0}
 
@@ -159,7 +156,7 @@ class IdleDetector:
             if not command.is_zero or command != self._last_command:
                 self._last_change = now
             self._last_command = command
-        return now - self._last_change >= idle_after_s - _TIME_EPS
+        return due(now, self._last_change + idle_after_s)
 
     def wake(self, now: float) -> None:
         """Count ``now`` as a state change (mode switch, new goal): the base is busy again."""
@@ -267,7 +264,7 @@ class SpeedRamp:
         elif self._emergency:
             if self._clear_since is None:
                 self._clear_since = now
-            if now - self._clear_since >= lim.resume_after_s - _TIME_EPS:
+            if due(now, self._clear_since + lim.resume_after_s):
                 self._emergency = False
                 self._clear_since = None
                 self._hold_m = 0.0

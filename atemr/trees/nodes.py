@@ -14,6 +14,7 @@ from typing import Any, Literal
 
 import py_trees
 
+from atemr.clock import due
 from atemr.trees.context import AgentContext, context_from_setup
 
 Behaviour = py_trees.behaviour.Behaviour
@@ -40,7 +41,7 @@ class ClockTimeout(py_trees.decorators.Decorator):
         self.feedback_message = ""
 
     def update(self) -> py_trees.common.Status:
-        if self.decorated.status == Status.RUNNING and self._now() >= self._deadline - 1e-9:
+        if self.decorated.status == Status.RUNNING and due(self._now(), self._deadline):
             self.feedback_message = f"timed out after {self.duration_s:g} s"
             self.decorated.stop(Status.INVALID)
             return Status.FAILURE

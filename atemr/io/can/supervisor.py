@@ -45,8 +45,9 @@ from atemr.errors import BusError, HardwareError
 log = logging.getLogger(__name__)
 
 FrameListener = Callable[[can.Message], object]
-#: Frames handled per tick at most in polled mode, so a flooded bus cannot stall the scheduler.
-MAX_FRAMES_PER_TICK = 1000
+#: Frames handled per tick at most in polled mode, so a flooded bus cannot stall the scheduler; more than one
+#: endpoint's `atemr.io.can.endpoint.MAX_FRAMES_PER_TICK` because the supervisor reads for every consumer.
+SUPERVISED_FRAMES_PER_TICK = 1000
 #: The controller's bus-off flag in a SocketCAN error frame's ID (Linux include/uapi/linux/can/error.h,
 #: CAN_ERR_BUSOFF). python-can's socketcan bus reports no ``state``: bus-off reaches it as such a frame.
 CAN_ERR_BUSOFF = 0x40
@@ -245,11 +246,11 @@ class BusSupervisor:
             self._fail(f"no frame received for {now - self._last_activity_t:.2f} s")
 
     def poll(self) -> None:
-        """Polled mode: deliver what the bus holds now (up to `MAX_FRAMES_PER_TICK`); a failing ``recv``
+        """Polled mode: deliver what the bus holds now (up to `SUPERVISED_FRAMES_PER_TICK`); a failing ``recv``
         is a fault. `tick` calls it, and so does an empty `Inbox` being read."""
         if self._closed:
             return
-        for _ in range(MAX_FRAMES_PER_TICK):
+        for _ in range(SUPERVISED_FRAMES_PER_TICK):
             try:
                 msg = self.bus.recv(timeout=0)
             except (can.CanError, OSError) as exc:

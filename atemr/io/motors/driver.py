@@ -21,6 +21,7 @@ from typing import Self
 
 import can
 
+from atemr.clock import due
 from atemr.config import MotorsConfig
 from atemr.errors import BusError, HardwareError, ProtocolError
 from atemr.io.can.protocol import is_protocol_id
@@ -402,7 +403,7 @@ class RmdDriver(DriveMotors):
                 self._send(self.ids[side], RmdCommand.SPEED_CONTROL, self.directions[side] * speeds[side])
             else:  # no speed commands after a fault or motor_off; status 2 keeps the feedback (odometry) fresh
                 self._send(self.ids[side], RmdCommand.READ_STATUS_2)
-        if self._last_status1_t is None or now - self._last_status1_t >= self.status_period_s - 1e-9:
+        if self._last_status1_t is None or due(now, self._last_status1_t + self.status_period_s):
             self._last_status1_t = now
             for side in SIDES:
                 if self.fault is not None:  # repeat the stop: the first one may have been lost with the link

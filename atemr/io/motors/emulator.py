@@ -28,7 +28,9 @@ from typing import Self
 
 import can
 
+from atemr.clock import due
 from atemr.errors import HardwareError, ProtocolError
+from atemr.io.can.endpoint import MAX_FRAMES_PER_TICK
 from atemr.io.motors.driver import check_motor_ids
 from atemr.io.motors.model import RmdMotorModel
 from atemr.io.motors.rmd_codec import RmdCommand, RmdRequest
@@ -36,8 +38,6 @@ from atemr.io.motors.rmd_protocol import AnyReply, MotorReading, RmdProtocol, rm
 
 log = logging.getLogger(__name__)
 
-#: Frames handled per tick at most, so a flooded bus cannot stall the scheduler.
-MAX_FRAMES_PER_TICK = 256
 #: Default CAN communication timeout of the motor, s (DESIGN §10: no fresh command for 0.5 s → stop).
 COMM_TIMEOUT_S = 0.5
 
@@ -125,7 +125,7 @@ class RmdMotorEmulator:
             return
         if self._last_speed_t is None:
             self._last_speed_t = now  # powered up: the protection counts from the first tick
-        if now - self._last_speed_t >= self.comm_timeout_s - 1e-9 and not self.model.comm_timed_out:
+        if due(now, self._last_speed_t + self.comm_timeout_s) and not self.model.comm_timed_out:
             self.comm_timeouts += 1
             if self.model.target_radps != 0.0:
                 log.warning("%s: no speed command for %.2f s: stopping (communication timeout)",

@@ -8,6 +8,7 @@ from typing import Literal
 
 import py_trees
 
+from atemr.clock import due
 from atemr.errors import AtemrError, HardwareError
 from atemr.trees.behaviours import Leaf, behaviours
 
@@ -48,7 +49,7 @@ class CheckComponent(Leaf):
             return Status.SUCCESS
         detail = "not reported by the robot" if health is None else (health.detail or "not healthy")
         self.feedback_message = detail
-        if self.ctx.now < self._deadline - 1e-9:
+        if not due(self.ctx.now, self._deadline):
             return Status.RUNNING
         error = HardwareError(
             f"{detail} after {self.params.timeout_s:g} s", component=self.params.component,
@@ -165,7 +166,7 @@ class CheckHeartbeat(Leaf):
             return Status.SUCCESS
         detail = "no secondary-core link" if link is None else "no heartbeat answer"
         self.feedback_message = detail
-        if self.ctx.now < self._deadline - 1e-9:
+        if not due(self.ctx.now, self._deadline):
             return Status.RUNNING
         error = HardwareError(f"{detail} after {self.params.timeout_s:g} s", component="secondary_core",
                               critical=self.params.critical)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import py_trees
 
+from atemr.clock import due
 from atemr.errors import HardwareError
 from atemr.fsm.codes import state_code
 from atemr.io.can import AgentBits, HardwareBits, PrimaryStatus
@@ -67,8 +68,8 @@ class PublishStatus(Leaf):
 
     def update(self) -> py_trees.common.Status:
         status = compose_status(self)
-        due = self.ctx.now - self._last_t >= self.params.period_s - 1e-9
-        if self.ctx.link is not None and (due or status != self.last):
+        periodic = due(self.ctx.now, self._last_t + self.params.period_s)
+        if self.ctx.link is not None and (periodic or status != self.last):
             self.ctx.link.publish_status(status)
             self.last, self._last_t = status, self.ctx.now
             self.sent += 1

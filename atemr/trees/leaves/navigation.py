@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import py_trees
 
+from atemr.clock import due
 from atemr.errors import AtemrError
 from atemr.msgs import ZERO_TWIST, Pose2D
 from atemr.trees.behaviours import Leaf, behaviours
@@ -153,7 +154,7 @@ class Relocalize(Leaf):
         if self.ctx.port.localized():
             self.feedback_message = "localized"
             return Status.SUCCESS
-        if self.ctx.now >= self._deadline - 1e-9:
+        if due(self.ctx.now, self._deadline):
             return self.fail(f"not localized after {self.params.timeout_s:g} s")
         self.feedback_message = "relocalizing"
         return Status.RUNNING

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import py_trees
 
+from atemr.clock import due
 from atemr.trees.behaviours import Leaf, behaviours
 
 Status = py_trees.common.Status
@@ -29,4 +30,4 @@ class Wait(Leaf):
     def update(self) -> py_trees.common.Status:
         left = self._until - self.ctx.now
         self.feedback_message = f"{max(left, 0.0):.1f} s left"
-        return Status.SUCCESS if left <= 1e-9 else Status.RUNNING
+        return Status.SUCCESS if due(self.ctx.now, self._until) else Status.RUNNING
