@@ -26,14 +26,15 @@ _RUNS = itertools.count()
 
 
 def headless_config(config: Config) -> Config:
-    """``config`` for a headless run: dashboard, message queue, portal and control socket off, a private
-    virtual CAN channel, and a trace only when ``trace.file`` names one (``--trace``): headless runs do not
-    fill ``data_dir/traces``."""
+    """``config`` for a headless run: dashboard, Foxglove server, message queue, portal and control socket off, a
+    private virtual CAN channel, and a recording only when ``trace.file`` names one (``--trace``): headless runs
+    do not fill ``data_dir/traces``."""
     if not config.simulation:
         raise ValueError("a headless run is a simulation")
     return dataclasses.replace(
         config,
-        ui=dataclasses.replace(config.ui, enabled=False, message_queue=None),
+        ui=dataclasses.replace(config.ui, enabled=False, message_queue=None,
+                               foxglove=dataclasses.replace(config.ui.foxglove, enabled=False)),
         secondary=dataclasses.replace(config.secondary, portal_serve=False),
         trace=dataclasses.replace(config.trace, enabled=False),
         control=dataclasses.replace(config.control, enabled=False),

@@ -1,6 +1,6 @@
 """The files the dashboard lists, serves and deletes: captured images, recorded videos, maps and agent traces.
 
-Layout under ``data_dir``: ``media/images/``, ``media/videos/`` and ``traces/`` (the recorder's ``.atrace``
+Layout under ``data_dir``: ``media/images/``, ``media/videos/`` and ``traces/`` (the recorder's ``.mcap``
 files, which the Agent page replays; uploads are read before they are stored); maps belong to the robot's
 `atemr.io.map_store.MapStore` (``maps/``, ROS map_server pairs, plus read-only built-ins), and every map
 listing, download, upload and delete goes through it, so the dashboard and the robot have one set of
@@ -23,7 +23,8 @@ from werkzeug.utils import secure_filename
 
 from atemr.errors import AtemrError, ConfigError
 from atemr.io.map_store import MapStore, clean_name
-from atemr.io.trace_file import SUFFIX, TraceContents, decode_trace
+from atemr.io.recording.agent_trace import RECORDING_SUFFIXES, decode_agent_trace
+from atemr.io.trace_file import TraceContents
 from atemr.yamlsafe import load_yaml
 
 Kind = Literal["images", "videos", "maps", "traces"]
@@ -33,7 +34,7 @@ EXTENSIONS: dict[Kind, frozenset[str]] = {
     "images": frozenset({".jpg", ".jpeg", ".png"}),
     "videos": frozenset({".mp4", ".webm", ".avi", ".mjpeg", ".mkv"}),
     "maps": frozenset({".yaml", ".yml"}),
-    "traces": frozenset({SUFFIX}),
+    "traces": frozenset(RECORDING_SUFFIXES),
 }
 MAP_IMAGE_EXTENSIONS = frozenset({".pgm", ".png", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"})
 PAGE_SIZE = 10
@@ -239,26 +240,29 @@ class MediaStore:
         from another robot, or one copied off this one); returns its stored name (through ``secure_filename``)
         and what was read.
 
-        Refused with `MediaError` (nothing stored): a name that is not a ``.atrace`` file name, a file
+        Refused with `MediaError` (nothing stored): a name that is not a ``.mcap`` (or older ``.atrace``) file
+        name, a file
         that is not a trace or has no agent ``head`` record, a name already taken. A trace damaged after
         some good records is stored; its warnings say where the damage is.
         """
         from atemr.fsm.trace_timeline import TraceTimeline
 
         safe = secure_filename(name or "")
-        if not _plain_name(safe) or Path(safe).suffix.lower() != SUFFIX:
-            raise MediaError(f"a trace upload is a file name of at most {MAX_NAME_BYTES} bytes ending in {SUFFIX}, "
+        suffix = Path(safe).suffix.lower()
+        if not _plain_name(safe) or suffix not in RECORDING_SUFFIXES:
+            raise MediaError(f"a trace upload is a file name of at most {MAX_NAME_BYTES} bytes ending in "
+                             f"{' or '.join(RECORDING_SUFFIXES)}, "
                              f"got {_shown(name or '')}")
         folder = self.dir("traces")
         try:
-            contents = decode_trace(data, Path(safe))
+            contents = decode_agent_trace(data, Path(safe))
             TraceTimeline(contents.records, name=safe)
         except ConfigError as exc:
             raise MediaError(f"not a valid trace: {exc}") from None
         target = folder / safe
         if target.exists():
             raise MediaError(f"a trace named '{safe}' exists already; delete it first or rename the upload")
-        tmp = folder / f".upload-{secrets.token_hex(8)}{SUFFIX}.part"
+        tmp = folder / f".upload-{secrets.token_hex(8)}{suffix}.part"
         try:
             tmp.write_bytes(data)
             tmp.replace(target)
