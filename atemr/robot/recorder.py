@@ -108,6 +108,7 @@ class RunRecorder:
         self._path: object = None
         self._plan: Entry | None = None
         self._state: tuple[str, str | None] | None = None
+        self._session: tuple[bool, bool] | None = None
         self._pending_events: deque[tuple[float, str, str]] = deque(maxlen=1000)
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="atemr-recorder") if threaded_maps else None
         self._attached = False
@@ -194,6 +195,7 @@ class RunRecorder:
             self._poses(now)
             self._plan_changed(now)
         self._map_changed(now)
+        self._mapping(now)
         self._agent_state(now)
         self._events()
         if due(now, self._next_health):
@@ -270,6 +272,13 @@ class RunRecorder:
         if grid is self._map:
             self._map_bytes = entry
             self._send(entry)
+
+    def _mapping(self, now: float) -> None:
+        maps = self.sources.maps
+        session = (maps.slam is not None, maps.slam is not None and maps.collecting)
+        if session != self._session:
+            self._session = session
+            self._emit_message(tp.MAPPING.name, now, {"t": now, "active": session[0], "collecting": session[1]})
 
     def _agent_state(self, now: float) -> None:
         agent = self.sources.agent

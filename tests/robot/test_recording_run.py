@@ -14,6 +14,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from atemr.config import load_config
+from atemr.errors import ConfigError
 from atemr.io.recording.agent_trace import read_agent_trace
 from atemr.io.recording.mcap_reader import RecordingReader
 from atemr.io.recording.ros2_convert import seconds, yaw_of
@@ -21,6 +22,8 @@ from atemr.io.recording.topics import TOPICS
 from atemr.msgs import LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.robot.core import Robot
 from atemr.robot.headless import build_headless_robot
+from atemr.robot.replay import Replay, replay_slam
+from atemr.skills.slam import SlamParams
 
 
 @dataclass
@@ -146,3 +149,25 @@ def test_a_recording_cut_mid_chunk_reads_up_to_the_cut(run: Run, tmp_path: Path)
     assert len(reader.warnings) == 1 and "cut.mcap" in reader.warnings[0]
     trace = read_agent_trace(cut)
     assert trace.records[0]["k"] == "head" and trace.warnings
+
+
+def test_localization_replayed_on_the_map_follows_the_recorded_and_the_true_pose(run: Run) -> None:
+    """``atemr replay --localize``: odometry and AMCL re-run on the studio map from the recording alone."""
+    grid = run.robot.parts.maps.active
+    assert grid is not None
+    result = Replay(run.path, grid=grid, seed=1).run()
+    assert result.scans == len(run.scans) and result.localized_scans > 0.9 * result.scans
+    recorded, truth = result.against_recorded.report(), result.against_truth.report()
+    assert recorded["samples"] > 70 and recorded["rmse_m"] < 0.1
+    assert truth["samples"] > 70 and truth["rmse_m"] < 0.1 and truth["max_m"] < 0.25
+
+
+def test_replay_refuses_what_it_cannot_use(run: Run, tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"run\.mcap: the recording holds no mapping session"):
+        replay_slam(run.path, SlamParams())
+    result = replay_slam(run.path, SlamParams(), all_scans=True)
+    assert result.grid is not None and result.grid.occupied.sum() > 100
+    notes = tmp_path / "notes.mcap"
+    notes.write_text("not a recording")
+    with pytest.raises(ConfigError, match=r"notes\.mcap: not an MCAP recording"):
+        replay_slam(notes, SlamParams())

@@ -106,12 +106,15 @@ CAN = json_topic("/can/frames", "atemr.CanFrame", {"t": _number(), "id": {"type"
                  ["t", "id", "data"], "every frame on the robot's CAN bus (data in hex)")
 EVENTS = json_topic("/events", "atemr.Event", {"t": _number(), "kind": _STR, "text": _STR}, ["t", "kind", "text"],
                     "what the operator is told: faults, refusals, map changes, collisions")
+MAPPING = json_topic("/mapping", "atemr.MappingSession", {"t": _number(), "active": {"type": "boolean"},
+                                                         "collecting": {"type": "boolean"}},
+                     ["t", "active", "collecting"], "a mapping session began, paused or ended (replay --slam)")
 AGENT_STATE = json_topic("/agent/state", "atemr.agent.State", {"t": _number(), "state": _STR,
                                                               "mode": {"type": ["string", "null"]}},
                          ["t", "state"], "the agent's state and mode, when they change")
 
 ROS2_TOPICS = (SCAN, IMU, WHEEL_ODOM, ODOM, POSE, TF, TF_STATIC, MAP, PLAN, CAMERA, GROUND_TRUTH)
-TOPICS: dict[str, Topic] = {t.name: t for t in (*ROS2_TOPICS, CAN, HEALTH, EVENTS, AGENT_STATE, *_AGENT)}
+TOPICS: dict[str, Topic] = {t.name: t for t in (*ROS2_TOPICS, CAN, HEALTH, EVENTS, MAPPING, AGENT_STATE, *_AGENT)}
 
 
 def topic(name: str) -> Topic:
@@ -120,5 +123,5 @@ def topic(name: str) -> Topic:
 
 
 __all__ = ["AGENT_STATE", "AGENT_TOPICS", "CAMERA", "CAN", "EVENTS", "GROUND_TRUTH", "HEALTH", "IMU", "KIND_TOPIC",
-           "MAP", "ODOM", "PLAN", "POSE", "ROS2_TOPICS", "SCAN", "TF", "TF_STATIC", "TOPICS", "TOPIC_KIND",
+           "MAP", "MAPPING", "ODOM", "PLAN", "POSE", "ROS2_TOPICS", "SCAN", "TF", "TF_STATIC", "TOPICS", "TOPIC_KIND",
            "WHEEL_ODOM", "Topic", "topic"]

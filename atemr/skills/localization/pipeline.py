@@ -24,7 +24,7 @@ import numpy as np
 
 from atemr.errors import NavigationError, ProtocolError
 from atemr.io.sim.maps import OccupancyMap
-from atemr.msgs import ImuSample, LaserScan, Pose2D, WheelSpeeds
+from atemr.msgs import ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.skills.diff_drive import DiffDrive
 from atemr.skills.localization.amcl import PoseEstimate
 from atemr.skills.localization.geometry import as_array, as_pose, compose, relative
@@ -105,7 +105,11 @@ class LocalizationPipeline:
 
     def on_wheels(self, now: float, wheels: WheelSpeeds) -> None:
         """Measured wheel speeds at ``now``."""
-        if self.odometry.update_wheels(now, self.drive.measured(wheels)):
+        self.on_wheel_twist(now, self.drive.measured(wheels))
+
+    def on_wheel_twist(self, now: float, twist: Twist) -> None:
+        """The base twist the wheels measured at ``now`` (a recording keeps this: `atemr.robot.replay`)."""
+        if self.odometry.update_wheels(now, twist):
             self._remember()
 
     def on_imu(self, sample: ImuSample) -> None:
