@@ -32,6 +32,7 @@ from mcap.writer import CompressionType, Writer
 
 from atemr.errors import ConfigError
 from atemr.io.recording.topics import topic
+from atemr.io.rotation import part_path, prune_oldest
 
 log = logging.getLogger(__name__)
 
@@ -51,21 +52,6 @@ _FOOTER_BYTES = 1024
 
 #: A message to write: topic, log time (ns), encoded bytes.
 Entry = tuple[str, int, bytes]
-
-
-def part_path(base: Path, index: int) -> Path:
-    """Part ``index`` of a rotated recording: the base name itself, then ``name.1.mcap``, ``name.2.mcap``, ..."""
-    if index == 0:
-        return base
-    return base.with_name(f"{base.stem}.{index}{base.suffix}")
-
-
-def recording_files(directory: Path, pattern: str) -> list[Path]:
-    """The files of ``directory`` matching ``pattern``, oldest first (by modification time, then name)."""
-    if not directory.is_dir():
-        return []
-    files = [p for p in directory.glob(pattern) if p.is_file()]
-    return sorted(files, key=lambda p: (p.stat().st_mtime_ns, p.name))
 
 
 class _Part:
@@ -245,17 +231,8 @@ class RecordingWriter:
             part.close()
 
     def _prune(self) -> None:
-        if self.max_files is None:
-            return
-        mine = [p for p in self.parts if p.exists()]
-        files = [p for p in recording_files(self.base.parent, self.prune) if p not in mine] + mine  # own: newest last
-        for old in files[: max(0, len(files) - self.max_files)]:
-            if old == self.parts[-1]:
-                continue
-            try:
-                old.unlink()
-            except OSError as exc:
-                log.warning("cannot delete the old recording %s: %s", old, exc.strerror)
+        if self.max_files is not None:
+            prune_oldest(self.base.parent, self.prune, self.max_files, self.parts)
 
     def _fail(self, exc: OSError) -> None:
         where = self.parts[-1] if self.parts else self.base
@@ -313,4 +290,4 @@ class RecordingWriter:
         self.shutdown()
 
 
-__all__ = ["CHUNK_BYTES", "SUFFIX", "Entry", "RecordingWriter", "part_path", "recording_files"]
+__all__ = ["CHUNK_BYTES", "SUFFIX", "Entry", "RecordingWriter", "part_path"]
