@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+from mcap.exceptions import EndOfFile
 from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Schema
 from mcap.stream_reader import MAGIC_SIZE, StreamReader, breakup_chunk
 from mcap_ros2.decoder import DecoderFactory
@@ -93,6 +94,12 @@ class RecordingReader:
                 return
             except ConfigError:
                 raise
+            except EndOfFile:
+                if f.tell() == self.good_bytes:  # the last record is whole: the file simply stops there
+                    self._unfinished()
+                else:
+                    self._damaged(f.tell(), EndOfFile())
+                return
             except Exception as exc:  # any damage: the MCAP library, zstd, struct, a bad UTF-8 name...
                 self._damaged(f.tell(), exc)
                 return
@@ -134,8 +141,13 @@ class RecordingReader:
         self._channel_records[channel.id] = channel
         self.channels[channel.topic] = (name, channel.message_encoding)
 
+    def _unfinished(self) -> None:
+        self.warnings.append(f"{self.path}: offset {self.good_bytes}: the recording ends without its closing summary "
+                             f"(still being recorded, or cut short there); read {self.messages_read} messages")
+        log.info("%s", self.warnings[-1])
+
     def _damaged(self, offset: int, exc: Exception) -> None:
-        why = str(exc) or type(exc).__name__
+        why = "cut in the middle of a record" if isinstance(exc, EndOfFile) else str(exc) or type(exc).__name__
         self.warnings.append(f"{self.path}: offset {self.good_bytes}: the recording is cut short or damaged "
                              f"({why}); read {self.messages_read} messages up to its last complete chunk, the "
                              f"rest ({max(self.size_bytes - self.good_bytes, 0)} bytes) is skipped")

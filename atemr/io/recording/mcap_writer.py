@@ -196,9 +196,12 @@ class RecordingWriter:
                 self._add(item[1], item[2], item[3])
             elif kind == "open":
                 self._open_part(item[1])
-            elif kind == "flush" and self._part is not None:
-                self._part.flush()
-                self._size = self._part.size
+            elif kind == "flush":
+                if self._part is not None:
+                    self._part.flush()
+                    self._size = self._part.size
+                if len(item) > 1:
+                    item[1].set()
             elif kind == "close":
                 self._close_part()
         except OSError as exc:
@@ -262,6 +265,15 @@ class RecordingWriter:
         if self.threaded and self._thread is None and not self._closed:
             self._thread = threading.Thread(target=self._run, name="atemr-recording", daemon=True)
             self._thread.start()
+
+    def flush(self, timeout_s: float = 5.0) -> None:
+        """Close the open chunk and wait until it is in the file (for a reader of the running recording; not for
+        the control loop, which `tick` serves without waiting)."""
+        if not self._opened or self.error is not None:
+            return
+        done = threading.Event()
+        if self._put(("flush", done), 0) and self.threaded:
+            done.wait(timeout_s)
 
     def tick(self, now: float) -> None:
         """Close the open chunk, so a crash loses about one tick's worth (the robot ticks this at 1 Hz)."""
