@@ -229,9 +229,18 @@ def _recording_writer(robot: Robot, meta: dict[str, object]) -> RecordingWriter 
     wall = WallClock().wall_time()
     metadata = {k: "" if v is None else str(v) for k, v in meta.items()}
     metadata["started"] = time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(wall))
-    return RecordingWriter(trace_path(cfg, wall), max_bytes=int(cfg.trace.max_file_mb * 1024 * 1024),
-                           max_files=None if cfg.trace.file is not None else cfg.trace.max_files,
-                           prune=f"run-*{SUFFIX}", metadata=metadata, threaded=robot.scheduler.realtime)
+    mode = cfg.trace.writer
+    if mode == "auto":
+        mode = "process" if robot.scheduler.realtime else "inline"
+    options = {"max_bytes": int(cfg.trace.max_file_mb * 1024 * 1024),
+               "max_files": None if cfg.trace.file is not None else cfg.trace.max_files,
+               "prune": f"run-*{SUFFIX}", "metadata": metadata}
+    path = trace_path(cfg, wall)
+    if mode == "process":
+        from atemr.io.recording.writer_process import ProcessRecordingWriter
+
+        return ProcessRecordingWriter(path, **options)
+    return RecordingWriter(path, threaded=mode == "thread", **options)  # type: ignore[arg-type]
 
 
 def _add_recorder(robot: Robot) -> None:

@@ -56,14 +56,21 @@ MAX_CAN_FRAMES = 2000
 
 
 class MessageSink(Protocol):
-    """Where encoded messages go: the MCAP writer, the live server."""
+    """Where messages go: the MCAP writer, the live server. A sink whose ``encodes`` is true takes them as built
+    (`write_message`: a writer process encodes them), the others as bytes (`write`)."""
+
+    encodes: bool
 
     def wants(self, topic: str) -> bool:
         """Whether a message on ``topic`` would be used now (encoding is skipped when no sink wants it)."""
         ...
 
     def write(self, topic: str, log_time: int, data: bytes) -> None:
-        """Take one message; must not block."""
+        """Take one encoded message; must not block."""
+        ...
+
+    def write_message(self, topic: str, log_time: int, message: Any) -> None:
+        """Take one message as built (``encodes`` sinks); must not block."""
         ...
 
 
@@ -132,13 +139,24 @@ class RunRecorder:
             self.sources.can_tap.shutdown()
 
     # -- emitting -----------------------------------------------------------------------------------------------
-    def _emit(self, topic: str, t: float, build: Callable[[], Any]) -> Entry | None:
-        """Encode ``build()`` for ``topic`` at robot time ``t`` if a sink wants it, and hand it to each."""
+    def _emit(self, topic: str, t: float, build: Callable[[], Any], *, keep: bool = False) -> Entry | None:
+        """Build the message for ``topic`` at robot time ``t`` if a sink wants it and hand it to each: encoded
+        once for the sinks that take bytes, as built for a writer process. ``keep``: encode it here in any case
+        and return it (what a part's preamble repeats)."""
         wanting = [s for s in self.sinks if s.wants(topic)]
-        if not wanting:
+        if not wanting and not keep:
             return None
-        entry = (topic, ros.nanoseconds(t), self.codec.encode(topic, build()))
-        self._send(entry, wanting)
+        message = build()
+        log_time = ros.nanoseconds(t)
+        entry = (topic, log_time, self.codec.encode(topic, message)) if keep else None
+        for sink in wanting:
+            if sink.encodes:
+                sink.write_message(topic, log_time, entry[2] if entry is not None else message)
+                continue
+            if entry is None:
+                entry = (topic, log_time, self.codec.encode(topic, message))
+            sink.write(*entry)
+        self.messages += 1
         return entry
 
     def _wanted(self, topic: str) -> bool:
@@ -171,7 +189,7 @@ class RunRecorder:
     def on_scan(self, scan: LaserScan) -> None:
         if scan.sensor_pose != self._laser:
             self._laser = scan.sensor_pose
-            self._static = self._emit(tp.TF_STATIC.name, scan.t, lambda: ros.tf_msg(
+            self._static = self._emit(tp.TF_STATIC.name, scan.t, keep=True, build=lambda: ros.tf_msg(
                 [ros.transform(scan.t, ros.BASE_FRAME, ros.LASER_FRAME, scan.sensor_pose),
                  ros.transform(scan.t, ros.BASE_FRAME, ros.IMU_FRAME, Pose2D()),
                  ros.transform(scan.t, ros.BASE_FRAME, ros.CAMERA_FRAME, Pose2D())]))
@@ -206,17 +224,20 @@ class RunRecorder:
             self._camera(now)
 
     def _can(self, now: float) -> None:
+        """The frames the tap heard since the last tick, as one message (hundreds a second: one each would cost
+        the robot's thread more than all the sensors)."""
         tap = self.sources.can_tap
         if tap is None:
             return
+        frames = []
         for _ in range(MAX_CAN_FRAMES):
             msg = tap.recv(timeout=0)
             if msg is None:
-                return
-            if msg.is_error_frame:
-                continue
-            if self._wanted(tp.CAN.name):
-                self._emit_message(tp.CAN.name, now, _frame(now, msg))
+                break
+            if not msg.is_error_frame:
+                frames.append(msg)
+        if frames and self._wanted(tp.CAN.name):
+            self._emit_message(tp.CAN.name, now, {"t": now, "frames": [_frame(m) for m in frames]})
 
     def _transforms(self, now: float) -> None:
         loc = self.sources.localization
@@ -250,7 +271,7 @@ class RunRecorder:
             return
         self._path = path
         points = path if path is not None else np.zeros((0, 2))
-        self._plan = self._emit(tp.PLAN.name, now, lambda: ros.path_msg(now, points))
+        self._plan = self._emit(tp.PLAN.name, now, lambda: ros.path_msg(now, points), keep=True)
 
     def _map_changed(self, now: float) -> None:
         grid = self.sources.maps.active
@@ -258,7 +279,7 @@ class RunRecorder:
             return
         self._map = grid
         if self._pool is None:
-            self._map_bytes = self._emit(tp.MAP.name, now, lambda: ros.grid_msg(now, grid))
+            self._map_bytes = self._emit(tp.MAP.name, now, lambda: ros.grid_msg(now, grid), keep=True)
             return
         self._pool.submit(self._encode_map, now, grid)
 
@@ -308,8 +329,8 @@ class RunRecorder:
         self._emit(tp.CAMERA.name, now, lambda: ros.image_msg(now, jpeg(frame)))
 
 
-def _frame(t: float, msg: can.Message) -> dict[str, Any]:
-    return {"t": t, "id": msg.arbitration_id, "data": bytes(msg.data).hex(), "extended": msg.is_extended_id,
+def _frame(msg: can.Message) -> dict[str, Any]:
+    return {"id": msg.arbitration_id, "data": bytes(msg.data).hex(), "extended": msg.is_extended_id,
             "remote": msg.is_remote_frame}
 
 

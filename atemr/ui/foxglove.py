@@ -48,6 +48,8 @@ class FoxgloveLive:
     """A Foxglove WebSocket server on ``host``:``port`` (0: any free port) carrying the robot's topics."""
 
     name = "foxglove"
+    #: Takes encoded messages (`write`).
+    encodes = False
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765, *, backlog: int = BACKLOG,
                  robot_name: str = "ATEMR") -> None:
@@ -98,6 +100,9 @@ class FoxgloveLive:
         if channel is not None and channel.has_sinks():
             channel.log(data, log_time=log_time)
             self.sent += 1
+
+    def write_message(self, topic: str, log_time: int, message: Any) -> None:
+        raise TypeError("FoxgloveLive takes encoded messages: use write()")
 
     def resend(self, topic: str) -> None:
         """Send ``topic``'s last message again (a client just subscribed to it)."""

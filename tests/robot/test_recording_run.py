@@ -67,7 +67,7 @@ def test_the_mcap_reader_lists_every_channel_with_its_schema(run: Run) -> None:
     found = {c.topic: (summary.schemas[c.schema_id].name, summary.schemas[c.schema_id].encoding, c.message_encoding)
              for c in summary.channels.values()}
     assert found == {t.name: (t.schema_name, t.schema_encoding, t.message_encoding) for t in TOPICS.values()}
-    assert summary.statistics is not None and summary.statistics.message_count > 2000
+    assert summary.statistics is not None and summary.statistics.message_count > 1500
     assert found["/scan"] == ("sensor_msgs/msg/LaserScan", "ros2msg", "cdr")
 
 
@@ -135,7 +135,7 @@ def test_the_agent_health_events_and_camera_are_recorded(run: Run) -> None:
     assert [s["state"] for s in by_topic["/agent/state"]][-1] == "EXEC"
     frames = by_topic["/camera/image/compressed"]
     assert 12 <= len(frames) <= 17 and bytes(frames[0].data[:2]) == b"\xff\xd8"  # JPEG at 2 fps over 8 s
-    assert len({f["id"] for f in by_topic["/can/frames"]}) >= 4  # motors and the secondary core
+    assert len({f["id"] for m in by_topic["/can/frames"] for f in m["frames"]}) >= 4  # motors, secondary core
 
 
 def test_a_recording_cut_mid_chunk_reads_up_to_the_cut(run: Run, tmp_path: Path) -> None:

@@ -101,9 +101,10 @@ HEALTH = json_topic("/health", "atemr.Health", {"t": _number(), "components": {
     "type": "object", "additionalProperties": {"type": "object", "properties": {"ok": {"type": "boolean"},
                                                                                 "reason": _STR}}}},
     ["t", "components"], "every component's health, once a second")
-CAN = json_topic("/can/frames", "atemr.CanFrame", {"t": _number(), "id": {"type": "integer"}, "data": _STR,
-                                                   "extended": {"type": "boolean"}, "remote": {"type": "boolean"}},
-                 ["t", "id", "data"], "every frame on the robot's CAN bus (data in hex)")
+_FRAME = {"type": "object", "properties": {"id": {"type": "integer"}, "data": _STR, "extended": {"type": "boolean"},
+                                          "remote": {"type": "boolean"}}, "required": ["id", "data"]}
+CAN = json_topic("/can/frames", "atemr.CanFrames", {"t": _number(), "frames": {"type": "array", "items": _FRAME}},
+                 ["t", "frames"], "every frame on the robot's CAN bus since the last message (data in hex), 20 Hz")
 EVENTS = json_topic("/events", "atemr.Event", {"t": _number(), "kind": _STR, "text": _STR}, ["t", "kind", "text"],
                     "what the operator is told: faults, refusals, map changes, collisions")
 MAPPING = json_topic("/mapping", "atemr.MappingSession", {"t": _number(), "active": {"type": "boolean"},
