@@ -12,12 +12,11 @@ fast as possible); a progress bar goes to stderr. Exit 1 when the file was damag
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
-from atemr.cli.command import commands
+from atemr.cli.command import commands, report_and_warn
 from atemr.clock import WallClock
 from atemr.errors import ConfigError
 
@@ -66,13 +65,7 @@ class ReplayCommand:
         if args.slam and args.save_map:
             assert result.grid is not None
             report["saved_as"] = store.save(args.save_map, result.grid, activate=False)
-        if args.json:
-            print(json.dumps(report, indent=2))
-        else:
-            print_report(report)
-        for warning in result.warnings:
-            print(f"warning: {warning}", file=sys.stderr)
-        return 1 if result.warnings else 0
+        return report_and_warn(report, as_json=args.json, printer=print_report, warnings=result.warnings)
 
 
 def summary(result: Any) -> dict[str, Any]:

@@ -10,12 +10,11 @@ recording at all exits 2.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
-from atemr.cli.command import commands
+from atemr.cli.command import commands, report_and_warn
 
 
 class TraceCommand:
@@ -43,13 +42,7 @@ class TraceCommand:
         contents = read_agent_trace(args.file)
         timeline = TraceTimeline(contents.records, name=str(args.file), warnings=contents.warnings)
         report = {"file": str(args.file), **{k: v for k, v in timeline.summary().items() if k != "name"}}
-        if args.json:
-            print(json.dumps(report, indent=2))
-        else:
-            print_report(report)
-        for warning in contents.warnings:
-            print(f"warning: {warning}", file=sys.stderr)
-        return 1 if contents.warnings else 0
+        return report_and_warn(report, as_json=args.json, printer=print_report, warnings=contents.warnings)
 
 
 def print_report(report: dict[str, Any]) -> None:
