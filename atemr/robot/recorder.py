@@ -43,7 +43,6 @@ from atemr.msgs import ZERO_TWIST, ImuSample, LaserScan, Pose2D, Twist, WheelSpe
 from atemr.robot.health import HealthBoard
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
-from atemr.skills.diff_drive import Odometry
 from atemr.skills.localization.pipeline import LocalizationPipeline
 
 log = logging.getLogger(__name__)
@@ -102,7 +101,6 @@ class RunRecorder:
         self.codec = Codec()
         self.camera_period_s = 1.0 / camera_hz if camera_hz > 0 else float("inf")
         self.agent_recorder = AgentRecorder(sources.agent, self._on_record, pose_hz=pose_hz, meta=meta)
-        self.wheels = Odometry(sources.localization.drive)
         self.messages = 0
         self._ticks = 0
         self._next_health = float("-inf")
@@ -200,9 +198,8 @@ class RunRecorder:
 
     def on_wheels(self, now: float, wheels: WheelSpeeds) -> None:
         """A wheel sample as localization received it (the robot's wheel-odometry ticker calls this)."""
-        self.wheels.update_speeds(now, wheels)
-        self._emit(tp.WHEEL_ODOM.name, now, lambda: ros.odometry_msg(
-            now, self.wheels.pose, self.sources.localization.drive.measured(wheels), child=ros.BASE_FRAME))
+        self._emit(tp.WHEEL_ODOM.name, now,
+                   lambda: ros.twist_msg(now, self.sources.localization.drive.measured(wheels)))
 
     # -- the tick -----------------------------------------------------------------------------------------------
     def tick(self, now: float) -> None:

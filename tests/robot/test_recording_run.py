@@ -95,8 +95,8 @@ def test_wheel_odometry_decodes_to_what_localization_received(run: Run) -> None:
     got = decoded(run.path, "/wheel_odom")
     assert len(got) == len(run.wheels) > 300
     for (log_time, msg), (t, twist) in zip(got, run.wheels, strict=True):
-        assert log_time == round(t * 1e9) and msg.child_frame_id == "base_link"
-        assert (msg.twist.twist.linear.x, msg.twist.twist.angular.z) == (twist.linear_mps, twist.angular_radps)
+        assert log_time == round(t * 1e9) and msg.header.frame_id == "base_link"
+        assert (msg.twist.linear.x, msg.twist.angular.z) == (twist.linear_mps, twist.angular_radps)
     assert any(abs(t.linear_mps) > 0.05 for _, t in run.wheels), "the robot drove to its goal"
 
 

@@ -69,6 +69,7 @@ class RecordingReader:
         self.messages_read = 0
         self._schemas: dict[int, Schema] = {}
         self._channel_records: dict[int, Channel] = {}
+        self._ignored: set[int] = set()
         self._decoders = DecoderFactory()
         self._decode: dict[int, Callable[[bytes], Any]] = {}
 
@@ -89,7 +90,7 @@ class RecordingReader:
         while True:
             try:
                 record = next(records)
-                batch = self._expand(record)
+                batch = self._expand(record, topics)
             except StopIteration:
                 return
             except ConfigError:
@@ -110,7 +111,7 @@ class RecordingReader:
             if isinstance(record, (DataEnd, Footer)):
                 return
 
-    def _expand(self, record: Any) -> list[Recorded]:
+    def _expand(self, record: Any, topics: set[str] | None) -> list[Recorded]:
         """The messages of ``record`` (a whole chunk, or one record), after taking in its schemas and channels."""
         inner = [record]
         if isinstance(record, Chunk):
@@ -122,8 +123,8 @@ class RecordingReader:
             if isinstance(r, Schema):
                 self._schemas[r.id] = r
             elif isinstance(r, Channel):
-                self._add_channel(r)
-            elif isinstance(r, Message):
+                self._add_channel(r, topics)
+            elif isinstance(r, Message) and r.channel_id not in self._ignored:
                 channel = self._channel_records.get(r.channel_id)
                 if channel is None:
                     raise ValueError(f"a message on channel {r.channel_id}, which no channel record defines")
@@ -131,11 +132,18 @@ class RecordingReader:
         self.messages_read += len(out)
         return out
 
-    def _add_channel(self, channel: Channel) -> None:
+    def _add_channel(self, channel: Channel, topics: set[str] | None) -> None:
+        """Take in a channel; one of the topics asked for that carries another schema than the table's is an error
+        (one not asked for is only listed: a replay does not care what an older writer put on /can/frames)."""
         schema = self._schemas.get(channel.schema_id)
         name = schema.name if schema is not None else ""
         known = TOPICS.get(channel.topic)
-        if known is not None and (name != known.schema_name or channel.message_encoding != known.message_encoding):
+        wrong = known is not None and (name != known.schema_name or channel.message_encoding != known.message_encoding)
+        if wrong and topics is not None and channel.topic not in topics:
+            self.channels[channel.topic] = (name, channel.message_encoding)
+            self._ignored.add(channel.id)
+            return
+        if known is not None and wrong:
             raise ConfigError(f"topic {channel.topic} carries {name or 'no schema'} ({channel.message_encoding}), "
                               f"expected {known.schema_name} ({known.message_encoding})", file=self.path)
         self._channel_records[channel.id] = channel

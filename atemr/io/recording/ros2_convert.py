@@ -124,9 +124,15 @@ def odometry_msg(t: float, p: Pose2D, twist: Twist, *, frame: str = ODOM_FRAME, 
                       "covariance": [0.0] * 36}}
 
 
+def twist_msg(t: float, twist: Twist, frame: str = BASE_FRAME) -> Msg:
+    """A TwistStamped: the base's velocity (forward, turn rate) in ``frame``."""
+    return {"header": header(t, frame), "twist": {"linear": {"x": twist.linear_mps, "y": 0.0, "z": 0.0},
+                                                  "angular": {"x": 0.0, "y": 0.0, "z": twist.angular_radps}}}
+
+
 def twist_from(msg: Any) -> Twist:
-    """The velocity of a decoded Odometry."""
-    return Twist(float(msg.twist.twist.linear.x), float(msg.twist.twist.angular.z))
+    """The velocity of a decoded TwistStamped."""
+    return Twist(float(msg.twist.linear.x), float(msg.twist.angular.z))
 
 
 def pose_cov_msg(t: float, p: Pose2D, cov3: NDArray[np.float64] | None) -> Msg:
@@ -183,7 +189,34 @@ def grid_from(msg: Any, name: str = "map") -> OccupancyMap:
                         pose_from(info.origin), name=name)
 
 
-__all__ = ["BASE_FRAME", "CAMERA_FRAME", "IMU_FRAME", "LASER_FRAME", "MAP_FRAME", "ODOM_FRAME",
-           "covariance3", "covariance6", "grid_from", "grid_msg", "header", "image_msg", "imu_from", "imu_msg",
-           "nanoseconds", "odometry_msg", "path_msg", "pose_cov_msg", "pose_from", "scan_from", "scan_msg",
-           "seconds", "stamp", "tf_msg", "transform", "transforms_from", "twist_from", "yaw_of"]
+__all__ = [
+    "BASE_FRAME",
+    "CAMERA_FRAME",
+    "IMU_FRAME",
+    "LASER_FRAME",
+    "MAP_FRAME",
+    "ODOM_FRAME",
+    "covariance3",
+    "covariance6",
+    "grid_from",
+    "grid_msg",
+    "header",
+    "image_msg",
+    "imu_from",
+    "imu_msg",
+    "nanoseconds",
+    "odometry_msg",
+    "path_msg",
+    "pose_cov_msg",
+    "pose_from",
+    "scan_from",
+    "scan_msg",
+    "seconds",
+    "stamp",
+    "tf_msg",
+    "transform",
+    "transforms_from",
+    "twist_from",
+    "twist_msg",
+    "yaw_of",
+]

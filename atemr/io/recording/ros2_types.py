@@ -21,6 +21,7 @@ _FIELDS: dict[str, str] = {
     "geometry_msgs/PoseWithCovariance": "geometry_msgs/Pose pose\nfloat64[36] covariance",
     "geometry_msgs/PoseWithCovarianceStamped": "std_msgs/Header header\ngeometry_msgs/PoseWithCovariance pose",
     "geometry_msgs/Twist": "geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular",
+    "geometry_msgs/TwistStamped": "std_msgs/Header header\ngeometry_msgs/Twist twist",
     "geometry_msgs/TwistWithCovariance": "geometry_msgs/Twist twist\nfloat64[36] covariance",
     "geometry_msgs/Transform": "geometry_msgs/Vector3 translation\ngeometry_msgs/Quaternion rotation",
     "geometry_msgs/TransformStamped": "std_msgs/Header header\nstring child_frame_id\n"
@@ -83,6 +84,6 @@ def schema_text(short: str) -> str:
 #: The types a recording's ROS 2 channels carry.
 MESSAGE_TYPES = ("sensor_msgs/LaserScan", "sensor_msgs/Imu", "sensor_msgs/CompressedImage", "nav_msgs/Odometry",
                  "nav_msgs/OccupancyGrid", "nav_msgs/Path", "tf2_msgs/TFMessage",
-                 "geometry_msgs/PoseWithCovarianceStamped")
+                 "geometry_msgs/PoseWithCovarianceStamped", "geometry_msgs/TwistStamped")
 
 __all__ = ["MESSAGE_TYPES", "full_name", "schema_text"]

@@ -87,8 +87,8 @@ TOPIC_KIND = {name: kind for kind, name in KIND_TOPIC.items()}
 
 SCAN = ros2("/scan", "sensor_msgs/LaserScan", "every lidar revolution, in the laser frame")
 IMU = ros2("/imu", "sensor_msgs/Imu", "every IMU sample (yaw rate, accelerations)")
-WHEEL_ODOM = ros2("/wheel_odom", "nav_msgs/Odometry",
-                  "the wheels' measured twist as localization receives it (pose: the wheels alone)")
+WHEEL_ODOM = ros2("/wheel_odom", "geometry_msgs/TwistStamped",
+                  "every wheel sample's measured twist, as localization receives it (50 Hz)")
 ODOM = ros2("/odom", "nav_msgs/Odometry", "the fused odometry (wheels, IMU, scan matching) in odom")
 POSE = ros2("/pose", "geometry_msgs/PoseWithCovarianceStamped", "the localized pose in map, while localized")
 TF = ros2("/tf", "tf2_msgs/TFMessage", "map -> odom (while localized) and odom -> base_link")
