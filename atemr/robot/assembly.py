@@ -39,7 +39,7 @@ from atemr.io.trace_file import SUFFIX, TraceWriter
 from atemr.msgs import Twist, WheelSpeeds
 from atemr.robot.core import Robot, Ticker
 from atemr.robot.health import FRESH_S, HealthBoard
-from atemr.robot.inputs import MotionInputs
+from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP, MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
 from atemr.robot.parts import RobotParts
@@ -293,7 +293,6 @@ class _Primary:
 
 
 #: The safety-stop reason held while the CAN bus is faulted (`MotionInputs.set_safety_stop`).
-CAN_BUS_STOP = "CAN bus fault"
 
 
 def _add_can_bus(robot: Robot, inputs: MotionInputs, health: HealthBoard) -> BusSupervisor:
@@ -336,7 +335,7 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
 
     def on_heartbeat(ok: bool) -> None:
         # DESIGN §10: both cores stop the motors when the heartbeat fails for 2 s.
-        inputs.set_safety_stop("heartbeat lost", not ok)
+        inputs.set_safety_stop(HEARTBEAT_STOP, not ok)
         robot.event("heartbeat", "0x157 heartbeat " + ("restored" if ok else "lost: motors stopped"))
 
     link_inbox, motors_inbox = can_bus.inbox("secondary_link"), can_bus.inbox("motors")

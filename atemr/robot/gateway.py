@@ -41,15 +41,25 @@ from atemr.fsm.agent import DEFAULT_AGENT_FILE
 from atemr.io.devices.drivers import camera_rate_hz
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
+from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
+from atemr.robot.plain_words import plain_outcome, plain_refusal
 from atemr.robot.port import jpeg
 from atemr.robot.reload import ReloadWatcher
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
 from atemr.skills.ramp import checked_limits
 from atemr.ui.gateway import CommandResult, MapImage
-from atemr.ui.snapshot import points_json, pose_json, render_map, scan_points, status_levels, system_json
-from atemr.ui.state import AgentState, MissionJson, Mode, RobotState
+from atemr.ui.snapshot import (
+    navigation_json,
+    points_json,
+    pose_json,
+    render_map,
+    scan_points,
+    status_levels,
+    system_json,
+)
+from atemr.ui.state import AgentState, MissionJson, Mode, RobotState, StopCause
 
 log = logging.getLogger(__name__)
 
@@ -128,6 +138,8 @@ class RobotGatewayImpl:
         self._map_key: tuple[int, int] | None = None
         self._listing: dict[str, tuple[int, list[str]]] = {}
         self._wifi = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-wifi")
+        #: The newest finished task already told as an event (goal reached, mission finished).
+        self._last_report: dict[str, Any] | None = None
         #: Reads and prepares selected maps off the robot's thread, one at a time.
         self._loader = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-maps")
         #: The map being loaded or waiting for its swap (another selection is refused meanwhile).
@@ -166,6 +178,10 @@ class RobotGatewayImpl:
                 self.robot.event("refused", f"{trigger}: {result.reason}")
         for event in self.robot.parts.localization.drain_events():
             self.robot.event(f"localization {event.kind}", event.detail)
+        reports = self.agent.task_reports
+        if reports and reports[-1] is not self._last_report:
+            self._last_report = reports[-1]
+            self.robot.event(*plain_outcome(reports[-1]))
 
     def _queue(self, what: str, action: Callable[[float], object]) -> CommandResult:
         """Queue ``action(now)`` for the robot's thread; refused when `MAX_QUEUED_ACTIONS` wait already."""
@@ -177,8 +193,8 @@ class RobotGatewayImpl:
     def _submit(self, trigger: str, **kwargs: Any) -> CommandResult:
         """Queue ``trigger`` for the agent if it may be taken in the current state; else refuse at once."""
         why = self.agent.precheck(trigger)
-        if why is not None:
-            return CommandResult.refused(why)
+        if why is not None:  # the agent's own words stay on the Agent page; the carer reads plain ones
+            return CommandResult.refused(plain_refusal(trigger, self.agent.state))
         command_id = self.agent.submit(trigger, origin="dashboard", **kwargs)
         with self._lock:
             self._watched.append((command_id, trigger))
@@ -259,8 +275,11 @@ class RobotGatewayImpl:
             "global_path": points_json(status.global_path) if running and status is not None else [],
             "local_path": points_json(status.local_trajectory) if running and status is not None else [],
             "goal": pose_json(goal) if running and agent_state == "EXEC" else None,
+            "navigation": navigation_json(status) if running and agent_state == "EXEC" and status is not None
+            else None,
             "wheel_speeds": {"left_radps": round(wheels.left_radps, 3), "right_radps": round(wheels.right_radps, 3)},
             "emergency": bool(last is not None and (last.emergency or last.cliff_stop)),
+            "stop_cause": self._stop_cause(),
             "level1": level1,
             "level2": level2,
             "system": system_json(parts.system_monitor.latest),
@@ -276,6 +295,21 @@ class RobotGatewayImpl:
             "autonomy": {"level": autonomy["level"], "levels": autonomy["levels"], "timeout_s": autonomy["timeout_s"],
                          "pending": autonomy["pending"], "now": autonomy["now"]},
         }
+
+    def _stop_cause(self) -> StopCause | None:
+        """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge, an obstacle
+        in the stop zone, the heartbeat between the cores lost, a motor fault, a CAN bus fault."""
+        parts = self.robot.parts
+        last = parts.motion.last
+        stops = self.inputs.safety_stops
+        causes: list[tuple[bool, StopCause]] = [
+            (last is not None and last.cliff_stop, "cliff"),
+            (last is not None and last.emergency, "obstacle"),
+            (HEARTBEAT_STOP in stops, "heartbeat"),
+            (parts.driver.fault is not None, "motor"),
+            (CAN_BUS_STOP in stops, "bus"),
+        ]
+        return next((cause for held, cause in causes if held), None)
 
     def map_image(self) -> MapImage | None:
         """The drawable map, rendered once per map version."""

@@ -70,6 +70,7 @@ class KinematicGateway:
         self.mapping = False
         self.limits = (0.5, 1.0)
         self.awareness = False
+        self.stop_cause: str | None = None
         self.active_map = "room"
         self.maps = ["other", "room"]
         grid = Image.new("L", (120, 80), 254)
@@ -117,6 +118,10 @@ class KinematicGateway:
                 "map_version": self.map.version, "pose": {"x_m": p.x_m, "y_m": p.y_m, "yaw_rad": p.yaw_rad},
                 "scan": scan, "global_path": [[p.x_m, p.y_m], [goal.x_m, goal.y_m]] if goal else [],
                 "local_path": [], "goal": goal and {"x_m": goal.x_m, "y_m": goal.y_m, "yaw_rad": goal.yaw_rad},
+                "navigation": goal and {"distance_left_m": round(math.hypot(goal.x_m - p.x_m, goal.y_m - p.y_m), 2),
+                                        "eta_s": round(math.hypot(goal.x_m - p.x_m, goal.y_m - p.y_m)
+                                                       / self.limits[0], 1)},
+                "stop_cause": self.stop_cause,
                 "wheel_speeds": {"left_radps": self.applied.linear_mps / 0.1,
                                  "right_radps": self.applied.linear_mps / 0.1},
                 "emergency": False,
