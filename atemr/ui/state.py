@@ -15,6 +15,9 @@ from __future__ import annotations
 import types
 from typing import Any, Literal, TypedDict, Union, get_args, get_origin, get_type_hints, is_typeddict
 
+#: How often the robot sends its state; a page that hears nothing for two periods says the picture is old.
+STATE_RATE_HZ = 10.0
+
 AgentState = Literal["UNDEFINED", "STARTUP", "IDLE", "EXEC", "MAPPING", "SHUTDOWN", "ERROR"]
 Mode = Literal["MANUAL", "AUTO"]
 #: Why a safety layer holds the robot stopped, the most urgent first (see `STOP_CAUSES`).

@@ -158,16 +158,10 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map.image !== null")
-    page.click("#map-ctl")  # SEND CMD
-    page.click("#map-cmd")  # refused in MANUAL
-    assert "switch to AUTO first" in page.inner_text("#command-result")
     # AUTO is refused until every level-1 status is OK (the IR sensors come up after the secondary core boots)
     wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)")
-    page.click("#mode-toggle")
-    wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
-    assert robot_site.agent_state == "IDLE.AUTO"
-    page.click("#map-cmd")
-    assert page.inner_text("#map-cmd") == "SEND GOAL"
+    page.click("#go-here")  # GO HERE: the next press on the map is the goal, a drag its heading
+    assert "Tap where the robot should go" in page.inner_text("#map-hint")
     start = robot_site.sim.pose
     gx, gy = start.x_m + 1.0, start.y_m + 0.5
     x, y = screen_point(page, gx, gy)
@@ -175,12 +169,18 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
     page.mouse.down()
     page.mouse.move(x + 40, y, steps=4)  # dragged to the right: heading along +x
     page.mouse.up()
+    assert page.is_visible("#goal-confirm") and robot_site.agent_state == "IDLE.MANUAL"  # nothing sent yet
+    page.click("#goal-go")  # CONFIRM: switches to AUTO, then sends the goal
+    wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
     wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
+    wait_for(page, "document.getElementById('goal-progress').textContent.startsWith('On the way: ')")
     wait_for(page, "ATEMR.state.goal !== null && ATEMR.state.global_path.length > 2")
     goal = page.evaluate("ATEMR.state.goal")
     assert abs(goal["x_m"] - gx) < 0.1 and abs(goal["y_m"] - gy) < 0.1 and abs(goal["yaw_rad"]) < 0.3
     page.screenshot(path=str(shots / "control-auto-goal.png"), full_page=True)
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=20000)
+    wait_for(page, "document.getElementById('goal-progress').textContent === 'Arrived.'")
+    assert "Goal reached." in page.inner_text("#alerts")
     assert robot_site.sim.pose.distance_to(start) > 0.8  # it drove there
     assert math.hypot(robot_site.sim.pose.x_m - gx, robot_site.sim.pose.y_m - gy) < 0.3
 
@@ -210,7 +210,7 @@ def test_mapping_begin_end_and_save_on_the_robot(robot_site, page, shots, helper
     assert (robot_site.data_dir / "maps" / "kitchen.yaml").is_file()
     assert robot_site.robot.parts.maps.active_name == "kitchen"
     page.select_option("#map-select", "studio")
-    wait_for(page, "document.getElementById('command-result').textContent === 'map_select: ok'")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Map: done'")
     wait_for(page, "ATEMR.state.active_map === 'studio'")
 
 
@@ -308,7 +308,7 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
     page.mouse.down()
     page.mouse.move(x, y - 40, steps=3)  # dragged up: heading along +y
     page.mouse.up()
-    wait_for(page, "document.getElementById('command-result').textContent === 'sim_kidnap: ok'")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Kidnap: done'")
     for _ in range(40):  # applied at the next physics tick, on the robot's thread
         pose = robot_site.sim.pose
         if pose != start:
@@ -319,7 +319,7 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
     page.screenshot(path=str(shots / "control-kidnap.png"), full_page=True)
     # Localization was not told: FIND POSE has the robot find itself, and the map shows it where it now is.
     page.click("#localize-global")
-    wait_for(page, "document.getElementById('command-result').textContent === 'localize_globally: ok'")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Find position: done'")
     wait_for(page, f"ATEMR.state.pose !== null && Math.hypot(ATEMR.state.pose.x_m - {pose.x_m}, "
                    f"ATEMR.state.pose.y_m - {pose.y_m}) < 0.15", timeout=20_000)
 
@@ -332,7 +332,7 @@ def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
     images = robot_site.data_dir / "media" / "images"
     for _ in range(2):
         page.click("#capture")
-        wait_for(page, "document.getElementById('command-result').textContent === 'capture_image: ok'")
+        wait_for(page, "document.getElementById('command-result').textContent === 'Capture: done'")
         page.evaluate("document.getElementById('command-result').textContent = ''")
     files = sorted(images.glob("*.jpg"))
     assert len(files) == 2
@@ -409,7 +409,7 @@ def test_several_robots_on_one_dashboard_are_told_apart(ready_site, page, shots,
         page.select_option("#robot", "KAY")
         wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
         page.click("#capture")
-        wait_for(page, "document.getElementById('command-result').textContent === 'capture_image: ok'")
+        wait_for(page, "document.getElementById('command-result').textContent === 'Capture: done'")
     finally:
         stop.set()
         publisher.join(timeout=5)
@@ -432,7 +432,8 @@ def test_a_gated_transition_is_confirmed_from_the_page(robot_site, page, shots, 
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
     page.click("#mapping-toggle")
     wait_for(page, "!document.getElementById('autonomy-request').hidden")
-    assert "begin_mapping: IDLE.MANUAL → MAPPING" in page.inner_text("#autonomy-what")
+    assert page.inner_text("#autonomy-what") == "may it start mapping?"
+    assert "begin_mapping: IDLE.MANUAL → MAPPING" in page.get_attribute("#autonomy-what", "title")
     assert robot_site.agent_state == "IDLE.MANUAL", "it waits for the operator"
     wait_for(page, "ATEMR.state.events.some((e) => e.kind === 'autonomy' && e.text.includes('waits for the operator'))")
     page.screenshot(path=str(shots / "autonomy-request.png"), full_page=True)
