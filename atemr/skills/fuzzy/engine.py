@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from atemr.errors import AtemrError, ConfigError
-from atemr.skills.fuzzy.compiled import FIRING_EPSILON, CompiledEngine, integrate, weighted_kind
+from atemr.skills.fuzzy.compiled import FIRING_EPSILON, CompiledEngine, compile_engine, integrate, weighted_kind
 from atemr.skills.fuzzy.defuzzifiers import Centroid, Defuzzifier, IntegralDefuzzifier, WeightedDefuzzifier
 from atemr.skills.fuzzy.discrete_centroid import DiscreteCentroid
 from atemr.skills.fuzzy.norms import HEDGES, SNORMS, TNORMS, Norm, maximum
@@ -121,7 +121,7 @@ class Engine:
             if isinstance(d, IntegralDefuzzifier):
                 x = d.samples(out.minimum, out.maximum)
                 self._grids[out.name] = (x, {t.name: t.membership(x) for t in out.terms})
-        object.__setattr__(self, "_plan", CompiledEngine(self, self._grids))
+        object.__setattr__(self, "_plan", compile_engine(self, self._grids))
 
     @property
     def input_names(self) -> tuple[str, ...]:
