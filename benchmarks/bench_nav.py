@@ -109,7 +109,7 @@ def _best(fn: Any, repeats: int) -> tuple[float, Any]:
     return best, out
 
 
-def run(quick: bool = False) -> list[dict[str, Any]]:
+def run(quick: bool = False) -> list[dict[str, Any]]:  # noqa: PLR0915  the benchmark's rows measured in order, one block each
     rows: list[dict[str, Any]] = []
     occ = make_grid()
     cm = Costmap(occ)

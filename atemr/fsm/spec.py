@@ -284,7 +284,7 @@ def _where(node: Any, source: Source, path: str) -> Where:
     return Where(source.name, line, column, path)
 
 
-def _parse_states(raw: list[Any], parent: str | None, source: Source, path: str,
+def _parse_states(raw: list[Any], parent: str | None, source: Source, path: str,  # noqa: PLR0912  checks one state's keys in document order, one error each
                   out: dict[str, StateSpec]) -> list[str]:
     names: list[str] = []
     for i, node in enumerate(raw):

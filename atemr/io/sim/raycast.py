@@ -69,7 +69,7 @@ class GridCaster:
         #: Distance from each cell's centre to the nearest blocked cell's centre, in cells (inf: none).
         self.clearance_cells = edt[1:-1, 1:-1]
 
-    def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray, max_range_m: float) -> GridHits:
+    def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray, max_range_m: float) -> GridHits:  # noqa: PLR0915  the simulator's hot ray walk: its per-ray arrays stay in one frame
         """One ray per angle from ``origin_xy`` (grid frame, metres from the lower-left corner), up to
         ``max_range_m``; cells outside the grid are empty."""
         res = self.resolution_m

@@ -232,7 +232,7 @@ def load_world(name_or_path: str | Path, *, robot_radius_m: float = 0.25) -> Wor
     return _parse_world(doc, path)
 
 
-def _parse_world(doc: Any, path: Path) -> World:
+def _parse_world(doc: Any, path: Path) -> World:  # noqa: PLR0912, PLR0915  one block per section of the world file, in file order
     file = str(path)
     d = _Doc(file)
     if not isinstance(doc, dict):
