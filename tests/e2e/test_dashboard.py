@@ -324,7 +324,7 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
                    f"ATEMR.state.pose.y_m - {pose.y_m}) < 0.15", timeout=20_000)
 
 
-def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
+def test_media_captured_and_recorded_then_played_previewed_downloaded_and_deleted(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
@@ -336,7 +336,28 @@ def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
         page.evaluate("document.getElementById('command-result').textContent = ''")
     files = sorted(images.glob("*.jpg"))
     assert len(files) == 2
+    page.click("#record")
+    wait_for(page, "ATEMR.state.recording === true")
+    page.wait_for_timeout(1500)
+    page.click("#record")
+    wait_for(page, "ATEMR.state.recording === false")
+    videos = list((robot_site.data_dir / "media" / "videos").iterdir())
+    assert [v.suffix for v in videos] == [".mp4"], videos
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
     page.goto(f"{robot_site.url}/media")
+    # the video the recorder wrote plays in Chromium's own <video>: metadata and a first frame decoded
+    video = f'#videos li[data-name="{videos[0].name}"] video'
+    page.evaluate(f"(() => {{ const v = document.querySelector('{video}'); v.preload = 'auto'; v.load(); }})()")
+    wait_for(page, f"document.querySelector('{video}').readyState >= 2", timeout=15_000)
+    duration, width, error = page.evaluate(f"(() => {{ const v = document.querySelector('{video}'); "
+                                           "return [v.duration, v.videoWidth, v.error && v.error.message]; })()")
+    assert error is None and 1.0 < duration < 3.0 and width == 640
+    # thumbnails made by the server: the images' and the video's poster
+    wait_for(page, "[...document.querySelectorAll('#images img')].every(i => i.complete && i.naturalWidth === 320)")
+    poster = page.evaluate(f"document.querySelector('{video}').poster")
+    assert page.request.get(poster).headers["content-type"] == "image/jpeg"
     page.screenshot(path=str(shots / "media.png"), full_page=True)
     first = files[0].name
     with page.expect_download() as info:
@@ -347,9 +368,25 @@ def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
     assert data == files[0].read_bytes()
     with Image.open(io.BytesIO(data)) as image:
         assert image.size == (640, 480)
+    # deleting one asks first: dismissed, nothing goes; accepted, it goes
+    questions: list[str] = []
+
+    def answer(dialog: Any, accept: bool) -> None:
+        questions.append(dialog.message)
+        if accept:
+            dialog.accept()
+        else:
+            dialog.dismiss()
+
+    page.once("dialog", lambda d: answer(d, False))
+    page.click(f'li[data-name="{first}"] button.delete-one')
+    page.wait_for_timeout(300)
+    assert questions == [f"Delete {first}? This cannot be undone."] and files[0].exists()
+    page.once("dialog", lambda d: answer(d, True))
     page.click(f'li[data-name="{first}"] button.delete-one')
     page.wait_for_selector(f"text=Deleted {first}")
     assert not files[0].exists() and files[1].exists()
+    assert not errors, errors
 
 
 def test_phone_sized_screen(ready_site, browser, shots, helpers):
