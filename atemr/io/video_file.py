@@ -10,9 +10,9 @@ front when the file is closed (``+faststart``), so a browser starts playing befo
 A PyAV build without an H.264 encoder falls back to WebM/VP8, which every browser plays and VLC opens
 (`video_format` picks the first that the build has; `FORMATS` is the order).
 
-Why the encoder's ``ultrafast`` preset: the robot's CPU goes to the control loop first. At 640×480 it costs
-about 8 ms a frame on one core of a desktop CPU (``veryfast``: about 13 ms), for files roughly twice as large,
-which the media page's delete keeps in check.
+Why the encoder's ``ultrafast`` preset and one encoder thread: the robot's CPU goes to the control loop first.
+At 640×480 it costs about 8 ms a frame of noise (the worst case) on one core of a development machine
+(``veryfast``: about 13 ms, for files about half as large).
 
 Timing: each frame carries the time it was taken (the robot's clock), kept to the millisecond, so a camera
 that skips a frame or a robot thread that runs late gives a video that still plays at the real speed.
@@ -112,6 +112,7 @@ class VideoWriter:
                 raise VideoFileError(f"{fmt.codec} is not a video encoder")
             stream.width, stream.height, stream.pix_fmt = width - width % 2, height - height % 2, "yuv420p"
             stream.codec_context.time_base = TIME_BASE
+            stream.codec_context.thread_count = 1  # one core at most: the robot's control loop needs the others
             stream.time_base = TIME_BASE
             if fmt.bit_rate is not None:
                 stream.bit_rate = fmt.bit_rate
