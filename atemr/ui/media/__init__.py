@@ -12,13 +12,15 @@ gives the same listing as JSON.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any, cast
 
 from flask import Blueprint, abort, current_app, flash, jsonify, redirect, render_template, request, send_file, url_for
 from werkzeug.wrappers import Response
 
 from atemr.ui.gateway import RobotGateway
-from atemr.ui.media.files import KINDS, PAGE_SIZE, THUMBNAIL_KINDS, VIEWABLE, MediaError, MediaStore, mimetype
+from atemr.ui.media.files import KINDS, PAGE_SIZE, MediaError, MediaStore, mimetype
 from atemr.ui.security import permission_required, role_required
 
 bp = Blueprint("media", __name__, template_folder="templates")
@@ -92,27 +94,25 @@ def download(kind: str, name: str) -> Response:
         abort(404, description=str(exc))
 
 
+def _found(find: Callable[[str, str], Path], kind: str, name: str) -> Path:
+    """``find(kind, name)``, or 404 with the store's reason."""
+    try:
+        return find(kind, name)
+    except MediaError as exc:
+        abort(404, description=str(exc))
+
+
 @bp.route("/media/<kind>/<name>/view")
 @role_required("user")
 def view(kind: str, name: str) -> Response:
-    """An image or a video a browser shows in place (`VIEWABLE`), inline, with byte ranges for seeking."""
-    try:
-        path = _store().path(kind, name)
-    except MediaError as exc:
-        abort(404, description=str(exc))
-    if kind not in THUMBNAIL_KINDS or path.suffix.lower() not in VIEWABLE:
-        abort(404, description=f"{name} is not shown in a browser; download it")
-    return send_file(path, mimetype=mimetype(name), conditional=True)
+    """An image or a video a browser shows in place, inline, with byte ranges for seeking."""
+    return send_file(_found(_store().viewable, kind, name), mimetype=mimetype(name), conditional=True)
 
 
 @bp.route("/media/<kind>/<name>/thumbnail.jpg")
 @role_required("user")
 def thumbnail(kind: str, name: str) -> Response:
-    try:
-        path = _store().thumbnail(kind, name)
-    except MediaError as exc:
-        abort(404, description=str(exc))
-    return send_file(path, mimetype="image/jpeg", max_age=THUMBNAIL_MAX_AGE_S)
+    return send_file(_found(_store().thumbnail, kind, name), mimetype="image/jpeg", max_age=THUMBNAIL_MAX_AGE_S)
 
 
 @bp.route("/media/<kind>/<name>/delete", methods=["POST"])

@@ -143,6 +143,13 @@ class MediaStore:
             raise MediaError(f"no such {kind[:-1]}: {_shown(name)}")
         return path
 
+    def viewable(self, kind: str, name: str) -> Path:
+        """An image or video that a browser shows in place (`VIEWABLE`); `MediaError` for any other file."""
+        path = self.path(kind, name)
+        if kind not in THUMBNAIL_KINDS or path.suffix.lower() not in VIEWABLE:
+            raise MediaError(f"{_shown(name)} is not shown in a browser; download it")
+        return path
+
     def thumbnail(self, kind: str, name: str) -> Path:
         """The thumbnail JPEG of an image or a video (made now on first request: see `Thumbnails`)."""
         if check_kind(kind) not in THUMBNAIL_KINDS:
