@@ -15,8 +15,8 @@ navigation's costmap) in the gateway's own worker thread, one map at a time, whi
 only the finished map is queued, and the pump swaps it in between two ticks (`MapService.swap`).
 
 Building the gateway schedules two small components on the robot: the pump above and, when the robot
-has a camera, the `VideoRecorder`. Build it before the robot starts (`atemr.robot.dashboard.add_dashboard`
-does).
+has a camera, the `VideoRecorder` (which only queues raw frames there; its own worker encodes). Build it
+before the robot starts (`atemr.robot.dashboard.add_dashboard` does).
 """
 
 from __future__ import annotations
@@ -147,9 +147,12 @@ class RobotGatewayImpl:
         robot.add(_Pump(self), pump_rate_hz)
         self.recorder: VideoRecorder | None = None
         if self.camera is not None:
-            self.recorder = VideoRecorder(self.config.data_dir / "media" / "videos", self._camera_frame,
-                                          WallClock().wall_time)
-            robot.add(self.recorder, camera_rate_hz(self.config))
+            camera = self.camera
+            rate_hz = camera_rate_hz(self.config)
+            self.recorder = VideoRecorder(self.config.data_dir / "media" / "videos", lambda: camera.latest,
+                                          WallClock().wall_time, rate_hz=rate_hz,
+                                          on_failure=lambda why: robot.event("video", why))
+            robot.add(self.recorder, rate_hz)
 
     # -- the robot's thread ------------------------------------------------------------------------------
     def _pump(self, now: float) -> None:

@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import io
 import math
+import os
 import re
 from pathlib import Path
 from typing import Any
 
+import av
 import pytest
 from PIL import Image
 
@@ -324,7 +326,7 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
                    f"ATEMR.state.pose.y_m - {pose.y_m}) < 0.15", timeout=20_000)
 
 
-def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
+def test_media_captured_and_recorded_then_played_previewed_downloaded_and_deleted(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
@@ -336,7 +338,42 @@ def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
         page.evaluate("document.getElementById('command-result').textContent = ''")
     files = sorted(images.glob("*.jpg"))
     assert len(files) == 2
+    page.click("#record")
+    wait_for(page, "ATEMR.state.recording === true")
+    page.wait_for_timeout(1500)
+    page.click("#record")
+    wait_for(page, "ATEMR.state.recording === false")
+    videos = list((robot_site.data_dir / "media" / "videos").iterdir())
+    assert [v.suffix for v in videos] == [".mp4"], videos
+    for i in range(10):  # older images: the page shows ten, MORE the rest
+        older = images / f"older-{i}.jpg"
+        Image.new("RGB", (640, 480), (20 * i, 90, 90)).save(older, format="JPEG")
+        os.utime(older, (1000 + i, 1000 + i))
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
     page.goto(f"{robot_site.url}/media")
+    # the video the recorder wrote plays in Chromium's own <video>: metadata and a first frame decoded
+    video = f'#videos li[data-name="{videos[0].name}"] video'
+    page.evaluate(f"(() => {{ const v = document.querySelector('{video}'); v.preload = 'auto'; v.load(); }})()")
+    wait_for(page, f"document.querySelector('{video}').readyState >= 2", timeout=15_000)
+    duration, width, error = page.evaluate(f"(() => {{ const v = document.querySelector('{video}'); "
+                                           "return [v.duration, v.videoWidth, v.error && v.error.message]; })()")
+    assert error is None and duration > 0 and width == 640
+    with av.open(str(videos[0])) as container:  # as long as the robot's clock says it recorded (a loaded
+        assert abs(duration - container.duration / 1e6) < 0.2  # machine runs the robot slower than real time)
+    # thumbnails made by the server (images load as they come into view): the images' and the video's poster
+    loaded = "(i => i.complete && i.naturalWidth === 320)"
+    wait_for(page, f"[...document.querySelectorAll('#images img')].slice(0, 2).every({loaded})")
+    poster = page.evaluate(f"document.querySelector('{video}').poster")
+    assert page.request.get(poster).headers["content-type"] == "image/jpeg"
+    page.click("#images button.more")
+    wait_for(page, "document.querySelectorAll('#images li[data-name]').length === 12 "
+                   "&& document.querySelector('#images button.more') === null")
+    page.locator('#images li[data-name="older-0.jpg"] img').scroll_into_view_if_needed()
+    wait_for(page, f"{loaded}(document.querySelector('#images li[data-name=\"older-0.jpg\"] img'))")
+    assert page.get_attribute('#images li[data-name="older-0.jpg"] form', "data-confirm") == \
+        "Delete older-0.jpg? This cannot be undone."
     page.screenshot(path=str(shots / "media.png"), full_page=True)
     first = files[0].name
     with page.expect_download() as info:
@@ -347,9 +384,25 @@ def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
     assert data == files[0].read_bytes()
     with Image.open(io.BytesIO(data)) as image:
         assert image.size == (640, 480)
+    # deleting one asks first: dismissed, nothing goes; accepted, it goes
+    questions: list[str] = []
+
+    def answer(dialog: Any, accept: bool) -> None:
+        questions.append(dialog.message)
+        if accept:
+            dialog.accept()
+        else:
+            dialog.dismiss()
+
+    page.once("dialog", lambda d: answer(d, False))
+    page.click(f'li[data-name="{first}"] button.delete-one')
+    page.wait_for_timeout(300)
+    assert questions == [f"Delete {first}? This cannot be undone."] and files[0].exists()
+    page.once("dialog", lambda d: answer(d, True))
     page.click(f'li[data-name="{first}"] button.delete-one')
     page.wait_for_selector(f"text=Deleted {first}")
     assert not files[0].exists() and files[1].exists()
+    assert not errors, errors
 
 
 def test_phone_sized_screen(ready_site, browser, shots, helpers):

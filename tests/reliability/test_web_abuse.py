@@ -567,6 +567,8 @@ LONG = "A" * 300
     ("POST", f"/media/videos/{LONG}.mp4/delete"),
     ("POST", f"/media/traces/{LONG}.atrace/delete"),
     ("POST", f"/media/maps/{LONG}.yaml/delete"),
+    ("GET", f"/media/videos/{LONG}.mp4/view"),
+    ("GET", f"/media/images/{LONG}.jpg/thumbnail.jpg"),
     ("GET", f"/api/traces/{LONG}.atrace"),
     ("GET", f"/api/traces/{LONG}.atrace/frame?t=0"),
     ("GET", f"/media/images/{'A' * 250}.jpg"),  # short enough for a name, yet no such file
