@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import zipfile
 from pathlib import Path
 
@@ -127,6 +128,14 @@ def test_the_dashboard_and_the_robot_share_one_map_store(alice, app, ui):
     assert store.load("room").data.shape == (10, 20)
 
 
+def inline_error(response) -> str:
+    """The refusal shown beside the upload form of the page the upload answered with."""
+    match = re.search(r'<p class="error inline-error" id="map-upload-error" role="alert">(.*?)</p>',
+                      response.get_data(as_text=True), re.S)
+    assert match, "no error beside the upload form"
+    return match.group(1)
+
+
 def upload(client, ui, yaml_bytes=MAP_YAML, image=None, yaml_name="room.yaml", image_name="room.pgm"):
     data = {"yaml": (io.BytesIO(yaml_bytes), yaml_name),
             "image": (io.BytesIO(pgm_bytes() if image is None else image), image_name)}
@@ -140,15 +149,16 @@ def test_map_upload_validated_then_stored(alice, app, gateway, ui):
     assert sorted(p.name for p in maps.iterdir()) == ["room.pgm", "room.yaml"]
     assert gateway.maps_changed_count == 1
     # uploading the same name again does not overwrite
-    assert upload(alice, ui).status_code == 409
-    assert "a map named &#39;room&#39; exists already" in alice.get("/mapping").get_data(as_text=True)
+    again = upload(alice, ui)
+    assert again.status_code == 409  # refused on the page itself, beside the upload form
+    assert "a map named &#39;room&#39; exists already" in inline_error(again)
 
 
 def test_map_upload_refused_by_the_map_reader_stores_nothing(alice, app, gateway, ui):
     response = upload(alice, ui, yaml_bytes=MAP_YAML.replace(b"free_thresh: 0.196", b"free_thresh: 0.9"))
     assert response.status_code == 400
     assert not [p for p in (data_dir(app) / "maps").iterdir()]  # nor a staging directory left behind
-    page = alice.get("/mapping").get_data(as_text=True)
+    page = inline_error(response)
     assert "free_thresh: must be below occupied_thresh" in page
     assert gateway.maps_changed_count == 0
 
@@ -157,7 +167,7 @@ def test_a_built_in_map_cannot_be_replaced_by_an_upload(alice, app, ui):
     yaml_bytes = MAP_YAML.replace(b"room.pgm", b"studio.pgm")
     response = upload(alice, ui, yaml_bytes=yaml_bytes, yaml_name="studio.yaml", image_name="studio.pgm")
     assert response.status_code == 400
-    assert "built-in map" in alice.get("/mapping").get_data(as_text=True)
+    assert "built-in map" in inline_error(response)
     assert not list((data_dir(app) / "maps").iterdir())
 
 
@@ -170,8 +180,9 @@ def test_map_upload_size_limit_of_the_map_store(tmp_path, ui):
     app.extensions["atemr.users"].set_password("admin", ui.ADMIN_PW)
     client = app.test_client()
     ui.login(client, "admin", ui.ADMIN_PW)
-    assert upload(client, ui).status_code == 400
-    assert "larger than the limit of 100" in client.get("/mapping").get_data(as_text=True)
+    response = upload(client, ui)
+    assert response.status_code == 400
+    assert "larger than the limit of 100" in inline_error(response)
     assert store.names() == ["studio"]
 
 
@@ -188,7 +199,7 @@ def test_bad_map_uploads_are_refused_and_store_nothing(alice, app, gateway, ui, 
     response = upload(alice, ui, **kwargs)
     assert response.status_code == 400
     assert gateway.maps_changed_count == 0
-    assert message in alice.get("/mapping").get_data(as_text=True).replace("&#39;", "'")
+    assert message in inline_error(response).replace("&#39;", "'")
     assert not list((data_dir(app) / "maps").iterdir())  # nothing stored, no staging directory left
 
 
