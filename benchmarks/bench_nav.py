@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from atemr.io.sim.maps import OccupancyMap
+from atemr.domain.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.skills.nav.costmap import INSCRIBED, MAX_NON_OBSTACLE, Costmap
 from atemr.skills.nav.global_planner import GlobalPlanner, PlannerParams

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from atemr.io.sim.maps import OccupancyMap
+from atemr.domain.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.robot.mapping import MapService
 from atemr.skills.localization.pipeline import LocalizationPipeline

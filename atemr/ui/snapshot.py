@@ -33,7 +33,7 @@ FREE_GREY, OCCUPIED_GREY, UNKNOWN_GREY = 254, 0, 205
 
 
 class GridLike(Protocol):
-    """What `render_map` needs of an occupancy grid (`atemr.io.sim.maps.OccupancyMap` has it)."""
+    """What `render_map` needs of an occupancy grid (`atemr.domain.maps.OccupancyMap` has it)."""
 
     @property
     def data(self) -> NDArray[np.int8]: ...

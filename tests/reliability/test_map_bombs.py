@@ -32,10 +32,11 @@ from PIL import Image, ImageFile
 
 from atemr.clock import SimClock, WallClock
 from atemr.config import Config, UiConfig, load_config
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError, brief
 from atemr.io.can.bus import unique_channel
 from atemr.io.map_store import MapStore
-from atemr.io.sim.maps import DEFAULT_MAX_MAP_CELLS, OccupancyMap, load_map
+from atemr.io.sim.maps import DEFAULT_MAX_MAP_CELLS, load_map
 from atemr.robot import Robot, build_robot
 from atemr.robot import gateway as gateway_module
 from atemr.robot.gateway import RobotGatewayImpl

@@ -9,10 +9,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from atemr.clock import SimClock
+from atemr.domain.maps import OccupancyMap
 from atemr.fsm.agent import Agent
 from atemr.fsm.spec import AgentSpec
 from atemr.io.sim.base import integrate_arc
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import Pose2D, Twist
 from atemr.scheduler import Scheduler
 from atemr.skills.nav.navigator import Navigator

@@ -7,7 +7,7 @@ across either family is the hit, so the distance is exact (to float precision) f
 step size to tune. Work is done in chunks of crossings, dropping the rays that have already hit, so a
 room where most beams stop within a few metres costs far less than the full 8 m.
 
-All distances are in metres; the grid frame is the map's (see `atemr.io.sim.maps.OccupancyMap`).
+All distances are in metres; the grid frame is the map's (see `atemr.domain.maps.OccupancyMap`).
 """
 
 from __future__ import annotations

@@ -35,8 +35,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import OccupancyMap, is_map_document, load_map, read_yaml
+from atemr.io.sim.maps import is_map_document, load_map, read_yaml
 from atemr.msgs import Pose2D
 from atemr.yamlsafe import key_mark_of, mark_of
 

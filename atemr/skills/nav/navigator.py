@@ -26,8 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import NavigationError
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import ZERO_TWIST, LaserScan, Pose2D, Twist
 from atemr.skills.hexpattern import HEX90, hex_pattern
 from atemr.skills.nav.costmap import INSCRIBED, Costmap, CostmapParams
