@@ -36,6 +36,7 @@ import can
 from transitions import Machine
 
 from atemr.clock import due
+from atemr.domain.status import PowerRequest, PowerState
 from atemr.errors import ProtocolError
 from atemr.io.can import (
     PASSWORD,
@@ -47,8 +48,6 @@ from atemr.io.can import (
     IrRear,
     Message,
     Power,
-    PowerRequest,
-    PowerState,
     PrimaryStatus,
     encode_text,
 )

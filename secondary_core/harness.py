@@ -17,7 +17,7 @@ from typing import Any
 import can
 
 from atemr.clock import SimClock
-from atemr.io.can import PowerState
+from atemr.domain.status import PowerState
 from atemr.io.network import RecordingNetworkBackend
 from atemr.io.secondary_link import SecondaryLink
 from atemr.msgs import CliffReadings

@@ -17,8 +17,8 @@ from collections.abc import Callable
 from dataclasses import asdict
 from typing import Any
 
+from atemr.domain.status import top_level
 from atemr.fsm.agent import Agent
-from atemr.fsm.codes import top_level
 from atemr.trees.missions import Mission
 
 #: Robot seconds to wait for the agent's answer to a command (it answers at its next tick).

@@ -35,9 +35,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
+from atemr.domain.status import SEPARATOR, TOP_LEVEL_STATES
 from atemr.errors import ConfigError
 from atemr.fsm.autonomy import LEVELS, Level, safety_reason
-from atemr.fsm.codes import SEPARATOR, TOP_LEVEL_STATES
 from atemr.fsm.guards import callbacks, guards
 from atemr.registry import Registry
 from atemr.trees.builder import NodeSpec, parse_node

@@ -24,6 +24,7 @@ import numpy as np
 
 from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
 from atemr.config import Config
+from atemr.domain.status import ComponentHealth
 from atemr.errors import AtemrError, HardwareError
 from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.fsm.recording import AgentRecorder
@@ -51,7 +52,6 @@ from atemr.scheduler import Component, Scheduler
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.motion_pipeline import ControlInputs, MotionControl, MotionPipeline
 from atemr.skills.ramp import checked_limits
-from atemr.trees.ports import ComponentHealth
 from atemr.trees.secondary import SecondaryLinkPort
 
 log = logging.getLogger(__name__)

@@ -16,13 +16,14 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
+from atemr.domain.status import ComponentHealth
 from atemr.errors import HardwareError
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.health import HealthBoard
 from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.skills.localization.pipeline import LocalizationPipeline
-from atemr.trees.ports import ComponentHealth, Mode, VelocitySource
+from atemr.trees.ports import Mode, VelocitySource
 
 
 def jpeg(frame: NDArray[np.uint8], quality: int = 85) -> bytes:

@@ -7,7 +7,8 @@ on change; the agent only sets what they carry and reads what came back. Wire it
 
 from __future__ import annotations
 
-from atemr.io.can import PowerState, PrimaryStatus
+from atemr.domain.status import PowerState
+from atemr.io.can import PrimaryStatus
 from atemr.io.secondary_link import SecondaryLink
 
 

@@ -230,7 +230,7 @@ def test_safety_transitions_never_wait_and_supersede_a_pending_request(agent_spe
         rig.link.power_off = True
         rig.scheduler.run(duration=0.2)
     elif trigger == "fault":
-        from atemr.trees.ports import ComponentHealth
+        from atemr.domain.status import ComponentHealth
 
         rig.port.components["left_motor"] = ComponentHealth(False, "over-temperature")
         rig.scheduler.run(duration=0.2)

@@ -16,11 +16,11 @@ from PIL import Image
 
 from atemr.clock import SimClock
 from atemr.config import load_config
+from atemr.domain.status import ComponentHealth
 from atemr.io.can.bus import unique_channel
 from atemr.msgs import Pose2D, Twist
 from atemr.robot import Robot, build_robot
 from atemr.robot.gateway import RobotGatewayImpl
-from atemr.trees.ports import ComponentHealth
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.state import state_problems
 

@@ -12,19 +12,9 @@ from typing import Any
 import can
 import pytest
 
+from atemr.domain.status import AgentBits, HardwareBits, PowerRequest, PowerState, StateCode
 from atemr.errors import ProtocolError
-from atemr.io.can import (
-    AgentBits,
-    CanId,
-    HardwareBits,
-    Heartbeat,
-    IrFront,
-    IrRear,
-    Power,
-    PowerRequest,
-    PowerState,
-    StateCode,
-)
+from atemr.io.can import CanId, Heartbeat, IrFront, IrRear, Power
 from atemr.io.motors.emulator import RmdMotorEmulator
 from atemr.io.motors.rmd_codec import RMD_BASE_ID, RmdCommand, RmdRequest, decode_request
 from atemr.io.secondary_link import IR_OUT_OF_RANGE_CM
