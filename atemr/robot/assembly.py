@@ -44,7 +44,7 @@ from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP, MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
 from atemr.robot.parts import RobotParts
-from atemr.robot.port import RobotPortImpl
+from atemr.robot.port import RobotPortImpl, SecondaryLinkPort
 from atemr.robot.reload import RATE_HZ as RELOAD_RATE_HZ
 from atemr.robot.reload import ReloadWatcher
 from atemr.robot.settings_store import SettingsStore
@@ -52,7 +52,6 @@ from atemr.scheduler import Component, Scheduler
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.motion_pipeline import ControlInputs, MotionControl, MotionPipeline
 from atemr.skills.ramp import checked_limits
-from atemr.trees.secondary import SecondaryLinkPort
 
 log = logging.getLogger(__name__)
 

@@ -5,5 +5,6 @@
 - `atemr.trees.nodes`/`atemr.trees.builder`: composites and decorators by name, validation and building;
 - `atemr.trees.missions`: mission files → trees; `atemr.trees.progress`: what Exec reports;
 - `atemr.trees.export`: ASCII, Mermaid, JSON, DOT, SVG, PNG drawings;
-- `atemr.trees.secondary`: `LinkPort` over the real `SecondaryLink`; `atemr.trees.fakes`: recording ports.
+- `atemr.trees.fakes`: recording ports for tests; the real ports' adapters are the robot's (`atemr.robot.port`,
+  `atemr.robot.navigator_port`).
 """

@@ -37,11 +37,11 @@ from atemr.fsm.agent import Agent
 from atemr.fsm.machine import TransitionRecord
 from atemr.fsm.spec import load_agent
 from atemr.msgs import Pose2D, Twist
+from atemr.robot.port import SecondaryLinkPort
 from atemr.trees.context import clear_blackboard
 from atemr.trees.fakes import RecordingPort, StraightLineNavigation
 from atemr.trees.missions import load_mission, mission_from_goals
 from atemr.trees.ports import VelocitySource
-from atemr.trees.secondary import SecondaryLinkPort
 from secondary_core.harness import LinkBench
 
 ROOT = Path(__file__).resolve().parents[2]

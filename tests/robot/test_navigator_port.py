@@ -14,10 +14,10 @@ from atemr.fsm.agent import Agent
 from atemr.fsm.spec import AgentSpec
 from atemr.io.sim.base import integrate_arc
 from atemr.msgs import Pose2D, Twist
+from atemr.robot.navigator_port import NavigatorPort
 from atemr.scheduler import Scheduler
 from atemr.skills.nav.navigator import Navigator
 from atemr.trees.fakes import RecordingLink, RecordingPort
-from atemr.trees.navigator_port import NavigatorPort
 from atemr.trees.ports import VelocitySource
 
 DT = 0.1
