@@ -257,7 +257,7 @@ def test_a_level_given_to_a_safety_transition_in_code_is_ignored(agent_spec: Age
 def test_the_export_shows_the_levels(agent_spec: AgentSpec) -> None:
     import json
 
-    from atemr.trees.export import drawing_of, to_ascii, to_json
+    from atemr.fsm.export import drawing_of, to_ascii, to_json
 
     ascii_text = to_ascii(drawing_of(agent_spec))
     assert "IDLE.AUTO --start_mission [mission_runnable, autonomy high]--> EXEC" in ascii_text
