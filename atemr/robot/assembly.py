@@ -243,9 +243,9 @@ def _add_simulation(robot: Robot) -> Simulation:
     answers on the bus and reads the world's cliff sensors.
     """
     from atemr.io.motors.emulator import RmdMotorEmulator
+    from atemr.io.secondary_emulator.wiring import emulated_secondary
     from atemr.io.sim.base import MountedWheel
     from atemr.io.sim.simulation import build_simulation, params_from_config
-    from secondary_core.wiring import emulated_secondary
 
     cfg = robot.config
     emulators: list[RmdMotorEmulator] = []

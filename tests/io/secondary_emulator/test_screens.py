@@ -10,9 +10,9 @@ from PIL import Image
 
 from atemr.domain.status import AgentBits, HardwareBits, StateCode
 from atemr.io.can import PrimaryStatus
+from atemr.io.secondary_emulator.screens import SCREEN_NAMES, BoardView, build_screen
 from atemr.msgs import CliffReadings
 from secondary_core.harness import LinkBench
-from secondary_core.screens import SCREEN_NAMES, BoardView, build_screen
 
 
 def box(*rows: str) -> str:
