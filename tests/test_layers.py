@@ -12,8 +12,8 @@ imports with `ast`, those inside functions and under ``if TYPE_CHECKING`` includ
 
 `LAYERS` is the one table of the rules, bottom first. Among what it implies: skills import nothing from
 io, ui, fsm, trees or robot; io imports none of ui, fsm, trees or robot; trees does not import fsm; no
-module of `atemr` imports `secondary_core`. ``docs/architecture-layers-draft.md`` describes the same layers
-(for ``docs/architecture.md``); change both together.
+module of `atemr` imports `secondary_core`. ``docs/architecture.md`` describes the same layers; change both
+together.
 """
 
 from __future__ import annotations
