@@ -19,6 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -52,6 +53,9 @@ from atemr.scheduler import Component, Scheduler
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.motion_pipeline import ControlInputs, MotionControl, MotionPipeline
 from atemr.skills.ramp import checked_limits
+
+if TYPE_CHECKING:
+    from atemr.io.secondary_emulator.board import SecondaryCore
 
 log = logging.getLogger(__name__)
 
@@ -101,17 +105,18 @@ def _wire(robot: Robot) -> None:
     inputs = MotionInputs()
     health = HealthBoard(clock.now)
 
-    sim = _add_simulation(robot) if needs_world(config) else None
+    sim, board = _add_simulation(robot) if needs_world(config) else (None, None)
     devices = _add_devices(robot, health, sim)
     primary = _add_primary(robot, inputs, health, settings, devices)
     store, localization, maps = _add_localization(robot, sim, devices, primary.driver)
-    port, navigation, agent = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
+    port, navigation, agent, watcher = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
                                          localization=localization, maps=maps)
     system_monitor = SystemMonitor(config.data_dir)  # scheduled last of the always-present parts, below
     robot.parts = RobotParts(
         settings=settings, inputs=inputs, health=health, devices=devices, driver=primary.driver, link=primary.link,
         pipeline=primary.pipeline, motion=primary.motion, map_store=store, localization=localization, maps=maps,
-        port=port, navigation=navigation, agent=agent, system_monitor=system_monitor, sim=sim,
+        port=port, navigation=navigation, agent=agent, reload_watcher=watcher, system_monitor=system_monitor, sim=sim,
+        secondary_board=board,
     )
     _add_recorder(robot)
     if config.ui.enabled:
@@ -178,8 +183,10 @@ def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
     return store, localization, maps
 
 
-def _add_agent(robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, devices: Devices,
-               localization: LocalizationPipeline, maps: MapService) -> tuple[RobotPortImpl, RobotNavigation, Agent]:
+def _add_agent(
+    robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, devices: Devices,
+    localization: LocalizationPipeline, maps: MapService,
+) -> tuple[RobotPortImpl, RobotNavigation, Agent, ReloadWatcher]:
     """The agent (lifecycle + trees + Monitor) over the robot's ports; when it halts, the robot stops."""
     cfg = robot.config
     camera = devices.camera
@@ -198,8 +205,9 @@ def _add_agent(robot: Robot, primary: _Primary, *, inputs: MotionInputs, health:
     agent = Agent.from_config(cfg, port, SecondaryLinkPort(primary.link), navigation=navigation, on_halt=robot.stop)
     robot.add(agent, cfg.agent.rate_hz)
     # Hot reload: edits of the agent document and the missions are validated and handed to the agent.
-    robot.add(ReloadWatcher(agent, Path(agent.spec.file or DEFAULT_AGENT_FILE)), RATES["reload_watcher"])
-    return port, navigation, agent
+    watcher = ReloadWatcher(agent, Path(agent.spec.file or DEFAULT_AGENT_FILE))
+    robot.add(watcher, RATES["reload_watcher"])
+    return port, navigation, agent, watcher
 
 
 def trace_path(config: Config, wall_time: float) -> Path:
@@ -234,7 +242,7 @@ def _add_recorder(robot: Robot) -> None:
     robot.add(writer, 1.0)
 
 
-def _add_simulation(robot: Robot) -> Simulation:
+def _add_simulation(robot: Robot) -> tuple[Simulation, SecondaryCore | None]:
     """The simulated world, with the emulated CAN devices the configuration asks for in it.
 
     With ``emulated`` motors, the two motor emulators answer on the robot's bus and their models are the
@@ -243,6 +251,7 @@ def _add_simulation(robot: Robot) -> Simulation:
     answers on the bus and reads the world's cliff sensors.
     """
     from atemr.io.motors.emulator import RmdMotorEmulator
+    from atemr.io.secondary_emulator.board import SecondaryCore
     from atemr.io.secondary_emulator.wiring import emulated_secondary
     from atemr.io.sim.base import MountedWheel
     from atemr.io.sim.simulation import build_simulation, params_from_config
@@ -264,10 +273,13 @@ def _add_simulation(robot: Robot) -> Simulation:
         robot.add(component, rate)
     for emulator in emulators:
         robot.add(emulator, RATES["motor_emulator"])
+    board: SecondaryCore | None = None
     if driver_name(cfg, "secondary") == "emulated":
         for board_part, rate in emulated_secondary(cfg, robot.open_bus(), lambda: sim.cliff_source.latest):
             robot.add(board_part, rate)
-    return sim
+            if isinstance(board_part, SecondaryCore):
+                board = board_part
+    return sim, board
 
 
 def _add_devices(robot: Robot, health: HealthBoard, sim: Simulation | None) -> Devices:

@@ -30,7 +30,7 @@ from collections.abc import Callable
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,7 +45,6 @@ from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
 from atemr.robot.plain_words import plain_outcome, plain_refusal
 from atemr.robot.port import jpeg
-from atemr.robot.reload import ReloadWatcher
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
 from atemr.skills.ramp import checked_limits
@@ -59,7 +58,7 @@ from atemr.ui.snapshot import (
     status_levels,
     system_json,
 )
-from atemr.ui.state import AgentState, MissionJson, Mode, RobotState, StopCause
+from atemr.ui.state import MissionJson, Mode, RobotState, StopCause, top_state
 
 log = logging.getLogger(__name__)
 
@@ -260,7 +259,7 @@ class RobotGatewayImpl:
         scan = self.robot.devices.lidar.latest
         status, goal = self._navigation()
         running = status is not None and status.state == "RUNNING"
-        agent_state = cast(AgentState, str(agent["state"]).split(".")[0])
+        agent_state = top_state(str(agent["state"]))
         wheels = parts.driver.feedback()
         last = parts.motion.last
         level1, level2 = status_levels(self.link.status)
@@ -333,9 +332,8 @@ class RobotGatewayImpl:
         return None if frame is None else frame[1]
 
     def secondary_screen_png(self) -> bytes | None:
-        core = self.robot.components.get("secondary_core")
-        screen = getattr(core, "screen_png", None)
-        return None if screen is None else cast(bytes, screen(scale=2, color=True))
+        board = self.robot.parts.secondary_board
+        return None if board is None else board.screen_png(scale=2, color=True)
 
     def agent_snapshot(self) -> dict[str, Any] | None:
         return self.agent.snapshot()
@@ -628,10 +626,7 @@ class RobotGatewayImpl:
         return CommandResult.accepted()
 
     def reload_agent(self) -> CommandResult:
-        watcher: ReloadWatcher | None = cast("ReloadWatcher | None", self.robot.components.get("reload_watcher"))
-        if watcher is None:
-            return CommandResult.refused("this robot does not watch its agent document")
-        watcher.request()
+        self.robot.parts.reload_watcher.request()
         return CommandResult.accepted()
 
     # -- simulation panel --------------------------------------------------------------------------------
@@ -649,12 +644,12 @@ class RobotGatewayImpl:
         return CommandResult.accepted()
 
     def sim_button(self, hold_s: float) -> CommandResult:
-        core = self.robot.components.get("secondary_core")
-        if self.sim is None or core is None:
+        board = self.robot.parts.secondary_board
+        if self.sim is None or board is None:
             return CommandResult.refused("not a simulation")
         if not _finite(hold_s) or not 0 < hold_s <= MAX_BUTTON_HOLD_S:
             return CommandResult.refused(f"a button press lasts 0-{MAX_BUTTON_HOLD_S:g} s, got {brief(hold_s)}")
-        cast(Any, core).button.hold(float(hold_s))
+        board.button.hold(float(hold_s))
         return CommandResult.accepted()
 
     def _in_world(self, x_m: float, y_m: float) -> str | None:

@@ -15,6 +15,7 @@ if TYPE_CHECKING:
     from atemr.io.devices.drivers import Devices
     from atemr.io.map_store import MapStore
     from atemr.io.motors.driver import RmdDriver
+    from atemr.io.secondary_emulator.board import SecondaryCore
     from atemr.io.secondary_link import SecondaryLink
     from atemr.io.sim.simulation import Simulation
     from atemr.io.system_monitor import SystemMonitor
@@ -26,6 +27,7 @@ if TYPE_CHECKING:
     from atemr.robot.mapping import MapService
     from atemr.robot.navigation import RobotNavigation
     from atemr.robot.port import RobotPortImpl
+    from atemr.robot.reload import ReloadWatcher
     from atemr.robot.settings_store import SettingsStore
     from atemr.skills.localization.pipeline import LocalizationPipeline
     from atemr.skills.motion_pipeline import MotionControl, MotionPipeline
@@ -55,8 +57,11 @@ class RobotParts:
     port: RobotPortImpl
     navigation: RobotNavigation
     agent: Agent
+    reload_watcher: ReloadWatcher
     system_monitor: SystemMonitor
     sim: Simulation | None = None
+    #: The emulated secondary core's board, when the simulation runs one (its screen and button on the page).
+    secondary_board: SecondaryCore | None = None
     trace: TraceWriter | None = None
     gateway: RobotGatewayImpl | None = None
     dashboard: DashboardServer | None = None

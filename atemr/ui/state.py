@@ -19,6 +19,7 @@ from typing import Any, Literal, TypedDict, Union, get_args, get_origin, get_typ
 STATE_RATE_HZ = 10.0
 
 AgentState = Literal["UNDEFINED", "STARTUP", "IDLE", "EXEC", "MAPPING", "SHUTDOWN", "ERROR"]
+AGENT_STATES: tuple[AgentState, ...] = get_args(AgentState)
 Mode = Literal["MANUAL", "AUTO"]
 #: Why a safety layer holds the robot stopped, the most urgent first (see `STOP_CAUSES`).
 StopCause = Literal["cliff", "obstacle", "heartbeat", "motor", "bus"]
@@ -141,6 +142,12 @@ class RobotState(TypedDict):
     #: The latest events, oldest first.
     events: list[EventJson]
     autonomy: AutonomyJson
+
+
+def top_state(state: str) -> AgentState:
+    """The agent's top-level state as the pages show it (``IDLE.MANUAL`` → ``IDLE``); UNDEFINED if unknown."""
+    top = state.split(".", maxsplit=1)[0]
+    return next((s for s in AGENT_STATES if s == top), "UNDEFINED")
 
 
 #: Every key of the snapshot, for checks that a state is whole.
