@@ -19,11 +19,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
 from atemr.config import Config
+from atemr.domain.status import ComponentHealth
 from atemr.errors import AtemrError, ConfigError, HardwareError
 from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.io.can.supervisor import BusSupervisor
@@ -38,11 +40,11 @@ from atemr.io.system_monitor import SystemMonitor
 from atemr.msgs import Twist, WheelSpeeds
 from atemr.robot.core import Robot
 from atemr.robot.health import FRESH_S, HealthBoard
-from atemr.robot.inputs import MotionInputs
+from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP, MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
 from atemr.robot.parts import RobotParts
-from atemr.robot.port import RobotPortImpl, jpeg
+from atemr.robot.port import RobotPortImpl, SecondaryLinkPort, jpeg
 from atemr.robot.recorder import RATE_HZ as RECORDER_HZ
 from atemr.robot.recorder import MessageSink, RecorderSources, RunRecorder
 from atemr.robot.reload import RATE_HZ as RELOAD_RATE_HZ
@@ -53,8 +55,9 @@ from atemr.scheduler import Component, Scheduler
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.motion_pipeline import ControlInputs, MotionControl, MotionPipeline
 from atemr.skills.ramp import checked_limits
-from atemr.trees.ports import ComponentHealth
-from atemr.trees.secondary import SecondaryLinkPort
+
+if TYPE_CHECKING:
+    from atemr.io.secondary_emulator.board import SecondaryCore
 
 log = logging.getLogger(__name__)
 
@@ -104,18 +107,18 @@ def _wire(robot: Robot) -> None:
     inputs = MotionInputs()
     health = HealthBoard(clock.now)
 
-    sim = _add_simulation(robot) if needs_world(config) else None
+    sim, board = _add_simulation(robot) if needs_world(config) else (None, None)
     devices = _add_devices(robot, health, sim)
     primary = _add_primary(robot, inputs, health, settings, devices)
     store, localization, maps, wheels = _add_localization(robot, sim, devices, primary.driver)
-    port, navigation, agent = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
+    port, navigation, agent, watcher = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
                                          localization=localization, maps=maps)
     system_monitor = SystemMonitor(config.data_dir)  # scheduled last of the always-present parts, below
     robot.parts = RobotParts(
         settings=settings, inputs=inputs, health=health, devices=devices, driver=primary.driver, link=primary.link,
         pipeline=primary.pipeline, motion=primary.motion, map_store=store, localization=localization, maps=maps,
-        wheels=wheels,
-        port=port, navigation=navigation, agent=agent, system_monitor=system_monitor, sim=sim,
+        wheels=wheels, port=port, navigation=navigation, agent=agent, reload_watcher=watcher,
+        system_monitor=system_monitor, sim=sim, secondary_board=board,
     )
     _add_recorder(robot)
     if config.ui.enabled:
@@ -180,8 +183,10 @@ def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
     return store, localization, maps, wheels
 
 
-def _add_agent(robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, devices: Devices,
-               localization: LocalizationPipeline, maps: MapService) -> tuple[RobotPortImpl, RobotNavigation, Agent]:
+def _add_agent(
+    robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, devices: Devices,
+    localization: LocalizationPipeline, maps: MapService,
+) -> tuple[RobotPortImpl, RobotNavigation, Agent, ReloadWatcher]:
     """The agent (lifecycle + trees + Monitor) over the robot's ports; when it halts, the robot stops."""
     cfg = robot.config
     camera = devices.camera
@@ -200,8 +205,9 @@ def _add_agent(robot: Robot, primary: _Primary, *, inputs: MotionInputs, health:
     agent = Agent.from_config(cfg, port, SecondaryLinkPort(primary.link), navigation=navigation, on_halt=robot.stop)
     robot.add(agent, cfg.agent.rate_hz)
     # Hot reload: edits of the agent document and the missions are validated and handed to the agent.
-    robot.add(ReloadWatcher(agent, Path(agent.spec.file or DEFAULT_AGENT_FILE)), RATES["reload_watcher"])
-    return port, navigation, agent
+    watcher = ReloadWatcher(agent, Path(agent.spec.file or DEFAULT_AGENT_FILE))
+    robot.add(watcher, RATES["reload_watcher"])
+    return port, navigation, agent, watcher
 
 
 def trace_path(config: Config, wall_time: float) -> Path:
@@ -284,7 +290,7 @@ def _add_recorder(robot: Robot) -> None:
     robot.parts = replace(parts, trace=writer, recorder=recorder, foxglove=live)
 
 
-def _add_simulation(robot: Robot) -> Simulation:
+def _add_simulation(robot: Robot) -> tuple[Simulation, SecondaryCore | None]:
     """The simulated world, with the emulated CAN devices the configuration asks for in it.
 
     With ``emulated`` motors, the two motor emulators answer on the robot's bus and their models are the
@@ -293,9 +299,10 @@ def _add_simulation(robot: Robot) -> Simulation:
     answers on the bus and reads the world's cliff sensors.
     """
     from atemr.io.motors.emulator import RmdMotorEmulator
+    from atemr.io.secondary_emulator.board import SecondaryCore
+    from atemr.io.secondary_emulator.wiring import emulated_secondary
     from atemr.io.sim.base import MountedWheel
     from atemr.io.sim.simulation import build_simulation, params_from_config
-    from secondary_core.wiring import emulated_secondary
 
     cfg = robot.config
     emulators: list[RmdMotorEmulator] = []
@@ -314,10 +321,13 @@ def _add_simulation(robot: Robot) -> Simulation:
         robot.add(component, rate)
     for emulator in emulators:
         robot.add(emulator, RATES["motor_emulator"])
+    board: SecondaryCore | None = None
     if driver_name(cfg, "secondary") == "emulated":
         for board_part, rate in emulated_secondary(cfg, robot.open_bus(), lambda: sim.cliff_source.latest):
             robot.add(board_part, rate)
-    return sim
+            if isinstance(board_part, SecondaryCore):
+                board = board_part
+    return sim, board
 
 
 def _add_devices(robot: Robot, health: HealthBoard, sim: Simulation | None) -> Devices:
@@ -342,7 +352,6 @@ class _Primary:
 
 
 #: The safety-stop reason held while the CAN bus is faulted (`MotionInputs.set_safety_stop`).
-CAN_BUS_STOP = "CAN bus fault"
 
 
 def _add_can_bus(robot: Robot, inputs: MotionInputs, health: HealthBoard) -> BusSupervisor:
@@ -385,7 +394,7 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
 
     def on_heartbeat(ok: bool) -> None:
         # DESIGN §10: both cores stop the motors when the heartbeat fails for 2 s.
-        inputs.set_safety_stop("heartbeat lost", not ok)
+        inputs.set_safety_stop(HEARTBEAT_STOP, not ok)
         robot.event("heartbeat", "0x157 heartbeat " + ("restored" if ok else "lost: motors stopped"))
 
     link_inbox, motors_inbox = can_bus.inbox("secondary_link"), can_bus.inbox("motors")

@@ -36,9 +36,9 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import asdict
 from typing import Any, cast
 
+from atemr.domain.status import top_level
 from atemr.errors import ControlError, brief
 from atemr.fsm.agent import Agent
-from atemr.fsm.codes import top_level
 from atemr.fsm.mission_run import MissionRun
 from atemr.io.control_socket import ControlConnection, ControlServer, control_socket_path
 from atemr.io.sim.simulation import Simulation

@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     from atemr.io.map_store import MapStore
     from atemr.io.motors.driver import RmdDriver
     from atemr.io.recording.mcap_writer import RecordingWriter
+    from atemr.io.secondary_emulator.board import SecondaryCore
     from atemr.io.secondary_link import SecondaryLink
     from atemr.io.sim.simulation import Simulation
     from atemr.io.system_monitor import SystemMonitor
@@ -27,6 +28,7 @@ if TYPE_CHECKING:
     from atemr.robot.navigation import RobotNavigation
     from atemr.robot.port import RobotPortImpl
     from atemr.robot.recorder import RunRecorder
+    from atemr.robot.reload import ReloadWatcher
     from atemr.robot.settings_store import SettingsStore
     from atemr.robot.wheels import WheelOdometryFeed
     from atemr.skills.localization.pipeline import LocalizationPipeline
@@ -60,8 +62,11 @@ class RobotParts:
     port: RobotPortImpl
     navigation: RobotNavigation
     agent: Agent
+    reload_watcher: ReloadWatcher
     system_monitor: SystemMonitor
     sim: Simulation | None = None
+    #: The emulated secondary core's board, when the simulation runs one (its screen and button on the page).
+    secondary_board: SecondaryCore | None = None
     #: The MCAP recording of this run (``trace.enabled`` or ``trace.file``).
     trace: RecordingWriter | None = None
     recorder: RunRecorder | None = None

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from atemr.clock import due
+from atemr.domain.maps import OccupancyMap
 from atemr.fsm.agent import Agent
 from atemr.fsm.recording import AgentRecorder, Record
 from atemr.io.devices.drivers import Devices
@@ -37,7 +38,6 @@ from atemr.io.recording import topics as tp
 from atemr.io.recording.agent_trace import record_entry
 from atemr.io.recording.codec import Codec
 from atemr.io.recording.mcap_writer import Entry
-from atemr.io.sim.maps import OccupancyMap
 from atemr.io.sim.simulation import Simulation
 from atemr.msgs import ZERO_TWIST, ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.robot.health import HealthBoard

@@ -26,11 +26,11 @@ from typing import Any
 
 import numpy as np
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError
 from atemr.io.recording import ros2_convert as ros
 from atemr.io.recording import topics as tp
 from atemr.io.recording.mcap_reader import Recorded, RecordingReader
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import Pose2D
 from atemr.skills.localization.localizer import LocalizerParams
 from atemr.skills.localization.pipeline import LocalizationPipeline

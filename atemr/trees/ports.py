@@ -17,7 +17,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
-from atemr.io.can import HardwareBits, PowerState, PrimaryStatus
+from atemr.domain.status import ComponentHealth, HardwareBits, PowerState
+from atemr.io.can import PrimaryStatus
 from atemr.msgs import ZERO_TWIST, Pose2D, Twist
 
 #: The motion pipeline's inputs the agent may command (`atemr.skills.motion_pipeline`): the operator's
@@ -29,14 +30,6 @@ Mode = Literal["MANUAL", "AUTO"]
 #: Components whose health fills a 0x153 hardware bit: ``HardwareBits`` member names in lower case
 #: (``left_motor``, ``right_motor``, ``imu``, ``lidar``, ``camera``, ``webserver``, ``ir_front``, ``ir_rear``).
 HARDWARE_COMPONENTS: dict[str, HardwareBits] = {str(b.name).lower(): b for b in HardwareBits if b}
-
-
-@dataclass(frozen=True)
-class ComponentHealth:
-    """One component's health as the port sees it: ``ok`` and, when not, why (for the dashboard)."""
-
-    ok: bool
-    detail: str = ""
 
 
 @runtime_checkable

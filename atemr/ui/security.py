@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar, cast
 from urllib.parse import urlsplit
 
-from flask import abort, current_app, flash, g, redirect, request, session, url_for
+from flask import abort, current_app, flash, g, make_response, redirect, request, session, url_for
 from werkzeug.wrappers import Response
 
 from atemr.clock import Clock
@@ -366,8 +366,8 @@ def refusal(permission: Permission) -> str:
 
 def permission_required(permission: Permission, back: str) -> Callable[[F], F]:
     """Route decorator for a form that does a destructive or safety action: with at least the ``user``
-    role but without ``permission``, the form is refused with a message on the page it came from
-    (``back``, an endpoint), or 403 for JSON; nothing is changed."""
+    role but without ``permission``, the request is refused with 403 and nothing is changed; a browser gets
+    the page the form is on (``back``, an endpoint) with the reason shown, JSON clients a bare 403."""
 
     def decorate(view: F) -> F:
         @role_required("user")
@@ -380,7 +380,9 @@ def permission_required(permission: Permission, back: str) -> Callable[[F], F]:
                 if request.path.startswith("/api/") or request.accept_mimetypes.best == "application/json":
                     abort(403)
                 flash(f"Refused: {refusal(permission)}.", "error")
-                return redirect(url_for(back))
+                page = make_response(current_app.view_functions[back]())
+                page.status_code = 403
+                return page
             return view(*args, **kwargs)
 
         return cast(F, wrapped)

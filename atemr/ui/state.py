@@ -15,8 +15,14 @@ from __future__ import annotations
 import types
 from typing import Any, Literal, TypedDict, Union, get_args, get_origin, get_type_hints, is_typeddict
 
+#: How often the robot sends its state; a page that hears nothing for two periods says the picture is old.
+STATE_RATE_HZ = 10.0
+
 AgentState = Literal["UNDEFINED", "STARTUP", "IDLE", "EXEC", "MAPPING", "SHUTDOWN", "ERROR"]
+AGENT_STATES: tuple[AgentState, ...] = get_args(AgentState)
 Mode = Literal["MANUAL", "AUTO"]
+#: Why a safety layer holds the robot stopped, the most urgent first (see `STOP_CAUSES`).
+StopCause = Literal["cliff", "obstacle", "heartbeat", "motor", "bus"]
 #: ``[[x_m, y_m], ...]`` in the map frame, decimated and rounded to millimetres (`atemr.ui.snapshot.points_json`).
 Points = list[list[float]]
 
@@ -56,6 +62,14 @@ class MissionJson(TypedDict):
     name: str | None
     progress: float
     state: str | None
+
+
+class NavigationJson(TypedDict):
+    """How far the goal being driven to still is: along the planned path, and the time at the planned speed
+    (None while the planner does not know yet)."""
+
+    distance_left_m: float | None
+    eta_s: float | None
 
 
 class EventJson(TypedDict):
@@ -99,9 +113,13 @@ class RobotState(TypedDict):
     local_path: Points
     #: The goal being driven to (EXEC only), or None.
     goal: PoseJson | None
+    #: Progress towards that goal, or None when there is none.
+    navigation: NavigationJson | None
     wheel_speeds: WheelSpeeds
     #: Low-level brakes applied (emergency or cliff stop).
     emergency: bool
+    #: Why the robot is held stopped (the page says it in plain words with what to do), None when nothing holds it.
+    stop_cause: StopCause | None
     #: Agent bits of CAN 0x153 byte 0 (heartbeat, hardware, auto, connectivity, localization); True is OK.
     level1: dict[str, bool]
     #: Hardware bits of 0x153 byte 1 (left_motor, right_motor, imu, lidar, camera, webserver, ir_front, ir_rear).
@@ -124,6 +142,12 @@ class RobotState(TypedDict):
     #: The latest events, oldest first.
     events: list[EventJson]
     autonomy: AutonomyJson
+
+
+def top_state(state: str) -> AgentState:
+    """The agent's top-level state as the pages show it (``IDLE.MANUAL`` → ``IDLE``); UNDEFINED if unknown."""
+    top = state.split(".", maxsplit=1)[0]
+    return next((s for s in AGENT_STATES if s == top), "UNDEFINED")
 
 
 #: Every key of the snapshot, for checks that a state is whole.

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from atemr.domain.status import ComponentHealth
 from atemr.fsm.guards import GuardInput, callbacks, guards
 from atemr.fsm.machine import Lifecycle
 from atemr.fsm.spec import AgentSpec
@@ -17,7 +18,6 @@ from atemr.trees.behaviours import behaviours
 from atemr.trees.context import AgentContext
 from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
 from atemr.trees.missions import parse_mission
-from atemr.trees.ports import ComponentHealth
 from atemr.yamlsafe import load_yaml
 
 TESTED_GUARDS = {"goal_valid", "auto_mode", "mission_runnable", "level1_ok", "map_name_valid"}

@@ -70,13 +70,13 @@ import pytest
 
 from atemr.clock import SimClock
 from atemr.config import MotorsConfig
+from atemr.domain.maps import OccupancyMap
 from atemr.io.can.bus import unique_channel
 from atemr.io.can.faults import FaultInjectionBus, FaultPlan
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.motors.emulator import RmdMotorEmulator
 from atemr.io.motors.rmd_codec import RmdCommand, RmdRequest, motor_can_id
 from atemr.io.sim.base import MountedWheel
-from atemr.io.sim.maps import OccupancyMap
 from atemr.io.sim.simulation import SimParams, Simulation, default_wheels
 from atemr.io.sim.world import World
 from atemr.msgs import Pose2D, Twist, WheelSpeeds

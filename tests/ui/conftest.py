@@ -35,7 +35,8 @@ class RecordingGateway:
         self.snapshot: RobotState = {
             "robot": "KAY", "agent_state": "IDLE", "mode": "MANUAL", "simulation": True, "active_map": None,
             "map_version": 0, "pose": None, "scan": [], "global_path": [], "local_path": [], "goal": None,
-            "wheel_speeds": {"left_radps": 0.0, "right_radps": 0.0}, "emergency": False, "level1": {}, "level2": {},
+            "navigation": None, "wheel_speeds": {"left_radps": 0.0, "right_radps": 0.0}, "emergency": False,
+            "stop_cause": None, "level1": {}, "level2": {},
             "system": None, "limits": {"linear_mps": 0.5, "angular_radps": 1.0}, "awareness": False,
             "wifi_ssid": None, "mapping": False, "recording": False, "mission": None, "missions": ["patrol"],
             "maps": [], "events": [],

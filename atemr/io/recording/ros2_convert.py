@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from atemr.io.sim.maps import OccupancyMap
+from atemr.domain.maps import OccupancyMap
 from atemr.msgs import ImuSample, LaserScan, Pose2D, Twist
 
 Msg = dict[str, Any]

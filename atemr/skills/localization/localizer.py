@@ -23,8 +23,8 @@ from typing import Literal
 
 import numpy as np
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import NavigationError
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.amcl import Amcl, AmclParams, PoseEstimate
 from atemr.skills.localization.covariance_monitor import CovarianceMonitor, MonitorParams, MonitorReport

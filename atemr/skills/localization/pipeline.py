@@ -22,8 +22,8 @@ from collections import deque
 
 import numpy as np
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import NavigationError, ProtocolError
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.skills.diff_drive import DiffDrive
 from atemr.skills.localization.amcl import PoseEstimate
