@@ -125,6 +125,7 @@ def flat_run(tmp_path_factory: pytest.TempPathFactory) -> FlatRun:
     return FlatRun(code, json.loads(out.getvalue()), data, precision, recall)
 
 
+@pytest.mark.slow  # the tour is a few simulated minutes of the whole robot
 def test_the_whole_flat_is_mapped_on_a_tour(flat_run: FlatRun) -> None:
     """The shipped map-the-flat mission (SLAM on, a living-room round along a route, then every other room,
     save) on the whole robot: completes, saves a map that becomes active, and has seen (almost) the whole flat."""
@@ -155,6 +156,7 @@ def test_the_whole_flat_is_mapped_on_a_tour(flat_run: FlatRun) -> None:
     assert flat_run.recall >= 0.75, flat_run.recall  # most surfaces seen are mapped; precision: the next test
 
 
+@pytest.mark.slow
 def test_the_whole_flat_map_matches_the_ground_truth(flat_run: FlatRun) -> None:
     """Issue 8's bar: ≥ 90 % of the saved map's occupied cells within one cell of the world's map. The tour starts
     localized on the studio map, so the new map is registered to its frame (a third of a degree of start heading

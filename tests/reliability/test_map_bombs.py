@@ -374,6 +374,7 @@ def test_a_slow_load_answers_still_loading_refuses_a_second_and_reports_when_rea
     assert any(e["text"] == "active map: rooms" for e in robot.recent_events(10))
 
 
+@pytest.mark.exclusive  # the real-time robot's own overrun accounting
 def test_selecting_a_large_map_does_not_stall_the_control_loop(tmp_path):
     """The whole simulated robot on the wall clock (so a tick that blocks shows as an overrun of every
     component due meanwhile) selects a 1900 x 1900 map through the gateway, as the dashboard does.

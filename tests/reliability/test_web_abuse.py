@@ -336,6 +336,7 @@ print(json.dumps({"first": first, "all": counts, "slowest_s": slowest[0]}), flus
 
 
 @pytest.mark.slow
+@pytest.mark.exclusive  # the state stream's rate on the wall clock
 @pytest.mark.timeout(120)
 def test_a_login_flood_from_one_address_gets_429_while_the_state_stream_keeps_10_hz(tmp_path: Path) -> None:
     site = Site(tmp_path, hash_method=HASH_METHOD).start()  # real scrypt: ~32 MB and tens of ms per hash
@@ -391,6 +392,7 @@ def _raw(site: Site, path: str, host: str, method: str = "GET", body: str = "",
         conn.close()
 
 
+@pytest.mark.exclusive  # "at once": within a second of the wall clock
 @pytest.mark.timeout(60)
 def test_the_server_serves_at_most_max_connections_and_answers_503_at_once(tmp_path: Path) -> None:
     site = Site(tmp_path, max_connections=4).start()

@@ -82,6 +82,7 @@ def run_until(robot: Robot, done: Callable[[], bool], timeout_s: float, what: st
         robot.run(duration=0.1)
 
 
+@pytest.mark.exclusive  # a real-time robot: blind stop within 2 s of the wall clock
 def test_the_real_path_drives_to_a_goal_and_stops_blind(real_robot: tuple[Robot, RplidarEmulator,
                                                                           Wt901Emulator]) -> None:
     robot, lidar, _ = real_robot
