@@ -319,6 +319,11 @@ def logout_user() -> str | None:
     return token
 
 
+def _wants_json() -> bool:
+    """Whether this request is an API call (answered with a bare status) rather than a page."""
+    return request.path.startswith("/api/") or request.accept_mimetypes.best == "application/json"
+
+
 def role_required(role: Role) -> Callable[[F], F]:
     """Route decorator: anonymous → login page (401 for JSON/API), role too low → no-access page (403)."""
 
@@ -326,7 +331,7 @@ def role_required(role: Role) -> Callable[[F], F]:
         @functools.wraps(view)
         def wrapped(*args: Any, **kwargs: Any) -> Any:
             user = current_user()
-            wants_json = request.path.startswith("/api/") or request.accept_mimetypes.best == "application/json"
+            wants_json = _wants_json()
             if user is None:
                 if wants_json:
                     abort(401)
@@ -377,7 +382,7 @@ def permission_required(permission: Permission, back: str) -> Callable[[F], F]:
                 user = current_user()
                 log.warning("%s refused for %s: needs the permission %r", request.path,
                             user.username if user else "anonymous", permission)
-                if request.path.startswith("/api/") or request.accept_mimetypes.best == "application/json":
+                if _wants_json():
                     abort(403)
                 flash(f"Refused: {refusal(permission)}.", "error")
                 page = make_response(current_app.view_functions[back]())

@@ -1,8 +1,9 @@
 """The Mapping page (begin/end mapping, save/discard dialog, live map, map list and select) and the map
 upload, which goes through the robot's map store (validated before anything is stored).
 
-A refused upload's reason is flashed cut to `MAX_FLASH_CHARS`: flashes live in the session cookie until the
-page shows them, so what an upload may put there is bounded whatever the upload was."""
+A refused upload answers with the page itself, the reason beside the upload form, cut to `MAX_FLASH_CHARS`
+like the flash a successful upload leaves in the session cookie: what an upload may put on the page or in
+the cookie is bounded whatever the upload was."""
 
 from __future__ import annotations
 
@@ -33,15 +34,17 @@ def _store() -> MediaStore:
 @bp.route("/mapping")
 @role_required("user")
 def page() -> str:
+    return _render()
+
+
+def _render(upload_error: str | None = None) -> str:
     maps, _ = _store().newest("maps", 0, 1000)
-    return render_template("mapping/mapping.html", maps=maps, upload_error=None)
+    return render_template("mapping/mapping.html", maps=maps, upload_error=upload_error)
 
 
 def _refused(message: str, status: int) -> tuple[str, int]:
     """The Mapping page with the upload's refusal beside the upload form (a file input cannot be refilled)."""
-    maps, _ = _store().newest("maps", 0, 1000)
-    return render_template("mapping/mapping.html", maps=maps,
-                           upload_error=brief_text(message, MAX_FLASH_CHARS)), status
+    return _render(brief_text(message, MAX_FLASH_CHARS)), status
 
 
 @bp.route("/mapping/upload", methods=["POST"])

@@ -63,7 +63,6 @@
   const confirmBar = $("goal-confirm"), progress = $("goal-progress");
   let tool = null; // "go" | "set" | "obstacle" | "kidnap" | null
   let pending = null; // the goal waiting for CONFIRM
-  let underway = false;
   const HINTS = {
     go: "Tap where the robot should go; drag from there to choose the way it faces.",
     set: "Tap where the robot is now; drag from there to show the way it faces.",
@@ -104,7 +103,7 @@
       await A.until((s) => s.mode === "AUTO", 3000);
     }
     const ack = await A.command("goal", goal);
-    if (ack.ok) { dropPending(); progress.textContent = "Going there…"; underway = true; }
+    if (ack.ok) { dropPending(); progress.textContent = "Going there…"; }
   });
   A.map.onPose = (pose) => {
     const used = tool;
@@ -117,7 +116,6 @@
   A.onState((s) => {
     const n = s.navigation;
     if (s.agent_state === "EXEC" && s.goal && n) {
-      underway = true;
       const left = n.distance_left_m === null ? "—" : `${n.distance_left_m.toFixed(1)} m`;
       const eta = n.eta_s === null ? "" : `, about ${Math.max(1, Math.round(n.eta_s))} s`;
       progress.textContent = `On the way: ${left} left${eta}.`;
@@ -125,7 +123,6 @@
   });
   A.onEvent((e) => {
     if (e.kind !== "goal") return;
-    underway = false;
     progress.textContent = e.text === "Goal reached." ? "Arrived." : e.text;
   });
 
