@@ -152,6 +152,8 @@ def test_a_silent_robot_shows_a_stale_banner_and_turns_driving_off_until_it_is_b
     page = sized
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.live")
+    # opening the page (the socket still connecting, no state yet) is not the robot going offline
+    assert page.is_hidden("#connection") and "offline" not in page.inner_text("#alert-items")
     ready_site.pause()  # the robot process ends; the dashboard stays up
     stopped = time.monotonic()
     page.wait_for_selector("#connection.stale:not([hidden])", timeout=2_000)

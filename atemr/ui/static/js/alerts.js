@@ -114,6 +114,7 @@
   const banner = $("connection");
   const opened = Date.now();
   let lastAt = null;
+  let connected = false; // the socket has been ONLINE at least once
   let stale = false;
   let backTimer = null;
   let offline = null; // the offline alert, taken down when the robot is back
@@ -130,8 +131,11 @@
   function check() {
     const now = Date.now();
     const online = A.socket.status === "ONLINE";
-    const silent = lastAt === null ? now - opened > FIRST_STATE_GRACE_MS : now - lastAt > STALE_MS;
-    const nowStale = !online || silent;
+    // A page just opened is still connecting (its first state may come over HTTP before the socket is up): it
+    // is stale only once the socket or the first state is overdue.
+    if (online) connected = true;
+    const opening = (!connected || lastAt === null) && now - opened <= FIRST_STATE_GRACE_MS;
+    const nowStale = !opening && (!online || lastAt === null || now - lastAt > STALE_MS);
     if (nowStale) {
       const ago = lastAt === null ? "no state has come yet" : `the last state came ${((now - lastAt) / 1000).toFixed(1)} s ago`;
       const why = online ? "No news from the robot" : "The connection to the robot is lost";
