@@ -148,8 +148,8 @@ class GlobalPlanner:
         #: (goal the weights are reduced for, None: plain; the cost and passability they were built from; weights)
         self._cached: tuple[tuple[int, int] | None, NDArray[np.uint8], NDArray[np.bool_], NDArray[np.float64]] | None \
             = None
-        #: The goal of the last plan and the (reduced) cost from each cell of its path to the goal.
-        self._to_go: tuple[int, dict[int, float]] | None = None
+        #: The goal of the last plan, the (reduced) cost from each cell of its path to the goal, and the path.
+        self._to_go: tuple[int, dict[int, float], NDArray[np.intp]] | None = None
 
     def _passable(self) -> NDArray[np.bool_]:
         return self.costmap.traversable(allow_unknown=self.params.allow_unknown)
@@ -209,7 +209,7 @@ class GlobalPlanner:
         flat = _walk_back(pred, s_flat, g_flat)
         # The (reduced) cost to go from every cell of this path: a replan to the same goal from one of them (the
         # robot follows the path) searches with that bound, which a generous first bound would overshoot.
-        self._to_go = (g_flat, dict(zip(flat.tolist(), (d_goal - dist[flat]).tolist(), strict=True)))
+        self._to_go = (g_flat, dict(zip(flat.tolist(), (d_goal - dist[flat]).tolist(), strict=True)), flat)
         pr, pc = np.divmod(flat, cols)
         x, y = cm.map.cell_to_world(pr, pc)
         pts = np.column_stack([x, y]).astype(np.float64)
@@ -224,8 +224,8 @@ class GlobalPlanner:
 
     def _known_cost_to_go(self, s_flat: int, g_flat: int) -> float | None:
         """The last plan's (reduced) cost from ``s_flat`` to the goal when it went to the same goal through that
-        cell: the bound a search needs if the costmap has not changed there (if it has, the search falls back to
-        the generous bounds). A hair above it, as the search adds the same weights in another order."""
+        cell and no edge of it changed since (`_weights` forgets the path then): the bound the search needs. A
+        hair above it, as the search adds the same weights in another order."""
         if self._to_go is None or self._to_go[0] != g_flat:
             return None
         known = self._to_go[1].get(s_flat)
@@ -259,6 +259,10 @@ class GlobalPlanner:
                                None if potential is None else potential[s0:s1, v0:v1])
             sub = sub.reshape(s1 - s0, v1 - v0, 8)[t0 - s0:t1 - s0, u0 - v0:u1 - v0]
             weights.reshape(rows, cols, 8)[t0:t1, u0:u1] = sub
+            if self._to_go is not None:  # the last path's cost holds only if none of its edges changed
+                pr, pc = np.divmod(self._to_go[2], cols)
+                if np.any((pr >= t0) & (pr < t1) & (pc >= u0) & (pc < u1)):
+                    self._to_go = None
             old_cost[t0:t1, u0:u1] = cost[t0:t1, u0:u1]
             old_ok[t0:t1, u0:u1] = passable[t0:t1, u0:u1]
         return weights
