@@ -9,15 +9,25 @@ from __future__ import annotations
 
 import difflib
 import logging
-from collections.abc import Callable, Iterator
-from importlib.metadata import entry_points
-from typing import Generic, TypeVar
+from collections.abc import Callable, Iterable, Iterator
+from typing import TYPE_CHECKING, Generic, TypeVar
+
+if TYPE_CHECKING:
+    from importlib.metadata import EntryPoint
 
 from atemr.errors import RegistryError
 
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
+
+
+def entry_points(group: str) -> Iterable[EntryPoint]:
+    """The installed entry points of ``group``. importlib.metadata is imported here, on the first lookup: it and
+    the scan of installed distributions cost about a tenth of a second, which ``atemr --help`` need not pay."""
+    from importlib.metadata import entry_points as installed
+
+    return installed(group=group)
 
 
 class Registry(Generic[T]):

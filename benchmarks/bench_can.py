@@ -4,12 +4,18 @@ with the shipped DBC, and against the frame rate a 1 Mbit/s bus can carry.
 The mix is one second of this robot's bus: the driver at 50 Hz (speed command + status-2 reply per motor),
 status 1 at 5 Hz per motor, IR sensors at 20 Hz, the 0x153 status at 10 Hz, heartbeats at 2 Hz each way
 and the power frame at 1 Hz. Run: ``.venv/bin/python benchmarks/bench_can.py`` (or ``atemr bench can``).
+
+The last row is the in-process bus the simulated robot runs on (`atemr.io.can.inprocess.InProcessBus`) against
+python-can's ``virtual`` bus: one simulated second of the robot's bus, the frames above sent from their
+senders' ticks at 50 Hz and five participants (primary, two motor emulators, secondary core, recorder tap)
+draining it with ``recv(timeout=0)`` every tick, as the simulation does. Median CPU time of interleaved trials.
 """
 
 from __future__ import annotations
 
 import math
 import random
+import statistics
 import time
 from collections.abc import Callable
 from typing import Any
@@ -17,7 +23,9 @@ from typing import Any
 import can
 
 from atemr.io.can import protocol as p
+from atemr.io.can.bus import unique_channel
 from atemr.io.can.dbc import load_database
+from atemr.io.can.inprocess import InProcessBus
 from atemr.io.motors import rmd_codec as r
 
 #: Frames per second an 8-byte standard frame allows at 1 Mbit/s (≈125 bits each with stuffing).
@@ -101,7 +109,54 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
          "ratio": ours_dec / theirs, "goal": 1.0, "unit": "frames/s"},
         {"what": "encode+decode vs a full 1 Mbit/s bus", "ours": ours_full, "baseline": BUS_FRAMES_PER_S,
          "ratio": ours_full / BUS_FRAMES_PER_S, "goal": 20.0, "unit": "frames/s"},
+        in_process_bus(frames, 3 if quick else 15),
     ]
+
+
+def in_process_bus(frames: list[can.Message], trials: int, participants: int = 5, ticks: int = 50
+                   ) -> dict[str, Any]:
+    """One simulated second of the robot's bus on our in-process bus and on python-can's virtual bus (see the
+    module docstring): simulated seconds per CPU second, and the ratio."""
+    per_tick = [frames[k::ticks] for k in range(ticks)]
+
+    def one_second(open_bus: Callable[[str], can.BusABC]) -> Callable[[], int]:
+        channel = unique_channel("bench-bus")
+        buses = [open_bus(channel) for _ in range(participants)]
+
+        def run_once() -> int:
+            delivered = 0
+            for k, batch in enumerate(per_tick):
+                sender = buses[k % participants]
+                for frame in batch:
+                    sender.send(frame)
+                for bus in buses:
+                    while bus.recv(timeout=0) is not None:
+                        delivered += 1
+            return delivered
+
+        run_once.buses = buses  # type: ignore[attr-defined]
+        return run_once
+
+    runs = {"ours": one_second(InProcessBus),
+            "python-can": one_second(lambda channel: can.Bus(interface="virtual", channel=channel))}
+    times: dict[str, list[float]] = {name: [] for name in runs}
+    delivered = {}
+    try:
+        for _ in range(trials):
+            for name, run_once in runs.items():
+                t0 = time.thread_time()
+                delivered[name] = run_once()
+                times[name].append(time.thread_time() - t0)
+    finally:
+        for run_once in runs.values():
+            for bus in run_once.buses:  # type: ignore[attr-defined]
+                bus.shutdown()
+    assert delivered["ours"] == delivered["python-can"] == len(frames) * (participants - 1), delivered
+    ours, theirs = statistics.median(times["ours"]), statistics.median(times["python-can"])
+    return {"what": f"in-process bus, 1 s of the robot's bus ({len(frames)} frames, {participants} participants "
+                    f"polling at {ticks} Hz) vs python-can's virtual bus",
+            "ours": 1.0 / ours, "baseline": 1.0 / theirs, "ratio": theirs / ours, "goal": 1.0,
+            "unit": "bus s per CPU s"}
 
 
 if __name__ == "__main__":

@@ -14,14 +14,25 @@ Rows (``python benchmarks/bench_nav.py``):
   the lidar's rate).
 * one local-planner tick (dynamic window, all (v, w) samples and time steps at once), ticks per second
   (goal >= 10 Hz).
+* A* against tcod (libtcod's C pathfinder, a benchmark-only dependency: the ``bench`` extra) on the same cost
+  model: 8-connected, entering a cell costs its step length times ``1 + 3 · cost/252`` (tcod in integers:
+  cell cost ``84 + cost`` times 1000 or 1414 per step, so its diagonals are 0.0015 % short), no corner cutting
+  (a condition per diagonal edge), octile heuristic. On the bench map and on a large real map (nav2's
+  warehouse, 1674 x 1006 cells, from ``../shared/worlds/external``; skipped when absent). Cold: a new planner
+  (ours builds every edge weight; tcod builds its graph) for each plan. Warm: the same start and goal again
+  with the graph kept (ours: cached weights and the last path's cost to go; tcod: its graph, a new search).
+  Each row gives both paths' costs under our model. Median CPU time of interleaved trials. Goal >= 1x.
 """
 
 from __future__ import annotations
 
 import heapq
 import math
+import statistics
 import sys
 import time
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -32,6 +43,8 @@ from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.skills.nav.costmap import INSCRIBED, MAX_NON_OBSTACLE, Costmap
 from atemr.skills.nav.global_planner import GlobalPlanner, PlannerParams
 from atemr.skills.nav.local_planner import LocalPlanner
+
+LARGE_MAP = Path(__file__).resolve().parents[2] / "shared" / "worlds" / "external" / "nav2_warehouse.yaml"
 
 
 def make_grid(size: int = 400, seed: int = 7) -> OccupancyMap:
@@ -193,7 +206,107 @@ def run(quick: bool = False) -> list[dict[str, Any]]:  # noqa: PLR0915  the benc
     rows.append({"what": "local planner tick (dynamic window, all samples x steps at once)",
                  "ours": round(1.0 / t_local, 1), "baseline": 10.0, "ratio": round(0.1 / t_local, 1),
                  "goal": 1.0, "unit": "ticks/s (baseline: the 10 Hz control rate)"})
+    return rows + against_tcod(quick)
+
+
+def against_tcod(quick: bool = False) -> list[dict[str, Any]]:
+    """A* against tcod, cold and warm, on the bench map and the large map (see the module docstring)."""
+    try:
+        import tcod  # noqa: F401  (the bench extra)
+    except ImportError:
+        return [_skipped("A* vs tcod: skipped, tcod is not installed (pip install atemr[bench])")]
+    cm = Costmap(make_grid())
+    cases = [("400x400 bench costmap, corner to corner", cm, cm.cells(0.5, 0.5)[:2], cm.cells(19.4, 19.3)[:2])]
+    if LARGE_MAP.is_file():
+        from atemr.io.sim.world import load_world
+
+        big = Costmap(load_world(str(LARGE_MAP)).map)
+        free = np.argwhere(big.cost == 0)
+
+        def nearest(row_frac: float, col_frac: float) -> tuple[int, int]:
+            target = np.array([row_frac * big.shape[0], col_frac * big.shape[1]])
+            return tuple(int(v) for v in free[np.argmin(((free - target) ** 2).sum(axis=1))])  # type: ignore[return-value]
+
+        cases.append((f"{big.shape[0]}x{big.shape[1]} warehouse map (nav2), end to end", big, nearest(0.05, 0.1),
+                      nearest(0.95, 0.85)))
+    rows = [] if LARGE_MAP.is_file() else [_skipped(f"A* vs tcod on a large map: skipped, {LARGE_MAP} is absent")]
+    for label, costmap, start, goal in cases:
+        rows += _astar_vs_tcod(label, costmap, (int(start[0]), int(start[1])), (int(goal[0]), int(goal[1])),
+                               3 if quick else 9)
     return rows
+
+
+def tcod_graph(cost: NDArray[np.uint8], passable: NDArray[np.bool_]) -> Any:
+    """tcod's graph for the planner's cost model, in integers (see the module docstring)."""
+    import tcod
+
+    per_cell = np.where(passable, 84 + np.minimum(cost, MAX_NON_OBSTACLE).astype(np.int32), 0).astype(np.int32)
+    graph = tcod.path.CustomGraph(cost.shape)
+    pad = np.pad(passable, 1)
+    rows, cols = cost.shape
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr and dc:  # no corner cutting: both cells passed between must be passable
+                beside = pad[1 + dr:1 + dr + rows, 1:1 + cols] & pad[1:1 + rows, 1 + dc:1 + dc + cols]
+                graph.add_edge((dr, dc), 1414, cost=per_cell, condition=beside.astype(np.int8))
+            elif dr or dc:
+                graph.add_edge((dr, dc), 1000, cost=per_cell)
+    graph.set_heuristic(cardinal=84 * 1000, diagonal=84 * 1414)
+    return graph
+
+
+def cost_of_cells(cells: NDArray[Any], cost: NDArray[np.uint8], resolution_m: float) -> float:
+    """A grid path's cost under the planner's model: the step length into each cell times its cost per metre."""
+    per_m = 1.0 + 3.0 * np.minimum(cost, MAX_NON_OBSTACLE) / MAX_NON_OBSTACLE
+    steps = np.diff(cells, axis=0)
+    return float((np.hypot(steps[:, 0], steps[:, 1]) * resolution_m * per_m[cells[1:, 0], cells[1:, 1]]).sum())
+
+
+def _astar_vs_tcod(label: str, cm: Costmap, start: tuple[int, int], goal: tuple[int, int], trials: int
+                   ) -> list[dict[str, Any]]:
+    import tcod
+
+    cost, passable = cm.cost, cm.traversable(allow_unknown=False)
+    start_xy = tuple(float(v) for v in cm.map.cell_to_world(*start))
+    goal_xy = tuple(float(v) for v in cm.map.cell_to_world(*goal))
+    params = PlannerParams(smooth=False)
+    warm = GlobalPlanner(cm, params)
+    warm.plan(start_xy, goal_xy)  # type: ignore[arg-type]
+    kept = tcod_graph(cost, passable)
+
+    def theirs(graph: Any) -> NDArray[Any]:
+        finder = tcod.path.Pathfinder(graph)
+        finder.add_root(start)
+        return np.asarray(finder.path_to(goal))
+
+    runs: dict[str, Callable[[], Any]] = {
+        "ours cold": lambda: GlobalPlanner(cm, params).plan(start_xy, goal_xy),  # type: ignore[arg-type]
+        "tcod cold": lambda: theirs(tcod_graph(cost, passable)),
+        "ours warm": lambda: warm.plan(start_xy, goal_xy),  # type: ignore[arg-type]
+        "tcod warm": lambda: theirs(kept),
+    }
+    times: dict[str, list[float]] = {k: [] for k in runs}
+    for _ in range(trials):
+        for name, run_once in runs.items():
+            t0 = time.thread_time()
+            run_once()
+            times[name].append(time.thread_time() - t0)
+    median = {k: statistics.median(v) for k, v in times.items()}
+    tcod_cost = cost_of_cells(runs["tcod cold"](), cost, cm.resolution_m)
+    rows = []
+    for mode in ("cold", "warm"):
+        ours_path = runs[f"ours {mode}"]()
+        rows.append({
+            "what": f"A* {mode} vs tcod, {label} (path cost {ours_path.cost:.3f} vs {tcod_cost:.3f}; "
+                    f"{ours_path.expanded} cells reached)",
+            "ours": round(1.0 / median[f"ours {mode}"], 2), "baseline": round(1.0 / median[f"tcod {mode}"], 2),
+            "ratio": round(median[f"tcod {mode}"] / median[f"ours {mode}"], 2), "goal": 1.0, "unit": "plans/s",
+        })
+    return rows
+
+
+def _skipped(what: str) -> dict[str, Any]:
+    return {"what": what, "ours": None, "baseline": None, "ratio": None, "goal": None, "unit": ""}
 
 
 if __name__ == "__main__":

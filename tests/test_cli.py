@@ -1,12 +1,16 @@
+import argparse
 import contextlib
+import json
 import os
 import signal
 import subprocess
 import sys
 import time
 
+import pytest
+
 from atemr import __version__
-from atemr.cli.main import main
+from atemr.cli.main import BUILTIN_COMMANDS, build_parser, main, named_command
 
 
 def test_version(capsys):
@@ -77,11 +81,51 @@ def test_power_off_command_runs_only_after_an_acknowledged_power_off(tmp_path):
     assert after_stop(robot) == 0 and marker.exists()
 
 
+def _imported_after(code: str) -> dict[str, list[str]]:
+    """Run ``code`` in a fresh interpreter, then name the heavy libraries and the atemr modules it imported."""
+    probe = (f"import sys, json\n{code}\n"
+             "print(json.dumps({'heavy': sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'scipy', 'flask', "
+             "'can', 'cantools', 'filterpy', 'cv2', 'serial', 'py_trees', 'transitions', 'yaml', 'skfuzzy', "
+             "'networkx', 'PIL', 'av', 'mcap'}), 'atemr': sorted(m for m in sys.modules if m.startswith('atemr.'))}))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, check=True)
+    return json.loads(out.stdout.splitlines()[-1])
+
+
 def test_the_parser_imports_no_heavy_library():
     """``atemr --help`` and every command's start-up import only what the chosen command runs: building the
-    whole parser pulls in none of numpy, scipy, Flask, python-can or filterpy (each costs tenths of a second)."""
-    code = ("import sys; from atemr.cli.main import build_parser; build_parser(); "
-            "print(sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'scipy', 'flask', 'can', 'filterpy', "
-            "'cv2', 'serial', 'py_trees', 'transitions'}))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
-    assert out.stdout.strip() == "[]", out.stdout
+    whole parser pulls in none of numpy, scipy, Flask, python-can or filterpy (each costs tenths of a second),
+    no command's module, and nothing of the robot or the simulator."""
+    seen = _imported_after("from atemr.cli.main import build_parser; build_parser().format_help()")
+    assert seen["heavy"] == []
+    assert set(seen["atemr"]) <= {"atemr.cli", "atemr.cli.main", "atemr.cli.arguments", "atemr.cli.command",
+                                  "atemr.registry", "atemr.errors"}, seen["atemr"]
+
+
+@pytest.mark.parametrize("name", sorted(BUILTIN_COMMANDS))
+def test_a_command_parses_with_its_own_module_only(name):
+    """Reading one command's arguments imports that command's module and none of the others, and still no
+    heavy library: the command imports those when it runs."""
+    seen = _imported_after(f"from atemr.cli.main import build_parser\n"
+                           f"try:\n    build_parser(plugins=False).parse_args([{name!r}, '--help'])\n"
+                           f"except SystemExit:\n    pass")
+    assert seen["heavy"] == []
+    module = BUILTIN_COMMANDS[name].target.partition(":")[0]
+    commands = {b.target.partition(":")[0] for b in BUILTIN_COMMANDS.values()}
+    assert module in seen["atemr"]
+    assert commands & set(seen["atemr"]) <= {module, "atemr.cli.mission"}, seen["atemr"]  # mission attach
+
+
+def test_every_builtin_command_has_its_arguments_in_the_parser():
+    """The lazily filled parsers still describe every command: each prints its own usage and options."""
+    parser = build_parser(plugins=False)
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for name, command_parser in sub.choices.items():
+        text = command_parser.format_help()
+        assert text.startswith(f"usage: atemr {name} [-h] ")
+        assert BUILTIN_COMMANDS[name].help.replace(" ", "") in "".join(text.split())  # wrapped anywhere
+
+
+def test_a_command_line_names_its_command():
+    assert named_command(["--log-level", "DEBUG", "sim", "--world", "run"]) == "sim"
+    assert named_command(["--log-level=debug", "fuzzy"]) == "fuzzy"
+    assert named_command(["--help"]) is None

@@ -1,1 +1,1 @@
-"""The ``atemr`` command line: one module per subcommand, named in `atemr.cli.main.COMMAND_MODULES`."""
+"""The ``atemr`` command line: one module per subcommand, named in `atemr.cli.main.BUILTIN_COMMANDS`."""

@@ -6,15 +6,12 @@ import argparse
 import importlib.util
 from pathlib import Path
 
-from atemr.cli.command import commands
 from atemr.errors import AtemrError
 
 HARNESS = Path(__file__).resolve().parents[2] / "benchmarks" / "harness.py"
 
 
 class BenchCommand:
-    help = "run every benchmark (or the named ones) and print ours vs. baseline ratios"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("topics", nargs="*", help="only these benchmarks (e.g. can fuzzy)")
         parser.add_argument("--quick", action="store_true", help="fewer repetitions (a smoke run)")
@@ -29,6 +26,3 @@ class BenchCommand:
         spec.loader.exec_module(harness)
         argv = [*args.topics, *(["--quick"] if args.quick else []), *(["--json"] if args.json else [])]
         return int(harness.main(argv))
-
-
-commands.add("bench", BenchCommand())

@@ -27,7 +27,6 @@ if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --he
     from atemr.io.can.recording import DescribedFrame
     from atemr.io.motors.rmd_protocol import RmdProtocol
 
-from atemr.cli.command import commands
 from atemr.errors import ProtocolError
 
 
@@ -115,8 +114,6 @@ def chosen_protocol(protocol: str | None, config: Path | None) -> RmdProtocol:
 
 
 class CanCommand:
-    help = "CAN tools: decode a bus log, monitor live traffic, locate the DBC"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         sub = parser.add_subparsers(dest="can_action", metavar="ACTION", required=True)
         decode = sub.add_parser("decode", help="print every frame of a log file decoded by name and field")
@@ -179,6 +176,3 @@ class CanCommand:
                 logger.stop()
         print(f"{seen} frame(s)", file=sys.stderr)
         return 0
-
-
-commands.add("can", CanCommand())

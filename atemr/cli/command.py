@@ -1,7 +1,9 @@
-"""What a subcommand is, and the registry that lists them.
+"""What a subcommand is, and the registry of the ones other packages add.
 
-A subcommand module defines a `Command` and registers it with ``@commands.register("name")``; a
-third-party package can add one through the ``atemr.commands`` entry-point group.
+The built-in commands are named in `atemr.cli.main.BUILTIN_COMMANDS` (the class that runs each and its
+one-line help), so the command line imports a command's module only when that command runs. A third-party
+package adds a command through the ``atemr.commands`` entry-point group: the entry point names a
+`PluginCommand` object, which carries its own help.
 """
 
 from __future__ import annotations
@@ -18,8 +20,6 @@ from atemr.registry import Registry
 class Command(Protocol):
     """A subcommand: adds its own arguments, then runs with the parsed namespace."""
 
-    help: str
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         """Add this subcommand's arguments to its parser."""
         ...
@@ -29,7 +29,14 @@ class Command(Protocol):
         ...
 
 
-commands: Registry[Command] = Registry("commands")
+class PluginCommand(Command, Protocol):
+    """A command from another package: as it is loaded only to be listed, it carries its one-line help."""
+
+    help: str
+
+
+#: Commands added by other packages (entry-point group ``atemr.commands``); read only when needed.
+commands: Registry[PluginCommand] = Registry("commands")
 
 
 def report_and_warn(report: dict[str, Any], *, as_json: bool, printer: Callable[[dict[str, Any]], None],

@@ -6,14 +6,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from atemr.cli.command import commands
 from atemr.cli.signals import stop_on_signals
 from atemr.errors import ConfigError
 
 
 class DashboardCommand:
-    help = "serve the dashboard without a robot: it shows the robots publishing into ui.message_queue (Redis)"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
         parser.add_argument("--message-queue", help="Redis URL the robots publish to, e.g. redis://127.0.0.1:6379/0")
@@ -50,6 +47,3 @@ class DashboardCommand:
                 server.shutdown()
         print("ATEMR dashboard stopped.", flush=True)
         return 0
-
-
-commands.add("dashboard", DashboardCommand())

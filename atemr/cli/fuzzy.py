@@ -20,7 +20,6 @@ if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --he
 
     from atemr.skills.fuzzy.engine import Engine, InputVariable, OutputVariable
 
-from atemr.cli.command import commands
 from atemr.errors import ConfigError
 
 _SPLIT = re.compile(r"[,\s]+")
@@ -130,8 +129,6 @@ def plot_engine(engine: Engine, path: Path, points: int = 501) -> None:
 
 
 class FuzzyCommand:
-    help = "evaluate a fuzzy engine on rows from stdin (eval) or print and plot it (show)"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         sub = parser.add_subparsers(dest="fuzzy_action", metavar="ACTION", required=True)
         ev = sub.add_parser("eval", help="read input rows on stdin, print inputs and outputs like a .fld")
@@ -160,6 +157,3 @@ class FuzzyCommand:
             plot_engine(engine, args.plot)
             print(f"plot written to {args.plot}")
         return 0
-
-
-commands.add("fuzzy", FuzzyCommand())

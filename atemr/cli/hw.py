@@ -17,8 +17,6 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from atemr.cli.command import commands
-
 if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
     from atemr.config import Config
 from atemr.errors import ConfigError
@@ -43,8 +41,6 @@ def reading_json(kind: str, reading: Any, t: float) -> dict[str, Any]:
 
 
 class HwCommand:
-    help = "check, read and emulate the robot's devices (lidar, IMU, camera, motors, secondary core)"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         sub = parser.add_subparsers(dest="hw_action", metavar="ACTION", required=True)
         check = sub.add_parser("check", help="open every configured device and say what answers (exit 1 when a "
@@ -74,9 +70,6 @@ class HwCommand:
         from atemr.cli.hw_emulate import emulate_command
 
         return emulate_command(args)
-
-
-commands.add("hw", HwCommand())
 
 
 def _config(args: argparse.Namespace) -> Config:

@@ -24,7 +24,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from atemr.cli.arguments import kidnap_argument, pose_argument
-from atemr.cli.command import commands
 
 if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
     from atemr.msgs import Pose2D
@@ -32,8 +31,6 @@ from atemr.errors import ConfigError
 
 
 class MissionCommand:
-    help = "validate mission files (trees/missions/*.yaml) or run one in a fresh simulation"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         sub = parser.add_subparsers(dest="mission_action", metavar="ACTION", required=True)
         validate = sub.add_parser("validate", help="check mission files; exit 2 on an error, with file:line:col")
@@ -105,9 +102,6 @@ class MissionCommand:
                 print(f"  not runnable in this build: needs {', '.join(report['missing_behaviours'])}; "
                       f"steps {steps}")
         return worst
-
-
-commands.add("mission", MissionCommand())
 
 
 def _robot_options(parser: argparse.ArgumentParser) -> None:

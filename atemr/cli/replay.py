@@ -16,14 +16,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from atemr.cli.command import commands, report_and_warn
+from atemr.cli.command import report_and_warn
 from atemr.clock import WallClock
 from atemr.errors import ConfigError
 
 
 class ReplayCommand:
-    help = "feed a recording into SLAM (--slam) or localization (--localize --map NAME)"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("file", type=Path, metavar="FILE", help="an MCAP recording (data_dir/traces, --trace)")
         what = parser.add_mutually_exclusive_group(required=True)
@@ -137,6 +135,3 @@ class Pacer:
         if self._origin is None:
             self._origin = t
         self._clock.sleep_until((t - self._origin) / self.speed)
-
-
-commands.add("replay", ReplayCommand())

@@ -10,7 +10,6 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from atemr.cli.command import commands
 from atemr.cli.signals import stop_on_signals
 
 if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
@@ -24,8 +23,6 @@ STARTUP_CHECK_S = 5.0
 
 
 class RunCommand:
-    help = "start the robot: in simulation by default, or on real hardware with --can-interface socketcan"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
         parser.add_argument("--world", help="simulated world: a shipped world's name or a path to its YAML")
@@ -115,6 +112,3 @@ def power_off(command: str) -> int:
     except OSError as exc:
         log.error("power_off_command %r failed: %s", command, exc)
         return 1
-
-
-commands.add("run", RunCommand())

@@ -17,7 +17,6 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from atemr.cli.command import commands
 from atemr.cli.signals import stop_on_signals
 
 if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
@@ -50,8 +49,6 @@ def summary(sim: Simulation, sim_seconds: float, wall_seconds: float, seed: int)
 
 
 class SimCommand:
-    help = "run the simulated robot in a world (headless as fast as possible, or locked to real time)"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
         parser.add_argument("--world", help="a shipped world's name (studio) or a path to a world or map YAML")
@@ -138,6 +135,3 @@ class SimCommand:
                   f"scans: {result['scans']}, frames: {result['frames']}"
                   + (f"; agent: {result['agent_state']}" if "agent_state" in result else ""))
         return 0
-
-
-commands.add("sim", SimCommand())

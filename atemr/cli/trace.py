@@ -14,12 +14,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from atemr.cli.command import commands, report_and_warn
+from atemr.cli.command import report_and_warn
 
 
 class TraceCommand:
-    help = "read recorded agent traces (data_dir/traces, atemr mission run --trace)"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         sub = parser.add_subparsers(dest="trace_action", metavar="ACTION", required=True)
         show = sub.add_parser("show", help="print the transitions of a trace with times and reasons")
@@ -56,6 +54,3 @@ def print_report(report: dict[str, Any]) -> None:
         by = f" by {row['decided_by']}" if row.get("decided_by") else ""
         decision = f" ({row['decision']}{by})" if row.get("decision") else ""
         print(f"{row['t']:10.3f}  {row['trigger']:<16} {move}{origin}{decision}{reason}")
-
-
-commands.add("trace", TraceCommand())

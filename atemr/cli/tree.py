@@ -10,8 +10,6 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from atemr.cli.command import commands
-
 if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
     from atemr.fsm.export import Drawing
     from atemr.fsm.spec import AgentSpec
@@ -56,8 +54,6 @@ def summary(document: AgentSpec | Mission) -> str:
 
 
 class TreeCommand:
-    help = "validate or draw the agent's lifecycle and behaviour trees (or a mission's tree)"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         sub = parser.add_subparsers(dest="tree_action", metavar="ACTION", required=True)
         validate = sub.add_parser("validate", help="check a document; exit 0 when valid, 2 with file:line:col")
@@ -90,6 +86,3 @@ class TreeCommand:
         else:
             sys.stdout.write(output)
         return 0
-
-
-commands.add("tree", TreeCommand())

@@ -7,7 +7,6 @@ import getpass
 import sys
 from pathlib import Path
 
-from atemr.cli.command import commands
 from atemr.errors import AtemrError
 
 
@@ -26,8 +25,6 @@ def read_new_password(prompt: str = "New password: ") -> str:
 
 
 class UserCommand:
-    help = "manage dashboard users: set-password NAME (the first admin password), list"
-
     def configure(self, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
         parser.add_argument("--data-dir", type=Path, help="where the users database lives")
@@ -53,6 +50,3 @@ class UserCommand:
         store.set_password(args.username, read_new_password(f"New password for {args.username}: "))
         print(f"password of {args.username} set", file=sys.stderr)
         return 0
-
-
-commands.add("user", UserCommand())

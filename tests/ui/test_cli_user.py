@@ -30,7 +30,7 @@ def main(argv):
 def test_user_is_a_builtin_command():
     from atemr.cli import main as cli_main
 
-    assert "atemr.cli.user" in cli_main.COMMAND_MODULES
+    assert cli_main.BUILTIN_COMMANDS["user"].target == "atemr.cli.user:UserCommand"
 
 
 def test_set_admin_password_from_stdin(tmp_path, monkeypatch, capsys):

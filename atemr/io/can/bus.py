@@ -5,7 +5,9 @@ points add more): ``virtual`` (the default: in-process, one channel name per rob
 share one), ``socketcan`` (the real robot, ``can0``; the bit rate is set on the interface with
 ``ip link set can0 type can bitrate 1000000``), and any other python-can interface by its name.
 Every participant (primary side, each motor emulator, the secondary core, a recorder) opens its own
-Bus instance on the same channel; python-can's virtual interface delivers between them.
+Bus instance on the same channel; ``virtual`` is this project's python-can interface
+`atemr.io.can.inprocess.InProcessBus`, which delivers between them without copying frames and shares
+python-can's virtual channels (a python-can ``virtual`` bus on the same channel hears the robot).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import can
 
 from atemr.config import CanConfig
 from atemr.errors import BusError, ConfigError
+from atemr.io.can.inprocess import InProcessBus
 from atemr.registry import Registry
 
 BusOpener = Callable[[CanConfig], can.BusABC]
@@ -44,7 +47,7 @@ def _python_can(interface: str, channel: str, **kwargs: Any) -> can.BusABC:
 @bus_kinds.register("virtual")
 def open_virtual(config: CanConfig) -> can.BusABC:
     """The in-process bus of the simulation: every Bus on the same channel sees the others' frames."""
-    return _python_can("virtual", config.channel, bitrate=config.bitrate)
+    return InProcessBus(config.channel, bitrate=config.bitrate)
 
 
 @bus_kinds.register("socketcan")

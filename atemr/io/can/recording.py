@@ -13,6 +13,7 @@ with their hardware timestamps.
 
 from __future__ import annotations
 
+import copy
 import logging
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -76,8 +77,9 @@ class BusRecorder:
         if self.threaded or self._closed:
             return
         while (msg := self.bus.recv(timeout=0)) is not None:
-            msg.timestamp = now
-            self._writer.on_message_received(msg)
+            stamped = copy.copy(msg)  # a received frame is shared with the bus's other receivers: never changed
+            stamped.timestamp = now
+            self._writer.on_message_received(stamped)
             self.frames += 1
 
     def shutdown(self) -> None:

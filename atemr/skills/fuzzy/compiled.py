@@ -35,7 +35,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -70,6 +70,8 @@ FIRING_EPSILON = 1e-6
 CHUNK_SAMPLES = 2_000_000
 #: The rule stage runs on chunks of rows whose widest intermediate stays below this many floats (1 MB).
 _CHUNK_FLOATS = 131_072
+#: numpy sums this many numbers or more in a row pairwise, fewer one after the other (`_Segments.row_sums`).
+_PAIRWISE_FROM = 8
 #: A rule whose disjunctive normal form has more clauses than this is evaluated by its tree instead.
 _MAX_CLAUSES = 64
 
@@ -131,6 +133,30 @@ def _padded(rows: Sequence[Sequence[int]], pad: int | None = None) -> Index:
     return out
 
 
+@dataclass(frozen=True)
+class _Gather:
+    """``reduce(rows[index], axis=1)`` for an index matrix fixed when the plan is made, ``reduce`` a min or a max.
+    An index of one column needs no reduction (a min or max of one value is that value), and one naming rows 0,
+    1, ... of a matrix of as many rows needs not even the gather: the result is the matrix itself, so a large
+    batch is not copied (fresh arrays cost a large batch more than the arithmetic: page faults)."""
+
+    index: Index
+    reduce: np.ufunc
+    identity: bool
+
+    def __call__(self, rows: Array) -> Array:
+        if self.index.shape[1] > 1:
+            reduced: Array = self.reduce.reduce(rows[self.index], axis=1)
+            return reduced
+        if self.identity and rows.shape[0] == self.index.shape[0]:
+            return rows
+        return rows[self.index[:, 0]]
+
+
+def _gather(index: Index, reduce: np.ufunc) -> _Gather:
+    return _Gather(index, reduce, index.shape[1] == 1 and np.array_equal(index[:, 0], np.arange(index.shape[0])))
+
+
 def _col(values: Sequence[float] | Array) -> Array:
     """A column vector: one parameter per term, broadcast along the rows."""
     return np.asarray(values, dtype=np.float64)[:, None]
@@ -156,9 +182,14 @@ class _Shape:
         if self.kind == "Ramp":
             # Ramp's select is (x - s)/(e - s) clipped to [0, 1] for rising and falling ramps alike: the
             # falling formula (s - x)/(s - e) flips both signs, which IEEE rounding does not notice. (Exactly
-            # at a falling ramp's start this gives -0.0 instead of 0.0; it fires nothing either way.)
+            # at a falling ramp's start this gives -0.0 instead of 0.0; it fires nothing either way.) In place
+            # in the gathered copy: on a large batch, fresh arrays cost more (page faults) than the arithmetic.
             s, width = self.params
-            mu = np.minimum(np.maximum((v - s) / width, 0.0), 1.0)
+            mu = v
+            mu -= s
+            mu /= width
+            np.maximum(mu, 0.0, out=mu)
+            np.minimum(mu, 1.0, out=mu)
         elif self.kind == "Triangle":
             a, b, c, ba, cb, a_inf, c_inf = self.params
             rise = np.where(a_inf, 1.0, (v - a) / ba)
@@ -328,7 +359,7 @@ class _Antecedents:
     the rule weights, and the rules evaluated by their trees written into their rows."""
 
     n_rules: int
-    clause_index: Index | None  # (clauses, literals per clause): columns of the literal rows
+    clauses: _Gather | None  # index (clauses, literals per clause): columns of the literal rows
     rule_index: Index | None  # (rules, clauses per rule), None when every rule is one clause
     dnf_columns: Index  # the rule number of each normal-form row
     weights: Array | None  # None: every weight is 1
@@ -339,8 +370,8 @@ class _Antecedents:
         """Activation degree (weight × antecedent) of every rule (rules, rows)."""
         n = lits.shape[1]
         deg = np.zeros((0, n))
-        if self.clause_index is not None:
-            deg = lits[self.clause_index].min(axis=1)
+        if self.clauses is not None:
+            deg = self.clauses(lits)
             if self.rule_index is not None:
                 deg = deg[self.rule_index].max(axis=1)
             if self.weights is not None:
@@ -374,7 +405,7 @@ def _antecedents(rules: Rules, dnf: Sequence[tuple[int, list[list[Literal]]]], t
     weights = np.array([rules[r][1].weight for r, _ in dnf])
     return _Antecedents(
         len(rules),
-        _padded(clause_rows) if clause_rows else None,
+        _gather(_padded(clause_rows), np.minimum) if clause_rows else None,
         rule_index,
         np.array([r for r, _ in dnf], dtype=np.intp),
         _col(weights) if np.any(weights != 1.0) else None,
@@ -468,7 +499,7 @@ class _Grouping:
     hedges: tuple[tuple[Index, tuple[Hedge, ...]], ...]  # `_Sources.hedges`
     all_max: bool
     max_ids: Index
-    max_index: Index | None
+    max_gather: _Gather | None
     sum_ids: Index
     sum_index: Index | None
     folds: tuple[tuple[int, _Item], ...]
@@ -492,12 +523,12 @@ class _Grouping:
         if self.sum_index is not None:
             src = np.concatenate([src, np.zeros((1, n))])
         if self.all_max:
-            assert self.max_index is not None
-            w = src[self.max_index].max(axis=1)
+            assert self.max_gather is not None
+            w = self.max_gather(src)
         else:
             w = np.empty((self.n_items, n))
-            if self.max_index is not None:
-                w[self.max_ids] = src[self.max_index].max(axis=1)
+            if self.max_gather is not None:
+                w[self.max_ids] = self.max_gather(src)
             if self.sum_index is not None:
                 # as the rule-by-rule path folds them: ((d1 + d2) + d3) ..., padded with + 0
                 w[self.sum_ids] = src[self.sum_index].sum(axis=1)
@@ -525,7 +556,7 @@ def _grouping(items: Sequence[_Item], sources: _Sources) -> _Grouping:
         sources.hedges,
         len(max_ids) == len(items) > 0,
         np.array(max_ids, dtype=np.intp),
-        _padded([items[j].sources for j in max_ids]) if max_ids else None,
+        _gather(_padded([items[j].sources for j in max_ids]), np.maximum) if max_ids else None,
         np.array(sum_ids, dtype=np.intp),
         _padded([items[j].sources for j in sum_ids], pad=sources.count) if sum_ids else None,
         folds,
@@ -608,17 +639,43 @@ class _Segments:
     """Consecutive ranges of the items of each output, to sum per output along an axis."""
 
     bounds: tuple[tuple[int, int], ...]
+    #: The number of items of every output when it is the same for all (one reshape sums them), else None.
+    length: int | None = field(init=False)
+    #: Whether every output has fewer items than numpy sums pairwise (`row_sums`).
+    short: bool = field(init=False)
+
+    def __post_init__(self) -> None:
+        lengths = {b - a for a, b in self.bounds}
+        object.__setattr__(self, "length", lengths.pop() if len(lengths) == 1 else None)
+        object.__setattr__(self, "short", all(b - a < _PAIRWISE_FROM for a, b in self.bounds))
 
     def sums(self, v: Array, axis: int) -> Array:
         """Sums per output along ``axis`` (0 or 1) of ``v``: the same additions in the same order as
         ``v[a:b].sum(axis=0)`` (or ``v[:, a:b].sum(axis=1)``) for each output, whatever the number of rows."""
-        lengths = {b - a for a, b in self.bounds}
-        if len(lengths) == 1:  # equal lengths: one reshape
-            shape = (*v.shape[:axis], len(self.bounds), lengths.pop(), *v.shape[axis + 1:])
+        if self.length is not None:  # equal lengths: one reshape
+            shape = (*v.shape[:axis], len(self.bounds), self.length, *v.shape[axis + 1:])
             return v.reshape(shape).sum(axis=axis + 1)
         if axis == 0:
             return np.stack([v[a:b].sum(axis=0) for a, b in self.bounds])
         return np.stack([v[:, a:b].sum(axis=1) for a, b in self.bounds], axis=1)
+
+    def row_sums(self, v: Array) -> Array:
+        """Sums per output (outputs, rows) of ``v`` (items, rows): the numbers ``v.T``'s rows summed per output
+        give, which is what the rule-by-rule path computes (`WeightedAverage.combine`). numpy adds fewer than
+        8 numbers in a row one after the other, as a sum along axis 0 does, so short segments sum along axis 0
+        directly: a transposed copy of many rows, summed in rows of a few numbers, costs 50 times more.
+        Longer rows are summed pairwise by numpy, so they go through the transposed copy."""
+        if self.short:
+            return self.sums(v, axis=0)
+        return self.sums(np.ascontiguousarray(v.T), axis=1).T
+
+    def any(self, present: Mask) -> Mask:
+        """Whether any item of each output is present (outputs, rows); ``present`` is (items, rows).
+        (np.logical_or.reduceat along axis 0 does the same but takes, on a large batch, as long as the rest of
+        the defuzzification together.)"""
+        if self.length is not None:
+            return np.logical_or.reduce(present.reshape(len(self.bounds), self.length, present.shape[1]), axis=1)
+        return np.stack([np.logical_or.reduce(present[a:b], axis=0) for a, b in self.bounds])
 
 
 @dataclass(frozen=True)
@@ -699,6 +756,7 @@ class _Defuzzification:
     locked ranges."""
 
     starts: Index  # the first item of each output that has items
+    segments: _Segments  # the items of each output that has items
     n_lin: int
     lin_items: int
     lin_table: Array  # (lin items, [area, moment], 1)
@@ -723,18 +781,17 @@ class _Defuzzification:
                 a, b = self.lin_items, self.lin_items + self.weighted_items
                 ww, p = w[a:b], present[a:b]
                 # as WeightedAverage/WeightedSum.combine: rows of (w·z where present) summed per output
-                terms = np.ascontiguousarray(np.where(p, ww * self.values.evaluate(ww, x), 0.0).T)
-                num = self.w_segments.sums(terms, axis=1).T
+                num = self.w_segments.row_sums(np.where(p, ww * self.values.evaluate(ww, x), 0.0))
                 if self.w_average is False:
                     crisp.append(num)
                 else:
-                    ratio = num / self.w_segments.sums(np.ascontiguousarray(np.where(p, ww, 0.0).T), axis=1).T
+                    ratio = num / self.w_segments.row_sums(np.where(p, ww, 0.0))
                     crisp.append(ratio if self.w_average is True else np.where(self.w_average, ratio, num))
         crisp.extend(other.evaluate(w, present, x)[None, :] for other in self.others)
         if self.n_empty:
             crisp.append(np.full((self.n_empty, n), np.nan))
         result = crisp[0] if len(crisp) == 1 else np.concatenate(crisp)
-        fired_any = np.logical_or.reduceat(present, self.starts) if self.starts.size else np.zeros((0, n), bool)
+        fired_any = self.segments.any(present) if self.starts.size else np.zeros((0, n), bool)
         if self.n_empty:
             fired_any = np.concatenate([fired_any, np.zeros((self.n_empty, n), dtype=bool)])
         result = np.where(fired_any, result, self.defaults)
@@ -798,6 +855,7 @@ def _defuzzification(outputs: Sequence[OutputVariable], out_items: Sequence[Sequ
                      _col([o.maximum if o.lock_range else math.inf for o in ordered]))
     return _Defuzzification(
         starts,
+        _Segments(tuple(itertools.pairwise([*starts.tolist(), sum(counts)]))),
         n_lin,
         lin_items,
         _lin_table(outputs, out_items, layout.lin, grids),
@@ -841,6 +899,14 @@ class CompiledEngine:
             x = np.minimum(np.maximum(x, self.in_range[0]), self.in_range[1])
         if n <= self.chunk_rows:
             w, present = self._rules(x)
+        elif not self.defuzzification.others:
+            # every output is computed row by row from its items (no sampled integral): the whole plan runs on
+            # chunks that stay in cache, and a large batch allocates nothing of its size but the result
+            result = np.empty((len(self.position), n))
+            for s in range(0, n, self.chunk_rows):
+                chunk = x[:, s: s + self.chunk_rows]
+                result[:, s: s + self.chunk_rows] = self.defuzzification.defuzzify(*self._rules(chunk), chunk)
+            return result
         else:  # the rule stage in chunks that stay in cache; the items are few, defuzzify them all at once
             parts = [self._rules(x[:, s: s + self.chunk_rows]) for s in range(0, n, self.chunk_rows)]
             w = np.concatenate([part[0] for part in parts], axis=1)
@@ -851,7 +917,8 @@ class CompiledEngine:
         """Grouped degree and presence of every item (items, rows) for the (clipped) inputs."""
         deg = self.antecedents.degrees(self.fuzzification.memberships(x))
         fired = deg >= FIRING_EPSILON
-        return self.grouping.grouped(np.where(fired, deg, 0.0), fired)
+        np.copyto(deg, 0.0, where=~fired)  # deg is this call's own array (the literal rows, or made from them)
+        return self.grouping.grouped(deg, fired)
 
 
 def compile_engine(engine: Engine, grids: Grids) -> CompiledEngine:
@@ -872,8 +939,9 @@ def compile_engine(engine: Engine, grids: Grids) -> CompiledEngine:
         in_range = (_col([v.minimum if v.lock_range else -math.inf for v in inputs]),
                     _col([v.maximum if v.lock_range else math.inf for v in inputs]))
     widths = [len(inputs), len(fuzz.column), sources.count + 1, grouping.n_items + len(outputs), 2 * len(layout.lin)]
-    widths += [index.size for index in (antecedents.clause_index, antecedents.rule_index, grouping.max_index,
-                                        grouping.sum_index, grouping.present_index) if index is not None]
+    indexes = [g.index for g in (antecedents.clauses, grouping.max_gather) if g is not None]
+    indexes += [i for i in (antecedents.rule_index, grouping.sum_index, grouping.present_index) if i is not None]
+    widths += [index.size for index in indexes]
     names = tuple(v.name for v in inputs)
     return CompiledEngine(
         names,

@@ -127,7 +127,7 @@ def edge_weights(cost: NDArray[np.uint8], passable: NDArray[np.bool_], resolutio
             w += _shifted(h_pad, dr, dc)
             w -= potential
             np.maximum(w, 1e-12, out=w)
-        w[~ok] = _BLOCKED
+        np.copyto(w, _BLOCKED, where=~ok)
     return np.ascontiguousarray(planes.reshape(8, rows * cols).T)
 
 
@@ -148,6 +148,8 @@ class GlobalPlanner:
         #: (goal the weights are reduced for, None: plain; the cost and passability they were built from; weights)
         self._cached: tuple[tuple[int, int] | None, NDArray[np.uint8], NDArray[np.bool_], NDArray[np.float64]] | None \
             = None
+        #: The goal of the last plan, the (reduced) cost from each cell of its path to the goal, and the path.
+        self._to_go: tuple[int, dict[int, float], NDArray[np.intp]] | None = None
 
     def _passable(self) -> NDArray[np.bool_]:
         return self.costmap.traversable(allow_unknown=self.params.allow_unknown)
@@ -188,9 +190,8 @@ class GlobalPlanner:
             return GlobalPath(pts, np.array([s_flat]), float(np.hypot(*(pts[1] - pts[0]))), 0.0, 1)
         h: FloatArray | None = None
         h_start = 0.0
-        if p.algorithm == "astar":
-            grid_rc = np.indices(cm.shape)
-            h = octile_m(grid_rc[0], grid_rc[1], g, cm.resolution_m) * p.neutral_cost
+        if p.algorithm == "astar":  # rows and columns broadcast: the numbers np.indices gives, in one pass
+            h = octile_m(np.arange(rows)[:, None], np.arange(cols)[None, :], g, cm.resolution_m) * p.neutral_cost
             h_start = float(h[s])
         cost_grid, passable = self._grids(s)
         data = self._weights(cost_grid, passable, h, g)
@@ -201,11 +202,14 @@ class GlobalPlanner:
         # (Dijkstra's bound is on the path cost itself: 1.75 times the octile distance to begin with.)
         straight = float(octile_m(np.array(s[0]), np.array(s[1]), g, cm.resolution_m)) * p.neutral_cost
         limit = (0.75 if p.algorithm == "astar" else 1.75) * straight + 10 * cm.resolution_m
-        found = _bounded_search(graph, s_flat, g_flat, limit)
+        found = _bounded_search(graph, s_flat, g_flat, limit, self._known_cost_to_go(s_flat, g_flat))
         if found is None:
             return None
-        d_goal, pred, expanded = found
+        d_goal, pred, dist, expanded = found
         flat = _walk_back(pred, s_flat, g_flat)
+        # The (reduced) cost to go from every cell of this path: a replan to the same goal from one of them (the
+        # robot follows the path) searches with that bound, which a generous first bound would overshoot.
+        self._to_go = (g_flat, dict(zip(flat.tolist(), (d_goal - dist[flat]).tolist(), strict=True)), flat)
         pr, pc = np.divmod(flat, cols)
         x, y = cm.map.cell_to_world(pr, pc)
         pts = np.column_stack([x, y]).astype(np.float64)
@@ -217,6 +221,15 @@ class GlobalPlanner:
         seg = np.diff(pts, axis=0)
         length = float(np.hypot(seg[:, 0], seg[:, 1]).sum())
         return GlobalPath(pts, flat, length, total, expanded)
+
+    def _known_cost_to_go(self, s_flat: int, g_flat: int) -> float | None:
+        """The last plan's (reduced) cost from ``s_flat`` to the goal when it went to the same goal through that
+        cell and no edge of it changed since (`_weights` forgets the path then): the bound the search needs. A
+        hair above it, as the search adds the same weights in another order."""
+        if self._to_go is None or self._to_go[0] != g_flat:
+            return None
+        known = self._to_go[1].get(s_flat)
+        return None if known is None else known * (1 + 1e-9) + 1e-9
 
     def _weights(self, cost: NDArray[np.uint8], passable: NDArray[np.bool_], potential: FloatArray | None,
                  goal: tuple[int, int]) -> NDArray[np.float64]:
@@ -246,6 +259,10 @@ class GlobalPlanner:
                                None if potential is None else potential[s0:s1, v0:v1])
             sub = sub.reshape(s1 - s0, v1 - v0, 8)[t0 - s0:t1 - s0, u0 - v0:u1 - v0]
             weights.reshape(rows, cols, 8)[t0:t1, u0:u1] = sub
+            if self._to_go is not None:  # the last path's cost holds only if none of its edges changed
+                pr, pc = np.divmod(self._to_go[2], cols)
+                if np.any((pr >= t0) & (pr < t1) & (pc >= u0) & (pc < u1)):
+                    self._to_go = None
             old_cost[t0:t1, u0:u1] = cost[t0:t1, u0:u1]
             old_ok[t0:t1, u0:u1] = passable[t0:t1, u0:u1]
         return weights
@@ -294,12 +311,19 @@ class GlobalPlanner:
         return cost, passable
 
 
-def _bounded_search(graph: csr_matrix, s_flat: int, g_flat: int, limit: float
-                    ) -> tuple[float, NDArray[np.int32], int] | None:
+def _bounded_search(graph: csr_matrix, s_flat: int, g_flat: int, limit: float, first: float | None = None
+                    ) -> tuple[float, NDArray[np.int32], FloatArray, int] | None:
     """Dijkstra from ``s_flat`` with its cost bound ``limit`` doubled until the goal is reached: the (reduced)
-    cost to the goal, the predecessors and how many cells were reached in all; None when the goal stays out
-    of reach (only through lethal cells, or nothing more is reached)."""
+    cost to the goal, the predecessors, the (reduced) distances and how many cells were reached in all; None
+    when the goal stays out of reach (only through lethal cells, or nothing more is reached). A ``first`` bound
+    below ``limit`` (a known cost) is tried before."""
     expanded = 0
+    if first is not None and first < limit:
+        dist, pred = dijkstra(graph, indices=s_flat, return_predecessors=True, limit=first)
+        d_goal = float(dist[g_flat])
+        expanded += int(np.count_nonzero(np.isfinite(dist) & (dist < _BLOCKED / 10)))
+        if d_goal < _BLOCKED / 10:
+            return d_goal, pred, dist, expanded
     reached_before = -1
     while True:
         dist, pred = dijkstra(graph, indices=s_flat, return_predecessors=True, limit=limit)
@@ -307,7 +331,7 @@ def _bounded_search(graph: csr_matrix, s_flat: int, g_flat: int, limit: float
         reached = int(np.count_nonzero(np.isfinite(dist) & (dist < _BLOCKED / 10)))
         expanded += reached
         if math.isfinite(d_goal):
-            return None if d_goal >= _BLOCKED / 10 else (d_goal, pred, expanded)
+            return None if d_goal >= _BLOCKED / 10 else (d_goal, pred, dist, expanded)
         if reached == reached_before or not math.isfinite(limit):
             return None
         reached_before = reached
@@ -318,8 +342,9 @@ def _walk_back(pred: NDArray[np.int32], start: int, goal: int) -> NDArray[np.int
     out = [goal]
     node = goal
     limit = pred.shape[0]
+    links = pred.data  # a memoryview: Python ints, without a numpy scalar per step
     while node != start:
-        node = int(pred[node])
+        node = links[node]
         if node < 0 or len(out) > limit:
             raise NavigationError("planner: broken predecessor chain (internal error)")
         out.append(node)

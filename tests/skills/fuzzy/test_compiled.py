@@ -9,6 +9,7 @@ plan treats specially (hedges, weights, other norms, aggregations, defuzzifiers 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from pathlib import Path
 
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 
 from atemr.skills.fuzzy import Engine, load_builtin_engine, load_engine
+from atemr.skills.fuzzy.compiled import _Segments
 from atemr.skills.fuzzy.discrete_centroid import DiscreteCentroid
 from atemr.skills.fuzzy.terms import Ramp, Trapezoid, Triangle
 from atemr.skills.fuzzy.yaml_format import engine_from_yaml
@@ -314,3 +316,19 @@ def test_ramp_membership_is_its_select_form() -> None:
         np.testing.assert_array_equal(got, expected)
         assert not np.signbit(got[got == 0.0]).any()
         assert isinstance(term.membership(float(s)), np.ndarray) and term.membership(float(s)).shape == ()
+
+
+@pytest.mark.parametrize("lengths", [[1], [2, 2], [3, 1, 7], [7, 7], [8], [5, 12], [9, 9]])
+def test_weighted_sums_are_the_rule_by_rule_paths_to_the_last_bit(lengths: list[int]) -> None:
+    """WeightedAverage/WeightedSum outputs sum each output's items along the item axis, without the transposed
+    copy `WeightedAverage.combine` sums by rows; numpy adds fewer than 8 numbers in a row one after the other,
+    as along the item axis, so the sums are the same bits, signs of zero included (longer rows go through the
+    copy: numpy sums them pairwise)."""
+    rng = np.random.default_rng(sum(lengths))
+    bounds = tuple(itertools.pairwise(itertools.accumulate(lengths, initial=0)))
+    v = rng.standard_normal((sum(lengths), 999)) * 10.0 ** rng.integers(-8, 8, (sum(lengths), 999))
+    v[rng.random(v.shape) < 0.2] = 0.0
+    v[rng.random(v.shape) < 0.2] = -0.0
+    by_rows = np.ascontiguousarray(v.T)
+    expected = np.stack([by_rows[:, a:b].sum(axis=1) for a, b in bounds])
+    assert _Segments(bounds).row_sums(v).tobytes() == expected.tobytes()

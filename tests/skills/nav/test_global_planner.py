@@ -172,3 +172,30 @@ def test_cached_weights_patched_after_a_scan_equal_a_full_rebuild(make_map):
             assert cached.cost == pytest.approx(fresh.cost, rel=1e-12)
         full = edge_weights(cm.cost, cm.traversable(), RES, planner.params)
         assert np.array_equal(planner._weights(cm.cost, cm.traversable(), None, (0, 0)), full)
+
+
+def test_a_replan_to_the_same_goal_searches_only_as_far_as_the_last_path_costs(make_map):
+    """A replan from a cell of the last path searches with that path's cost to go as its bound: the same path as
+    a new planner finds, from fewer cells. After a scan changes the costmap on the path the bound no longer
+    holds and is not used; off the path it still is. Either way the answer is a new planner's."""
+    from atemr.msgs import LaserScan, Pose2D
+
+    rng = np.random.default_rng(3)
+    data = np.zeros((80, 100), dtype=np.int8)
+    data[20:60, 45:50] = 100  # a wall to go round
+    cm = Costmap(make_map(data, RES))
+    planner = GlobalPlanner(cm, PlannerParams(smooth=False))
+    goal = (4.5, 3.5)
+    first = planner.plan((0.5, 0.5), goal)
+    assert first is not None
+    for k, where in enumerate([None, (1.0, 3.5), (3.5, 0.5)]):  # unchanged; a scan far from the path; one on it
+        if where is not None:
+            ranges = rng.uniform(0.3, 0.6, 90)
+            cm.update_from_scan(LaserScan(float(k), ranges, -math.pi, 2 * math.pi / 90, 0.15, 8.0), Pose2D(*where, 0.0))
+        start = centre(cm, *divmod(int(first.cells[len(first.cells) // 4]), cm.shape[1]))
+        fresh = GlobalPlanner(cm, PlannerParams(smooth=False)).plan(start, goal)
+        replan = planner.plan(start, goal)
+        assert fresh is not None and replan is not None
+        assert np.array_equal(replan.cells, fresh.cells) and replan.cost == fresh.cost
+        if k < 2:  # the bound held: far fewer cells reached (about a fifth here)
+            assert replan.expanded < fresh.expanded / 2
