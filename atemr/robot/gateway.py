@@ -43,6 +43,7 @@ from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
+from atemr.robot.places import PlaceEditor
 from atemr.robot.plain_words import plain_outcome, plain_refusal
 from atemr.robot.port import jpeg
 from atemr.robot.video import VideoRecorder
@@ -143,6 +144,7 @@ class RobotGatewayImpl:
         self._loader = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-maps")
         #: The map being loaded or waiting for its swap (another selection is refused meanwhile).
         self._map_loading: str | None = None
+        self.place_editor = PlaceEditor(self.maps)
         robot.add(_Pump(self), pump_rate_hz)
         self.recorder: VideoRecorder | None = None
         if self.camera is not None:
@@ -293,6 +295,8 @@ class RobotGatewayImpl:
             "mission": self._mission(agent),
             "missions": self.missions(),
             "maps": self._listing_of("maps", self.store.dir, self.store.names),
+            "places": [{"name": p.name, "x_m": round(p.pose.x_m, 3), "y_m": round(p.pose.y_m, 3),
+                        "yaw_rad": round(p.pose.yaw_rad, 3), "kind": p.kind} for p in self.maps.places.values()],
             "events": self.robot.recent_events(EVENTS_SHOWN),
             "autonomy": {"level": autonomy["level"], "levels": autonomy["levels"], "timeout_s": autonomy["timeout_s"],
                          "pending": autonomy["pending"], "now": autonomy["now"]},
@@ -521,6 +525,22 @@ class RobotGatewayImpl:
         active = self.maps.active_name
         if active is not None and not self.store.exists(active):
             self.robot.event("map", f"the active map {active} was deleted; it stays in use until another is selected")
+
+    # -- places (`atemr.robot.places`) ---------------------------------------------------------------------
+    def go_to_place(self, name: str) -> CommandResult:
+        place = self.place_editor.find(name)
+        if isinstance(place, str):
+            return CommandResult.refused(place)
+        result = self.set_goal(place.pose)
+        if result.ok:
+            self.robot.event("places", f"going to {place.name}")
+        return result
+
+    def save_place(self, name: str, pose: Pose2D, kind: str = "place", previous: str | None = None) -> CommandResult:
+        return self.place_editor.save(name, pose, kind, previous)
+
+    def delete_place(self, name: str) -> CommandResult:
+        return self.place_editor.delete(name)
 
     # -- settings ----------------------------------------------------------------------------------------
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:

@@ -153,6 +153,19 @@ class RobotGateway(Protocol):
         """Tell the robot the map directory changed (an upload or a delete), so its list is fresh."""
         ...
 
+    # -- places ------------------------------------------------------------------------------------
+    def go_to_place(self, name: str) -> CommandResult:
+        """Drive to the active map's place ``name`` (AUTO only, as a goal; refused with the closest names)."""
+        ...
+
+    def save_place(self, name: str, pose: Pose2D, kind: str = "place", previous: str | None = None) -> CommandResult:
+        """Add place ``name`` at ``pose`` on the active map, or (``previous``) move and/or rename that place;
+        stored with the map at once."""
+        ...
+
+    def delete_place(self, name: str) -> CommandResult:
+        ...
+
     # -- settings ----------------------------------------------------------------------------------
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:
         """New speed limits, applied at once without a restart, persisted; a refusal keeps the old ones."""

@@ -135,7 +135,7 @@ class KinematicGateway:
                            "disk_percent": 60.0},
                 "limits": {"linear_mps": self.limits[0], "angular_radps": self.limits[1]},
                 "awareness": self.awareness, "wifi_ssid": "lab", "mapping": self.mapping, "recording": False,
-                "mission": None, "missions": ["patrol", "visit_kitchen"], "maps": list(self.maps),
+                "mission": None, "missions": ["patrol", "visit_kitchen"], "maps": list(self.maps), "places": [],
                 "events": [dict(e) for e in self.events[-20:]],
                 "autonomy": {"level": "full", "levels": ["off", "low", "high", "full"], "timeout_s": 30.0,
                              "pending": None, "now": self.clock.now()},

@@ -39,7 +39,7 @@ class RecordingGateway:
             "stop_cause": None, "level1": {}, "level2": {},
             "system": None, "limits": {"linear_mps": 0.5, "angular_radps": 1.0}, "awareness": False,
             "wifi_ssid": None, "mapping": False, "recording": False, "mission": None, "missions": ["patrol"],
-            "maps": [], "events": [],
+            "maps": [], "places": [], "events": [],
             "autonomy": {"level": "full", "levels": ["off", "low", "high", "full"], "timeout_s": 30.0,
                          "pending": None, "now": 0.0},
         }
@@ -111,6 +111,15 @@ class RecordingGateway:
 
     def maps_changed(self) -> None:
         self.maps_changed_count += 1
+
+    def go_to_place(self, name: str) -> CommandResult:
+        return self._cmd("go_to_place", name)
+
+    def save_place(self, name: str, pose: Pose2D, kind: str = "place", previous: str | None = None) -> CommandResult:
+        return self._cmd("save_place", name, pose, kind, previous)
+
+    def delete_place(self, name: str) -> CommandResult:
+        return self._cmd("delete_place", name)
 
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:
         return self._cmd("set_limits", linear_mps, angular_radps)

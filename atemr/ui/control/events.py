@@ -45,6 +45,12 @@ def goal(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.set_goal(payload.pose("goal", data))
 
 
+@events.on("go_to_place")
+def go_to_place(robot: RobotGateway, data: Any) -> CommandResult:
+    """``{name}``: a named place of the active map (the "Go to" list)."""
+    return robot.go_to_place(payload.text("go_to_place", data, "name", max_len=40))
+
+
 @events.on("initial_pose")
 def initial_pose(robot: RobotGateway, data: Any) -> CommandResult:
     return robot.set_initial_pose(payload.pose("initial_pose", data))

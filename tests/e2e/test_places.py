@@ -1,0 +1,73 @@
+"""Named places in Debian's chromium against the whole simulated robot (issue 27): a place added by tapping
+the map (a drag gives its heading) is stored with the map, and the "Go to" list sends the robot there."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from atemr.io.map_store import MapStore
+
+from .test_dashboard import screen_point, wait_for
+
+pytestmark = pytest.mark.e2e
+
+
+def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, page, shots, helpers):
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map.image !== null")
+    wait_for(page, "document.querySelectorAll('#place-list li').length === 6")  # the studio's rooms and home
+    names = page.eval_on_selector_all("#place-list li", "els => els.map(e => e.dataset.place)")
+    assert names == ["home", "living room", "kitchen", "bedroom", "bathroom", "balcony door"]
+    wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)")  # AUTO needs every level-1 OK
+
+    start = robot_site.sim.pose
+    px, py = start.x_m + 1.0, start.y_m + 0.6  # free floor of the living room, beside the start
+    page.click("#place-add")
+    page.locator("#map").scroll_into_view_if_needed()  # the panel may be below the map on this screen
+    x, y = screen_point(page, px, py)
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x, y - 40, steps=4)  # dragged up the screen: facing +y (north)
+    page.mouse.up()
+    assert page.is_visible("#place-form")
+    page.fill("#place-name", "Mum's armchair")
+    page.click("#place-save")
+    wait_for(page, "document.querySelector('#place-list li[data-place=\"Mum\\'s armchair\"]') !== null")
+    stored = MapStore(robot_site.data_dir).places("studio")["mum's armchair"]
+    assert math.hypot(stored.pose.x_m - px, stored.pose.y_m - py) < 0.1 and abs(stored.pose.yaw_rad - math.pi / 2) < 0.2
+    page.screenshot(path=str(shots / "places-added.png"), full_page=True)
+
+    # a second place with the same name is refused with the reason, and nothing changes
+    page.click("#place-add")
+    page.locator("#map").scroll_into_view_if_needed()
+    x, y = screen_point(page, px - 0.5, py)
+    page.mouse.click(x, y)
+    page.fill("#place-name", "MUM'S ARMCHAIR")
+    page.click("#place-save")
+    wait_for(page, "document.getElementById('place-status').textContent.includes('exists already')")
+    page.click("#place-cancel")
+    assert len(MapStore(robot_site.data_dir).places("studio")) == 7
+
+    # "Go to": the robot switches to AUTO and drives to the place by itself
+    page.click("#place-list li[data-place=\"Mum's armchair\"] .place-go")
+    wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
+    goal = page.evaluate("ATEMR.state.goal")
+    assert abs(goal["x_m"] - stored.pose.x_m) < 0.01 and abs(goal["y_m"] - stored.pose.y_m) < 0.01
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=30000)
+    truth = robot_site.sim.pose
+    assert math.hypot(truth.x_m - px, truth.y_m - py) < 0.3, truth
+    page.screenshot(path=str(shots / "places-arrived.png"), full_page=True)
+
+    # renamed and deleted from the list
+    page.click("#place-list li[data-place=\"Mum's armchair\"] .place-rename")
+    page.fill("#place-name", "armchair")
+    page.click("#place-save")
+    wait_for(page, "document.querySelector('#place-list li[data-place=\"armchair\"]') !== null")
+    page.click("#place-list li[data-place=\"armchair\"] .place-delete")
+    page.click("#place-list li[data-place=\"armchair\"] .place-delete")  # the second tap confirms
+    wait_for(page, "document.querySelectorAll('#place-list li').length === 6")
+    assert "armchair" not in MapStore(robot_site.data_dir).places("studio")
