@@ -69,6 +69,9 @@ class SimConfig:
     odom_noise: float = field(
         default=0.01, metadata={"min": 0.0, "max": 0.4, "help": "encoder speed noise (fraction, std)"}
     )
+    start_time: str = field(default="", metadata={
+        "help": "the calendar date and time the simulation starts at, for routines (ISO 8601 with its offset, "
+                "e.g. 2026-03-29T08:55+02:00; empty: the wall clock when it starts)"})
 
 
 @dataclass(frozen=True)

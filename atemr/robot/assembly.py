@@ -120,6 +120,7 @@ def _wire(robot: Robot) -> None:
         wheels=wheels, port=port, navigation=navigation, agent=agent, reload_watcher=watcher,
         system_monitor=system_monitor, sim=sim, secondary_board=board,
     )
+    _add_routines(robot)
     _add_recorder(robot)
     if config.ui.enabled:
         from atemr.robot.dashboard import add_dashboard  # lazy: headless runs never import Flask
@@ -135,6 +136,26 @@ def _wire(robot: Robot) -> None:
     robot.add(system_monitor, RATES["system_monitor"])
     if config.control.enabled:
         _add_control(robot)
+
+
+def _add_routines(robot: Robot) -> None:
+    """The care routines (`atemr.robot.routines`): after the agent, on a calendar from the robot's clock (in
+    simulation ``sim.start_time`` plus the simulated seconds, so a simulated day is repeatable)."""
+    from atemr.io.routine_store import RoutineStore
+    from atemr.robot.routines import RATE_HZ, Calendar, RoutineRunner, parse_start_time
+
+    cfg, parts = robot.config, robot.parts
+    if cfg.simulation:
+        start = parse_start_time(cfg.sim.start_time)
+        calendar = Calendar(robot.clock, start if start is not None else WallClock().wall_time())
+    else:
+        calendar = Calendar(robot.clock)
+    localization, maps = parts.localization, parts.maps
+    runner = RoutineRunner(RoutineStore(cfg.data_dir), parts.agent,
+                           Path(parts.agent.spec.file or DEFAULT_AGENT_FILE).parent / "missions", calendar=calendar,
+                           places=lambda: maps.places, localized=lambda: localization.localized, event=robot.event)
+    robot.add(runner, RATE_HZ)
+    robot.parts = replace(robot.parts, routines=runner)
 
 
 def _add_control(robot: Robot) -> None:

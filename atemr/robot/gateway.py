@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from atemr.clock import WallClock
+from atemr.domain.routines import RoutineBook
 from atemr.errors import AtemrError, ConfigError, brief, brief_text
 from atemr.fsm.agent import DEFAULT_AGENT_FILE
 from atemr.io.devices.drivers import camera_rate_hz
@@ -541,6 +542,59 @@ class RobotGatewayImpl:
 
     def delete_place(self, name: str) -> CommandResult:
         return self.place_editor.delete(name)
+
+    # -- routines (`atemr.robot.routines`) -----------------------------------------------------------------
+    def routines(self) -> dict[str, Any] | None:
+        runner = self.robot.parts.routines
+        return None if runner is None else runner.snapshot()
+
+    def _change_routines(self, change: Callable[[RoutineBook], RoutineBook], what: str) -> CommandResult:
+        """Apply ``change`` to the routines in force and store the result (the runner reads it at its next tick);
+        a refusal stores nothing."""
+        runner = self.robot.parts.routines
+        if runner is None:
+            return CommandResult.refused("this robot runs no routines")
+        try:
+            book = change(runner.store.load())
+            runner.store.save(book)
+            runner.reload()
+        except ConfigError as exc:
+            return CommandResult.refused(f"{what}: {exc.reason}")
+        except OSError as exc:
+            return CommandResult.refused(f"{what}: not saved: {exc.strerror}")
+        self.robot.event("routine", f"{what}: done")
+        return CommandResult.accepted()
+
+    def save_routine(self, routine: dict[str, Any], previous: str | None = None) -> CommandResult:
+        from atemr.domain.routines import Routine
+
+        def change(book: RoutineBook) -> RoutineBook:
+            new = Routine.from_json(routine, "routine")
+            if new.mission not in self.missions():
+                raise ConfigError(f"no mission named {brief(new.mission)}; missions: {', '.join(self.missions())}",
+                                  path="routine.mission")
+            if previous is not None and previous != new.name:
+                book = book.without(previous)
+                if book.get(new.name) is not None:
+                    raise ConfigError(f"a routine named {new.name!r} exists already", path="routine.name")
+            elif previous is None and book.get(new.name) is not None:
+                raise ConfigError(f"a routine named {new.name!r} exists already", path="routine.name")
+            return book.with_routine(new)
+
+        name = routine.get("name") if isinstance(routine, dict) else routine
+        return self._change_routines(change, f"routine {brief(name)}")
+
+    def delete_routine(self, name: str) -> CommandResult:
+        return self._change_routines(lambda book: book.without(name), f"delete routine {brief(name)}")
+
+    def set_routines_timezone(self, timezone: str) -> CommandResult:
+        from atemr.domain.routines import zone
+
+        def change(book: RoutineBook) -> RoutineBook:
+            zone(timezone)
+            return RoutineBook(timezone, book.routines)
+
+        return self._change_routines(change, f"routines time zone {brief(timezone)}")
 
     # -- settings ----------------------------------------------------------------------------------------
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:

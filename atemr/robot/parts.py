@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from atemr.robot.port import RobotPortImpl
     from atemr.robot.recorder import RunRecorder
     from atemr.robot.reload import ReloadWatcher
+    from atemr.robot.routines import RoutineRunner
     from atemr.robot.settings_store import SettingsStore
     from atemr.robot.wheels import WheelOdometryFeed
     from atemr.skills.localization.pipeline import LocalizationPipeline
@@ -75,3 +76,5 @@ class RobotParts:
     dashboard: DashboardServer | None = None
     state_publisher: StatePublisher | None = None
     control: RobotControl | None = None
+    #: The care routines (scheduled missions), `atemr.robot.routines`.
+    routines: RoutineRunner | None = None

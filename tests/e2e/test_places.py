@@ -1,13 +1,16 @@
-"""Named places in Debian's chromium against the whole simulated robot (issue 27): a place added by tapping
-the map (a drag gives its heading) is stored with the map, and the "Go to" list sends the robot there."""
+"""Places and routines in Debian's chromium against the whole simulated robot (issue 27): a place added by
+tapping the map (a drag gives its heading) is stored with the map, and the "Go to" list sends the robot
+there; a routine created on the Routines page is stored in the data directory and listed with its next run."""
 
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
 from atemr.io.map_store import MapStore
+from atemr.io.routine_store import RoutineStore
 
 from .test_dashboard import screen_point, wait_for
 
@@ -71,3 +74,38 @@ def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, pag
     page.click("#place-list li[data-place=\"armchair\"] .place-delete")  # the second tap confirms
     wait_for(page, "document.querySelectorAll('#place-list li').length === 6")
     assert "armchair" not in MapStore(robot_site.data_dir).places("studio")
+
+
+def test_create_a_routine_on_the_routines_page(robot_site, page, shots, helpers):
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    page.click("nav.tabs a:has-text('Routines')")
+    page.wait_for_url(re.compile(r"/routines$"))
+    assert "No routines yet." in page.inner_text("#routine-list")
+    page.fill("#routines-timezone", "Europe/Berlin")
+    page.click("#timezone-form button[type=submit]")
+    page.wait_for_selector("p.flash:has-text('Routines time zone Europe/Berlin.')")  # the page came back
+    page.fill("#routine-name", "check-on-resident")
+    page.select_option("#routine-mission", "round-of-the-rooms")
+    page.fill("#routine-at", "09:00")
+    page.uncheck("#routine-days input[value=sat]")
+    page.uncheck("#routine-days input[value=sun]")
+    page.click("#routine-save")
+    wait_for(page, "document.querySelector('#routine-list tr[data-routine=\"check-on-resident\"]') !== null")
+    row = page.inner_text("#routine-list tr[data-routine=\"check-on-resident\"]")
+    assert "round-of-the-rooms" in row and "at 09:00, mon-fri" in row and re.search(r"\d{4}-\d\d-\d\d 09:00 CES?T", row)
+    book = RoutineStore(robot_site.data_dir).load()
+    assert book.timezone == "Europe/Berlin" and book.routines[0].to_json() == {
+        "name": "check-on-resident", "mission": "round-of-the-rooms", "at": "09:00",
+        "days": ["mon", "tue", "wed", "thu", "fri"]}
+    # a mistake is refused beside the form, what was typed kept, nothing stored
+    page.fill("#routine-name", "night patrol")
+    page.check("#routine-kind-every")
+    page.fill("#routine-every", "30")
+    page.fill("#routine-from", "23:00")
+    page.fill("#routine-to", "01:00")
+    page.click("#routine-save")
+    assert "across midnight" in page.inner_text("#routine-error")
+    assert page.input_value("#routine-name") == "night patrol"
+    assert len(RoutineStore(robot_site.data_dir).load().routines) == 1
+    page.screenshot(path=str(shots / "routines.png"), full_page=True)
