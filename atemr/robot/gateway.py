@@ -60,7 +60,7 @@ from atemr.ui.snapshot import (
     status_levels,
     system_json,
 )
-from atemr.ui.state import MissionJson, Mode, RobotState, StopCause, top_state
+from atemr.ui.state import BatteryJson, MissionJson, Mode, RobotState, StopCause, top_state
 
 log = logging.getLogger(__name__)
 
@@ -298,10 +298,18 @@ class RobotGatewayImpl:
             "maps": self._listing_of("maps", self.store.dir, self.store.names),
             "places": [{"name": p.name, "x_m": round(p.pose.x_m, 3), "y_m": round(p.pose.y_m, 3),
                         "yaw_rad": round(p.pose.yaw_rad, 3), "kind": p.kind} for p in self.maps.places.values()],
+            "battery": self._battery(),
             "events": self.robot.recent_events(EVENTS_SHOWN),
             "autonomy": {"level": autonomy["level"], "levels": autonomy["levels"], "timeout_s": autonomy["timeout_s"],
                          "pending": autonomy["pending"], "now": autonomy["now"]},
         }
+
+    def _battery(self) -> BatteryJson | None:
+        watch = self.robot.parts.battery
+        latest = None if watch is None else watch.estimator.latest
+        if watch is None or latest is None:
+            return None
+        return {"percent": round(latest.percent, 1), "voltage_v": round(latest.voltage_v, 2), "level": watch.level}
 
     def _stop_cause(self) -> StopCause | None:
         """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge, an obstacle

@@ -103,6 +103,15 @@ class PlaceJson(TypedDict):
     kind: str
 
 
+class BatteryJson(TypedDict):
+    """The state of charge estimated from the motors' supply voltage (`atemr.robot.battery.BatteryWatch`)."""
+
+    percent: float
+    voltage_v: float
+    #: ``ok``, ``low`` (below the warning limit), ``return`` (going home to charge), ``critical`` (stopped).
+    level: str
+
+
 class RobotState(TypedDict):
     """One snapshot of the robot as the dashboard shows it."""
 
@@ -152,6 +161,8 @@ class RobotState(TypedDict):
     maps: list[str]
     #: The active map's named places, in their order.
     places: list[PlaceJson]
+    #: None until the motors have reported a plausible supply voltage.
+    battery: BatteryJson | None
     #: The latest events, oldest first.
     events: list[EventJson]
     autonomy: AutonomyJson

@@ -136,6 +136,7 @@ class KinematicGateway:
                 "limits": {"linear_mps": self.limits[0], "angular_radps": self.limits[1]},
                 "awareness": self.awareness, "wifi_ssid": "lab", "mapping": self.mapping, "recording": False,
                 "mission": None, "missions": ["patrol", "visit_kitchen"], "maps": list(self.maps), "places": [],
+                "battery": {"percent": 76.0, "voltage_v": 26.4, "level": "ok"},
                 "events": [dict(e) for e in self.events[-20:]],
                 "autonomy": {"level": "full", "levels": ["off", "low", "high", "full"], "timeout_s": 30.0,
                              "pending": None, "now": self.clock.now()},

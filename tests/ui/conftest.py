@@ -39,7 +39,7 @@ class RecordingGateway:
             "stop_cause": None, "level1": {}, "level2": {},
             "system": None, "limits": {"linear_mps": 0.5, "angular_radps": 1.0}, "awareness": False,
             "wifi_ssid": None, "mapping": False, "recording": False, "mission": None, "missions": ["patrol"],
-            "maps": [], "places": [], "events": [],
+            "maps": [], "places": [], "battery": None, "events": [],
             "autonomy": {"level": "full", "levels": ["off", "low", "high", "full"], "timeout_s": 30.0,
                          "pending": None, "now": 0.0},
         }
