@@ -154,7 +154,8 @@ def _add_routines(robot: Robot) -> None:
     localization, maps = parts.localization, parts.maps
     runner = RoutineRunner(RoutineStore(cfg.data_dir), parts.agent,
                            Path(parts.agent.spec.file or DEFAULT_AGENT_FILE).parent / "missions", calendar=calendar,
-                           places=lambda: maps.places, localized=lambda: localization.localized, event=robot.event)
+                           places=lambda: maps.places, localized=lambda: localization.localized, event=robot.event,
+                           battery=lambda: None if robot.parts.battery is None else robot.parts.battery.forbids_task())
     robot.add(runner, RATE_HZ)
     robot.parts = replace(robot.parts, routines=runner)
 

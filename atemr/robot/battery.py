@@ -55,6 +55,13 @@ class BatteryWatch:
         latest = self.estimator.latest
         return None if latest is None else latest.percent
 
+    def forbids_task(self) -> str | None:
+        """Why no new task should start on this charge (below the return limit), else None."""
+        percent = self.percent
+        if percent is not None and percent < self.params.return_percent:
+            return f"battery {percent:.0f} %"
+        return None
+
     def tick(self, now: float) -> None:
         motors = [(s.current_a, s.speed_radps) for s in self.driver.states.values()]
         for state in self.driver.states.values():

@@ -1,6 +1,7 @@
 """Routines on the robot: `RoutineRunner` starts each scheduled mission when its time comes, if the robot may.
 
-A routine starts only when the robot is in AUTO and idle (``IDLE.AUTO``), localized, its autonomy level lets
+A routine starts only when the robot is in AUTO and idle (``IDLE.AUTO``), localized, charged above the
+battery's return limit, its autonomy level lets
 the agent start a mission by itself (the ``start_mission`` transition's ``autonomy``), and the mission file is
 valid with every place it names on the active map. Otherwise the run is *skipped* and says why ("09:00
 check-on-resident skipped: robot in MANUAL"). A run is a robot event (kind ``routine``), so it is in the
@@ -77,7 +78,7 @@ class RoutineRunner:
 
     def __init__(self, store: RoutineStore, agent: Agent, missions_dir: Path, *, calendar: Calendar,
                  places: Callable[[], Places], localized: Callable[[], bool | None],
-                 event: Callable[[str, str], None]) -> None:
+                 event: Callable[[str, str], None], battery: Callable[[], str | None] = lambda: None) -> None:
         self.store = store
         self.agent = agent
         self.missions_dir = missions_dir
@@ -85,6 +86,8 @@ class RoutineRunner:
         self.places = places
         self.localized = localized
         self.event = event
+        #: Why the battery forbids a new task now (None: it does not).
+        self.battery = battery
         self.error: str | None = None
         #: Held while the routines in force change or are used (the dashboard's thread reloads after a save).
         self._lock = threading.RLock()
@@ -164,6 +167,9 @@ class RoutineRunner:
             return f"robot busy ({state})" if state.split(".")[0] in ("EXEC", "MAPPING") else f"robot in {state}"
         if self.localized() is False:
             return "robot not localized"
+        low = self.battery()
+        if low is not None:
+            return low
         needed = next((t.autonomy for t in self.agent.spec.transitions
                        if t.trigger == "start_mission" and ("IDLE.AUTO" in t.sources or "*" in t.sources)), None)
         if needed is not None and rank(needed) > rank(self.agent.gate.level):
