@@ -90,8 +90,6 @@ class MapService:
         self.active: OccupancyMap | None = None
         #: The active map's named places.
         self.places: Places = NO_PLACES
-        #: Changes whenever `places` does (the dashboard redraws its markers and its "Go to" list).
-        self.places_version = 0
         self.version = 0
         self.slam: OccupancyGridSlam | None = None
         self.collecting = False
@@ -131,7 +129,6 @@ class MapService:
             self.localization.set_map(grid, prepared.localizer)
             self.active_name, self.active = prepared.name, grid
             self.places = prepared.places
-            self.places_version += 1
             self.version += 1
             derived = prepared.derived if len(prepared.derived) == len(self._users) else (None,) * len(self._users)
             for user, made in zip(self._users, derived, strict=True):
@@ -155,7 +152,6 @@ class MapService:
                                   path="places")
             self.store.save_places(name, places)
             self.places = places
-            self.places_version += 1
         self.on_event("places", f"places of map {name}: {', '.join(places) or 'none'}")
 
     # -- mapping -----------------------------------------------------------------------------------------
@@ -223,7 +219,6 @@ class MapService:
             self.slam, self.collecting = None, False
             self.active_name, self.active = stored, grid
             self.places = NO_PLACES
-            self.places_version += 1
             self.version += 1
             for user in self._users:
                 user.use_map(grid, None)

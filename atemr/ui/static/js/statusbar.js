@@ -84,8 +84,8 @@
   }
 
   // The battery's charge (estimated from the motors' supply voltage), on every page.
-  const battery = document.getElementById("battery");
   function showBattery(b) {
+    const battery = document.getElementById("battery");
     if (!battery) return;
     if (!b) { battery.textContent = "BAT:—"; battery.className = "ind"; return; }
     battery.textContent = `BAT:${Math.round(b.percent)}%`;
