@@ -19,6 +19,7 @@ pytestmark = pytest.mark.e2e
 
 def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map.image !== null")
     wait_for(page, "document.querySelectorAll('#place-list li').length === 6")  # the studio's rooms and home
@@ -78,6 +79,7 @@ def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, pag
 
 def test_create_a_routine_on_the_routines_page(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    page.wait_for_url(re.compile(r"/control$"))  # logged in: the Control page, with its status bar
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
     page.click("nav.tabs a:has-text('Routines')")
     page.wait_for_url(re.compile(r"/routines$"))
