@@ -122,39 +122,6 @@ class MissionCommand:
 commands.add("mission", MissionCommand())
 
 
-class _PlaceBook:
-    """The maps whose places ``validate`` checks missions against, opened only when a mission names a place."""
-
-    def __init__(self, args: argparse.Namespace) -> None:
-        self.args = args
-        self._store: Any = None
-
-    def store(self) -> Any:
-        if self._store is None:
-            from atemr.config import load_config
-            from atemr.io.map_store import MapStore
-
-            config = load_config(self.args.config, overrides={"data_dir": self.args.data_dir})
-            self._store = MapStore(config.data_dir)
-        return self._store
-
-    def map_for(self, world: str | None) -> str:
-        """``--map``, else the mission's world when the store has a map of that name, else the active map."""
-        store = self.store()
-        if self.args.map is not None:
-            return str(self.args.map)
-        if world is not None and store.exists(world):
-            return world
-        active = store.active_name()
-        if active is None:
-            raise ConfigError("the mission names places and there is no map to find them on: give --map",
-                              path="atemr mission validate")
-        return str(active)
-
-    def places(self, name: str) -> Any:
-        return self.store().places(name)
-
-
 def _robot_options(parser: argparse.ArgumentParser) -> None:
     """Where the running robot's control socket is: from the configuration, or given."""
     parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
@@ -245,3 +212,36 @@ def print_summary(result: dict[str, Any]) -> None:
     if error.get("rmse_m") is not None:
         print(f"  pose error against ground truth: RMSE {error['rmse_m']:.3f} m, max {error['max_m']:.3f} m; "
               f"collisions {result['collisions']}")
+
+
+class _PlaceBook:
+    """The maps whose places ``validate`` checks missions against, opened only when a mission names a place."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self._store: Any = None
+
+    def store(self) -> Any:
+        if self._store is None:
+            from atemr.config import load_config
+            from atemr.io.map_store import MapStore
+
+            config = load_config(self.args.config, overrides={"data_dir": self.args.data_dir})
+            self._store = MapStore(config.data_dir)
+        return self._store
+
+    def map_for(self, world: str | None) -> str:
+        """``--map``, else the mission's world when the store has a map of that name, else the active map."""
+        store = self.store()
+        if self.args.map is not None:
+            return str(self.args.map)
+        if world is not None and store.exists(world):
+            return world
+        active = store.active_name()
+        if active is None:
+            raise ConfigError("the mission names places and there is no map to find them on: give --map",
+                              path="atemr mission validate")
+        return str(active)
+
+    def places(self, name: str) -> Any:
+        return self.store().places(name)
