@@ -111,3 +111,6 @@ def test_create_a_routine_on_the_routines_page(robot_site, page, shots, helpers)
     assert page.input_value("#routine-name") == "night patrol"
     assert len(RoutineStore(robot_site.data_dir).load().routines) == 1
     page.screenshot(path=str(shots / "routines.png"), full_page=True)
+    page.set_viewport_size({"width": 390, "height": 844})  # a carer's phone: nothing scrolls sideways
+    page.goto(f"{robot_site.url}/routines")
+    assert page.evaluate("document.scrollingElement.scrollWidth") <= 390
