@@ -17,6 +17,7 @@ from typing import Any, Literal
 
 from atemr.errors import ConfigError
 from atemr.io.devices.config import DevicesConfig
+from atemr.skills.battery import BatteryParams
 from atemr.skills.localization.config import LocalizationConfig
 from atemr.skills.nav.config import NavConfig
 from atemr.skills.ramp import MotionLimits
@@ -69,6 +70,17 @@ class SimConfig:
     odom_noise: float = field(
         default=0.01, metadata={"min": 0.0, "max": 0.4, "help": "encoder speed noise (fraction, std)"}
     )
+    battery_wh: float = field(default=176.0, metadata={"min": 0.01, "max": 10_000.0,
+                                                       "help": "simulated pack's energy when full, Wh"})
+    battery_percent: float = field(default=100.0, metadata={"min": 0.0, "max": 100.0,
+                                                            "help": "simulated pack's charge at start, %"})
+    battery_base_load_w: float = field(default=15.0, metadata={"min": 0.0, "max": 1000.0,
+                                                               "help": "what the electronics draw, W"})
+    battery_charge_w: float = field(default=60.0, metadata={"min": 0.0, "max": 10_000.0,
+                                                            "help": "charging power on the dock, W"})
+    start_time: str = field(default="", metadata={
+        "help": "the calendar date and time the simulation starts at, for routines (ISO 8601 with its offset, "
+                "e.g. 2026-03-29T08:55+02:00; empty: the wall clock when it starts)"})
 
 
 @dataclass(frozen=True)
@@ -229,6 +241,8 @@ class Config:
     motion: MotionLimits = field(default_factory=MotionLimits)
     localization: LocalizationConfig = field(default_factory=LocalizationConfig)
     nav: NavConfig = field(default_factory=NavConfig)
+    #: The battery pack, its state-of-charge estimator and the limits the robot reacts at (`atemr.skills.battery`).
+    battery: BatteryParams = field(default_factory=BatteryParams)
 
 
 def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:

@@ -9,9 +9,12 @@ simulator's ground truth: collisions, falls, the true final pose, the localizati
 and its events, see `atemr.robot.headless.TruthWatch`); the exit code is 0 only when the mission was
 completed. ``status`` and ``cancel`` ask the running robot.
 
-A mission is valid when its document is right (kinds, parameters, poses, timeouts). Whether it can run
-here is a separate answer: a step whose behaviour this build lacks (a plugin kind, or ``GoToPose`` in a
-build without it) is reported with the behaviour it needs; ``--strict`` makes that an error (exit 1).
+A mission is valid when its document is right (kinds, parameters, poses, timeouts) and every place it
+names is on its map: ``--map``, else the map named by its ``world`` (the studio world's map is
+``studio``), else the active map of the robot's data directory; a missing place is an error with the
+closest names. Whether it can run here is a separate answer: a step whose behaviour this build lacks (a
+plugin kind, or ``GoToPose`` in a build without it) is reported with the behaviour it needs; ``--strict``
+makes that an error (exit 1).
 """
 
 from __future__ import annotations
@@ -38,6 +41,11 @@ class MissionCommand:
         validate.add_argument("--json", action="store_true", help="print one JSON report for all files")
         validate.add_argument("--strict", action="store_true",
                               help="exit 1 when a valid mission cannot run in this build (missing behaviours)")
+        validate.add_argument("--map", help="check the places a mission names against this map (default: the "
+                                            "mission's world, else the active map)")
+        validate.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
+        validate.add_argument("--data-dir", type=Path, help="the robot's data directory, where its maps are "
+                                                            "(default: from config)")
         run = sub.add_parser("run", help="run a mission on the running robot (or --headless: in a fresh "
                                          "simulation) and report how it went")
         run.add_argument("file", type=Path, nargs="?", metavar="FILE", help="mission file (or give --goal)")
@@ -76,9 +84,13 @@ class MissionCommand:
             return status_command(args) if args.mission_action == "status" else cancel_command(args)
         reports: list[dict[str, Any]] = []
         worst = 0
+        maps = _PlaceBook(args)
         for path in args.files:
             try:
                 mission = load_mission(path)
+                if mission.place_names():
+                    name = maps.map_for(mission.world)
+                    mission.check_places(maps.places(name), f"map {name}")
             except ConfigError as exc:
                 reports.append({"file": str(path), "valid": False, "error": str(exc), "line": exc.line,
                                 "column": exc.column, "path": exc.path})
@@ -194,3 +206,36 @@ def print_summary(result: dict[str, Any]) -> None:
     if error.get("rmse_m") is not None:
         print(f"  pose error against ground truth: RMSE {error['rmse_m']:.3f} m, max {error['max_m']:.3f} m; "
               f"collisions {result['collisions']}")
+
+
+class _PlaceBook:
+    """The maps whose places ``validate`` checks missions against, opened only when a mission names a place."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self._store: Any = None
+
+    def store(self) -> Any:
+        if self._store is None:
+            from atemr.config import load_config
+            from atemr.io.map_store import MapStore
+
+            config = load_config(self.args.config, overrides={"data_dir": self.args.data_dir})
+            self._store = MapStore(config.data_dir)
+        return self._store
+
+    def map_for(self, world: str | None) -> str:
+        """``--map``, else the mission's world when the store has a map of that name, else the active map."""
+        store = self.store()
+        if self.args.map is not None:
+            return str(self.args.map)
+        if world is not None and store.exists(world):
+            return world
+        active = store.active_name()
+        if active is None:
+            raise ConfigError("the mission names places and there is no map to find them on: give --map",
+                              path="atemr mission validate")
+        return str(active)
+
+    def places(self, name: str) -> Any:
+        return self.store().places(name)

@@ -8,5 +8,7 @@ stays light.
 
 * `maps` — `OccupancyMap`, the occupancy grid, and its cell values;
 * `status` — what the robot reports about itself: lifecycle state codes, sub-module and hardware bits,
-  the power handshake, a component's health.
+  the power handshake, a component's health;
+* `places` — `Places`, the named poses of a map ("kitchen", ``home`` the dock) that missions and carers use;
+* `routines` — `RoutineBook`, care routines (a mission on a schedule) and the calendar arithmetic of when they run.
 """

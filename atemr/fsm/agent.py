@@ -37,6 +37,7 @@ from typing import Any
 import py_trees
 
 from atemr.config import Config
+from atemr.domain.places import NO_PLACES
 from atemr.domain.status import state_code, top_level
 from atemr.errors import AtemrError, ConfigError
 from atemr.fsm.autonomy import DEFAULT_LEVEL, DEFAULT_TIMEOUT_S, Answer, AutonomyGate, Level
@@ -524,7 +525,9 @@ class Agent:
             return
         self._tree, self._tree_state = root, tree_state
         if built_tasks and isinstance(self.context.task, Mission):
-            self._progress = TaskProgress(self.context.task, built_tasks[0], self.context.now)
+            navigation = self.context.navigation
+            self._progress = TaskProgress(self.context.task, built_tasks[0], self.context.now,
+                                          navigation.places() if navigation is not None else NO_PLACES)
 
     def _tick(self, root: py_trees.behaviour.Behaviour) -> Status:
         try:

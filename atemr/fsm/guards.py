@@ -14,7 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from atemr.errors import AtemrError, NavigationError
+from atemr.errors import AtemrError, ConfigError, NavigationError
 from atemr.msgs import Pose2D
 from atemr.registry import Registry
 from atemr.trees.behaviours import behaviours
@@ -76,8 +76,9 @@ def auto_mode(g: GuardInput) -> str | None:
 
 @guards.register("mission_runnable")
 def mission_runnable(g: GuardInput) -> str | None:
-    """The event carries a validated mission whose every step has a registered behaviour, and navigation
-    exists when a step drives to a pose."""
+    """The event carries a validated mission whose every step has a registered behaviour, navigation
+    exists when a step drives to a pose, and the active map has every place it names (refused before it
+    starts, with the closest names, rather than failing half-way)."""
     mission = g.kwargs.get("mission")
     if not isinstance(mission, Mission):
         return f"start_mission needs a validated Mission, got {type(mission).__name__}"
@@ -88,6 +89,11 @@ def mission_runnable(g: GuardInput) -> str | None:
     if drives and g.context.navigation is None:
         return (f"mission '{mission.name}' drives to poses (steps {', '.join(map(str, drives))}) and "
                 "navigation is not available on this robot")
+    if mission.place_names() and g.context.navigation is not None:
+        try:
+            mission.check_places(g.context.navigation.places(), "the active map")
+        except ConfigError as exc:
+            return exc.reason
     return None
 
 

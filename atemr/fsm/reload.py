@@ -97,7 +97,7 @@ def swap_pending_steps(progress: TaskProgress, mission: Mission, context: AgentC
         root.remove_child(node)
     for node in built:
         root.add_child(node)
-    records: list[StepRecord] = progress.steps[:keep] + [step_record(s) for s in mission.steps[keep:]]
+    records: list[StepRecord] = progress.steps[:keep] + [step_record(s, progress.places) for s in mission.steps[keep:]]
     progress.retarget(mission, records)
     context.task = mission
     note = f"steps {keep}-{len(mission.steps) - 1} now come from the new file" if len(mission.steps) > keep \

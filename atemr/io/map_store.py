@@ -14,10 +14,16 @@ leaves the store exactly as it was.
 
 Every map the store reads (an upload, a stored map, a built-in) is refused above ``max_cells`` cells
 (``ui.max_map_cells``, 4 M by default) from its image's header, before anything is decoded.
+
+Each map's named places (`atemr.domain.places`) live beside it in ``name.places.yaml`` (a file ROS tools
+ignore, so the pair stays a map_server map): saved atomically, deleted with the map, carried in its export
+and accepted in an upload (checked like the map, before anything is stored). A built-in map's places ship
+beside it; the operator's changes to them are stored in ``maps/``, since the built-in is read-only.
 """
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import tempfile
@@ -28,6 +34,7 @@ from pathlib import Path
 from werkzeug.utils import secure_filename
 
 from atemr.domain.maps import OccupancyMap
+from atemr.domain.places import NO_PLACES, Places
 from atemr.errors import ConfigError, brief, brief_text
 from atemr.io.sim.maps import DEFAULT_MAX_MAP_CELLS, load_map, save_map
 from atemr.yamlsafe import load_yaml
@@ -42,6 +49,36 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 MAX_UPLOAD_BYTES = 50 * 1024 * 1024
 #: Longest uploaded file name (what a file system holds).
 MAX_NAME_BYTES = 255
+#: A map's places file: ``<map>.places.yaml`` beside ``<map>.yaml``.
+PLACES_SUFFIX = ".places.yaml"
+
+
+def places_file_of(yaml_path: Path) -> Path:
+    """Where the places of the map described by ``yaml_path`` are kept."""
+    return yaml_path.with_name(yaml_path.stem + PLACES_SUFFIX)
+
+
+def parse_places(text: str, file: str) -> Places:
+    """A places file's text (``places: [{name, x_m, y_m, yaw_rad, kind}, ...]``) as `Places`; `ConfigError`
+    naming the file and the item at fault."""
+    doc = load_yaml(file, text=text)
+    if doc is None:
+        return NO_PLACES
+    if not isinstance(doc, dict) or set(doc) - {"places"}:
+        raise ConfigError("a places file has one top-level key, 'places'", file=file)
+    try:
+        return Places.from_json(doc.get("places"))
+    except ConfigError as exc:
+        raise ConfigError(exc.reason, file=file, path=exc.path) from None
+
+
+def places_text(places: Places) -> str:
+    """The file form of ``places`` (YAML, one place a line)."""
+    lines = ["# Named places of this map (atemr): map-frame poses, metres and radians.", "places:"]
+    lines += [f"  - {json.dumps(item, ensure_ascii=False)}" for item in places.to_json()]
+    if not len(places):
+        lines[-1] = "places: []"
+    return "\n".join(lines) + "\n"
 
 
 @dataclass(frozen=True)
@@ -64,10 +101,23 @@ def clean_name(name: str) -> str:
     for suffix in (".yaml", ".yml", ".pgm", ".png"):
         if safe.lower().endswith(suffix):
             safe = safe[: -len(suffix)]
+    if safe.lower().endswith(".places"):
+        raise ConfigError(f"invalid map name {brief(name)}: '.places' ends the name of a map's places file",
+                          path="map.name")
     if not _NAME.match(safe):
         raise ConfigError(f"invalid map name {brief(name)}: use 1-64 letters, digits, '.', '_' or '-' "
                           f"(starting with a letter or digit)", path="map.name")
     return safe
+
+
+def _uploaded_places(safe: Mapping[str, bytes], places_files: list[str]) -> Places | None:
+    """The places file of an upload, read and checked (None: the upload has none)."""
+    if not places_files:
+        return None
+    try:
+        return parse_places(safe[places_files[0]].decode("utf-8"), places_files[0])
+    except UnicodeDecodeError:
+        raise ConfigError("the places file is not UTF-8 text", file=places_files[0]) from None
 
 
 class MapStore:
@@ -86,7 +136,8 @@ class MapStore:
     # -- queries -----------------------------------------------------------------------------------
     def names(self) -> list[str]:
         """Every map name, built-ins first, then stored maps alphabetically."""
-        stored = sorted(p.stem for p in self.dir.glob("*.yaml") if _NAME.match(p.stem) and p.stem not in self.builtins)
+        stored = sorted(p.stem for p in self.dir.glob("*.yaml") if _NAME.match(p.stem) and p.stem not in self.builtins
+                        and not p.name.endswith(PLACES_SUFFIX))
         return [*self.builtins, *stored]
 
     def list(self) -> list[MapInfo]:
@@ -105,6 +156,31 @@ class MapStore:
         if clean != name or not path.is_file():
             raise ConfigError(f"no map named {brief(name)}; known maps: {', '.join(self.names())}", path="map.name")
         return path
+
+    # -- places ------------------------------------------------------------------------------------
+    def places_path(self, name: str) -> Path:
+        """The places file of map ``name`` as stored (for a built-in: the operator's copy in ``maps/``)."""
+        self.path(name)  # an unknown map raises here
+        return self.dir / f"{name}{PLACES_SUFFIX}"
+
+    def places(self, name: str) -> Places:
+        """Map ``name``'s places: the stored file, else (a built-in) the ones shipped beside it, else none."""
+        for path in (self.places_path(name), places_file_of(self.path(name))):
+            try:
+                text = path.read_text(encoding="utf-8")
+            except FileNotFoundError:
+                continue
+            except OSError as exc:
+                raise ConfigError(f"cannot read the places of map {name}: {exc.strerror}", file=str(path)) from None
+            return parse_places(text, str(path))
+        return NO_PLACES
+
+    def save_places(self, name: str, places: Places) -> None:
+        """Store map ``name``'s places (replacing them), atomically: a reader sees the old set or the new."""
+        path = self.places_path(name)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(places_text(places), encoding="utf-8")
+        tmp.replace(path)
 
     def load(self, name: str) -> OccupancyMap:
         """Map ``name`` (`ConfigError` if unknown, unreadable or larger than ``max_cells``). Reading a map
@@ -150,8 +226,11 @@ class MapStore:
         tmp.replace(self._active_file)
 
     # -- changes -----------------------------------------------------------------------------------
-    def save(self, name: str, grid: OccupancyMap, *, overwrite: bool = False, activate: bool = False) -> str:
-        """Store ``grid`` as ``name`` (cleaned; the stored name is returned); built-in names are refused."""
+    def save(self, name: str, grid: OccupancyMap, *, overwrite: bool = False, activate: bool = False,
+             places: Places | None = None) -> str:
+        """Store ``grid`` as ``name`` (cleaned; the stored name is returned), with its ``places`` when given
+        (otherwise a replaced map's places are dropped: they were in the old map's frame); built-in names
+        are refused."""
         clean = clean_name(name)
         if clean in self.builtins:
             raise ConfigError(f"'{clean}' is a built-in map and cannot be replaced; choose another name",
@@ -159,6 +238,10 @@ class MapStore:
         if not overwrite and (self.dir / f"{clean}.yaml").exists():
             raise ConfigError(f"a map named '{clean}' already exists", path="map.name")
         save_map(grid, self.dir / f"{clean}.yaml")
+        if places is not None and len(places):
+            self.save_places(clean, places)
+        else:
+            (self.dir / f"{clean}{PLACES_SUFFIX}").unlink(missing_ok=True)
         if activate:
             self.select(clean)
         return clean
@@ -170,6 +253,7 @@ class MapStore:
         yaml_path = self.path(name)
         image = self._image_of(yaml_path)
         yaml_path.unlink()
+        (self.dir / f"{name}{PLACES_SUFFIX}").unlink(missing_ok=True)
         if image is not None and image.parent == self.dir and image.is_file():
             image.unlink()
 
@@ -183,12 +267,9 @@ class MapStore:
             return None
         return yaml_path.parent / image
 
-    def upload(self, files: Mapping[str, bytes], *, name: str | None = None, overwrite: bool = False) -> str:
-        """Validate and store an uploaded map: ``files`` maps file names to contents (one ``.yaml`` and its image).
-
-        The map is stored under ``name`` (default: the YAML's file name) and the stored name returned.
-        Raises `ConfigError` naming the problem; nothing is stored then.
-        """
+    def _safe_files(self, files: Mapping[str, bytes]) -> dict[str, bytes]:
+        """An upload's files under their ``secure_filename`` names; `ConfigError` when too large, a name is
+        unusable, duplicate or too long."""
         total = sum(len(b) for b in files.values())
         if total > self.max_upload_bytes:
             raise ConfigError(f"upload of {total} bytes is larger than the limit of {self.max_upload_bytes}",
@@ -201,7 +282,21 @@ class MapStore:
             if len(fname.encode("utf-8")) > MAX_NAME_BYTES:
                 raise ConfigError(f"file name {brief(raw)} is longer than {MAX_NAME_BYTES} bytes", path="map.upload")
             safe[fname] = bytes(content)
-        yamls = [f for f in safe if f.lower().endswith((".yaml", ".yml"))]
+        return safe
+
+    def upload(self, files: Mapping[str, bytes], *, name: str | None = None, overwrite: bool = False) -> str:
+        """Validate and store an uploaded map: ``files`` maps file names to contents (one ``.yaml``, its image
+        and, optionally, its ``.places.yaml``).
+
+        The map is stored under ``name`` (default: the YAML's file name) and the stored name returned.
+        Raises `ConfigError` naming the problem; nothing is stored then.
+        """
+        safe = self._safe_files(files)
+        places_files = [f for f in safe if f.lower().endswith(PLACES_SUFFIX)]
+        if len(places_files) > 1:
+            raise ConfigError(f"an upload has at most one {PLACES_SUFFIX} file, got {len(places_files)}",
+                              path="map.upload")
+        yamls = [f for f in safe if f.lower().endswith((".yaml", ".yml")) and f not in places_files]
         if len(yamls) != 1:
             raise ConfigError(f"an upload needs exactly one .yaml file (the map_server description), got {len(yamls)}",
                               path="map.upload")
@@ -219,6 +314,7 @@ class MapStore:
                 except OSError as exc:
                     raise ConfigError(f"cannot store the upload: {exc.strerror}", path="map.upload") from None
             yaml_path = staging / yamls[0]
+            places = _uploaded_places(safe, places_files)
             try:
                 doc = load_yaml(yaml_path)
                 image = doc.get("image") if isinstance(doc, dict) else None
@@ -231,9 +327,10 @@ class MapStore:
                 reason = exc.reason.replace(f"{staging}/", "")
                 raise ConfigError(reason, file=brief_text(yamls[0], 100), line=exc.line, column=exc.column,
                                   path=exc.path) from None
-            return self.save(target, grid, overwrite=overwrite)
+            return self.save(target, grid, overwrite=overwrite, places=places)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
 
 
-__all__ = ["BUILTIN_MAPS", "DEFAULT_MAP", "MAX_UPLOAD_BYTES", "MapInfo", "MapStore", "clean_name"]
+__all__ = ["BUILTIN_MAPS", "DEFAULT_MAP", "MAX_UPLOAD_BYTES", "PLACES_SUFFIX", "MapInfo", "MapStore", "clean_name",
+           "parse_places", "places_file_of", "places_text"]

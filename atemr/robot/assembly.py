@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,7 +37,7 @@ from atemr.io.recording.mcap_writer import SUFFIX, RecordingWriter
 from atemr.io.secondary_link import SecondaryLink, build_secondary_link
 from atemr.io.sim.simulation import Simulation
 from atemr.io.system_monitor import SystemMonitor
-from atemr.msgs import Twist, WheelSpeeds
+from atemr.msgs import Pose2D, Twist, WheelSpeeds
 from atemr.robot.core import Robot
 from atemr.robot.health import FRESH_S, HealthBoard
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP, MotionInputs
@@ -120,6 +120,8 @@ def _wire(robot: Robot) -> None:
         wheels=wheels, port=port, navigation=navigation, agent=agent, reload_watcher=watcher,
         system_monitor=system_monitor, sim=sim, secondary_board=board,
     )
+    _add_routines(robot)
+    _add_battery(robot)
     _add_recorder(robot)
     if config.ui.enabled:
         from atemr.robot.dashboard import add_dashboard  # lazy: headless runs never import Flask
@@ -135,6 +137,53 @@ def _wire(robot: Robot) -> None:
     robot.add(system_monitor, RATES["system_monitor"])
     if config.control.enabled:
         _add_control(robot)
+
+
+def _add_routines(robot: Robot) -> None:
+    """The care routines (`atemr.robot.routines`): after the agent, on a calendar from the robot's clock (in
+    simulation ``sim.start_time`` plus the simulated seconds, so a simulated day is repeatable)."""
+    from atemr.io.routine_store import RoutineStore
+    from atemr.robot.routines import RATE_HZ, Calendar, RoutineRunner, parse_start_time
+
+    cfg, parts = robot.config, robot.parts
+    if cfg.simulation:
+        start = parse_start_time(cfg.sim.start_time)
+        calendar = Calendar(robot.clock, start if start is not None else WallClock().wall_time())
+    else:
+        calendar = Calendar(robot.clock)
+    localization, maps = parts.localization, parts.maps
+    runner = RoutineRunner(RoutineStore(cfg.data_dir), parts.agent,
+                           Path(parts.agent.spec.file or DEFAULT_AGENT_FILE).parent / "missions", calendar=calendar,
+                           places=lambda: maps.places, localized=lambda: localization.localized, event=robot.event,
+                           battery=lambda: None if robot.parts.battery is None else robot.parts.battery.forbids_task())
+    robot.add(runner, RATE_HZ)
+    robot.parts = replace(robot.parts, routines=runner)
+
+
+def _add_battery(robot: Robot) -> None:
+    """The battery watch (`atemr.robot.battery`) after the agent; in simulation with emulated motors, the simulated
+    pack that supplies them (`atemr.io.sim.battery`), charging on the active map's dock."""
+    from atemr.io.sim.battery import SimBattery
+    from atemr.robot.battery import RATE_HZ, BatteryWatch
+
+    cfg, parts = robot.config, robot.parts
+    maps, sim = parts.maps, parts.sim
+    pack = None
+    motors: list[Any] = [getattr(w, "model", None) for w in (sim.left, sim.right)] if sim is not None else []
+    if sim is not None and driver_name(cfg, "motors") == "emulated" and None not in motors:
+        world = sim
+
+        def dock_pose() -> Pose2D | None:
+            dock = maps.places.dock()
+            return None if dock is None else dock.pose
+
+        pack = SimBattery(cfg.battery, motors, capacity_wh=cfg.sim.battery_wh,
+                          percent=cfg.sim.battery_percent, base_load_w=cfg.sim.battery_base_load_w,
+                          charge_w=cfg.sim.battery_charge_w, pose=lambda: world.pose, dock=dock_pose)
+        robot.add(pack, 10.0)
+    watch = BatteryWatch(cfg.battery, parts.driver, parts.agent, places=lambda: maps.places, event=robot.event)
+    robot.add(watch, RATE_HZ)
+    robot.parts = replace(robot.parts, battery=watch, sim_battery=pack)
 
 
 def _add_control(robot: Robot) -> None:

@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from atemr.clock import WallClock
+from atemr.domain.routines import RoutineBook
 from atemr.errors import AtemrError, ConfigError, brief, brief_text
 from atemr.fsm.agent import DEFAULT_AGENT_FILE
 from atemr.io.devices.drivers import camera_rate_hz
@@ -43,6 +44,7 @@ from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
+from atemr.robot.places import PlaceEditor
 from atemr.robot.plain_words import plain_outcome, plain_refusal
 from atemr.robot.port import jpeg
 from atemr.robot.video import VideoRecorder
@@ -58,7 +60,7 @@ from atemr.ui.snapshot import (
     status_levels,
     system_json,
 )
-from atemr.ui.state import MissionJson, Mode, RobotState, StopCause, top_state
+from atemr.ui.state import BatteryJson, MissionJson, Mode, RobotState, StopCause, top_state
 
 log = logging.getLogger(__name__)
 
@@ -143,6 +145,7 @@ class RobotGatewayImpl:
         self._loader = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-maps")
         #: The map being loaded or waiting for its swap (another selection is refused meanwhile).
         self._map_loading: str | None = None
+        self.place_editor = PlaceEditor(self.maps)
         robot.add(_Pump(self), pump_rate_hz)
         self.recorder: VideoRecorder | None = None
         if self.camera is not None:
@@ -293,10 +296,20 @@ class RobotGatewayImpl:
             "mission": self._mission(agent),
             "missions": self.missions(),
             "maps": self._listing_of("maps", self.store.dir, self.store.names),
+            "places": [{"name": p.name, "x_m": round(p.pose.x_m, 3), "y_m": round(p.pose.y_m, 3),
+                        "yaw_rad": round(p.pose.yaw_rad, 3), "kind": p.kind} for p in self.maps.places.values()],
+            "battery": self._battery(),
             "events": self.robot.recent_events(EVENTS_SHOWN),
             "autonomy": {"level": autonomy["level"], "levels": autonomy["levels"], "timeout_s": autonomy["timeout_s"],
                          "pending": autonomy["pending"], "now": autonomy["now"]},
         }
+
+    def _battery(self) -> BatteryJson | None:
+        watch = self.robot.parts.battery
+        latest = None if watch is None else watch.estimator.latest
+        if watch is None or latest is None:
+            return None
+        return {"percent": round(latest.percent, 1), "voltage_v": round(latest.voltage_v, 2), "level": watch.level}
 
     def _stop_cause(self) -> StopCause | None:
         """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge (or the floor
@@ -523,6 +536,75 @@ class RobotGatewayImpl:
         active = self.maps.active_name
         if active is not None and not self.store.exists(active):
             self.robot.event("map", f"the active map {active} was deleted; it stays in use until another is selected")
+
+    # -- places (`atemr.robot.places`) ---------------------------------------------------------------------
+    def go_to_place(self, name: str) -> CommandResult:
+        place = self.place_editor.find(name)
+        if isinstance(place, str):
+            return CommandResult.refused(place)
+        result = self.set_goal(place.pose)
+        if result.ok:
+            self.robot.event("places", f"going to {place.name}")
+        return result
+
+    def save_place(self, name: str, pose: Pose2D, kind: str = "place", previous: str | None = None) -> CommandResult:
+        return self.place_editor.save(name, pose, kind, previous)
+
+    def delete_place(self, name: str) -> CommandResult:
+        return self.place_editor.delete(name)
+
+    # -- routines (`atemr.robot.routines`) -----------------------------------------------------------------
+    def routines(self) -> dict[str, Any] | None:
+        runner = self.robot.parts.routines
+        return None if runner is None else runner.snapshot()
+
+    def _change_routines(self, change: Callable[[RoutineBook], RoutineBook], what: str) -> CommandResult:
+        """Apply ``change`` to the routines in force and store the result (the runner reads it at its next tick);
+        a refusal stores nothing."""
+        runner = self.robot.parts.routines
+        if runner is None:
+            return CommandResult.refused("this robot runs no routines")
+        try:
+            book = change(runner.store.load())
+            runner.store.save(book)
+            runner.reload()
+        except ConfigError as exc:
+            return CommandResult.refused(f"{what}: {exc.reason}")
+        except OSError as exc:
+            return CommandResult.refused(f"{what}: not saved: {exc.strerror}")
+        self.robot.event("routine", f"{what}: done")
+        return CommandResult.accepted()
+
+    def save_routine(self, routine: dict[str, Any], previous: str | None = None) -> CommandResult:
+        from atemr.domain.routines import Routine
+
+        def change(book: RoutineBook) -> RoutineBook:
+            new = Routine.from_json(routine, "routine")
+            if new.mission not in self.missions():
+                raise ConfigError(f"no mission named {brief(new.mission)}; missions: {', '.join(self.missions())}",
+                                  path="routine.mission")
+            if previous is not None and previous != new.name:
+                book = book.without(previous)
+                if book.get(new.name) is not None:
+                    raise ConfigError(f"a routine named {new.name!r} exists already", path="routine.name")
+            elif previous is None and book.get(new.name) is not None:
+                raise ConfigError(f"a routine named {new.name!r} exists already", path="routine.name")
+            return book.with_routine(new)
+
+        name = routine.get("name") if isinstance(routine, dict) else routine
+        return self._change_routines(change, f"routine {brief(name)}")
+
+    def delete_routine(self, name: str) -> CommandResult:
+        return self._change_routines(lambda book: book.without(name), f"delete routine {brief(name)}")
+
+    def set_routines_timezone(self, timezone: str) -> CommandResult:
+        from atemr.domain.routines import zone
+
+        def change(book: RoutineBook) -> RoutineBook:
+            zone(timezone)
+            return RoutineBook(timezone, book.routines)
+
+        return self._change_routines(change, f"routines time zone {brief(timezone)}")
 
     # -- settings ----------------------------------------------------------------------------------------
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:

@@ -10,6 +10,10 @@ and builds what localization and every map user (navigation's costmap) derive fr
 nothing here, so any thread may run it: the dashboard gateway runs it in its own worker, off the control
 loop. `swap` then installs the prepared map on the robot's thread between two ticks: a few assignments.
 `activate` does both at once (start-up).
+
+The active map's named places (`atemr.domain.places.Places`) come and go with it: read with the map in
+`prepare`, installed by `swap`, changed by `set_places` (stored first, then used, so a failed write changes
+nothing). A map just built by SLAM has none yet.
 """
 
 from __future__ import annotations
@@ -21,7 +25,8 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from atemr.domain.maps import OccupancyMap
-from atemr.errors import NavigationError
+from atemr.domain.places import NO_PLACES, Places
+from atemr.errors import ConfigError, NavigationError
 from atemr.io.map_store import MapStore
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.localizer import Localizer
@@ -68,6 +73,8 @@ class PreparedMap:
     localizer: Localizer
     #: What each map user prepared, in the order they were added.
     derived: tuple[object, ...]
+    #: The map's named places, as stored.
+    places: Places = NO_PLACES
 
 
 class MapService:
@@ -81,6 +88,8 @@ class MapService:
         self.on_event = on_event or (lambda kind, text: None)
         self.active_name: str | None = None
         self.active: OccupancyMap | None = None
+        #: The active map's named places.
+        self.places: Places = NO_PLACES
         self.version = 0
         self.slam: OccupancyGridSlam | None = None
         self.collecting = False
@@ -106,8 +115,9 @@ class MapService:
         grid = self.store.load(name) if grid is None else grid
         with self._lock:
             users = list(self._users)
+        places = self.store.places(name) if self.store.exists(name) else NO_PLACES
         localizer = self.localization.prepare_map(grid)
-        return PreparedMap(name, grid, localizer, tuple(user.prepare_map(grid) for user in users))
+        return PreparedMap(name, grid, localizer, tuple(user.prepare_map(grid) for user in users), places)
 
     def swap(self, prepared: PreparedMap, *, persist: bool = True) -> OccupancyMap:
         """Make a prepared map the active one (robot's thread, between ticks): assignments only. ``persist``
@@ -118,6 +128,7 @@ class MapService:
         with self._lock:
             self.localization.set_map(grid, prepared.localizer)
             self.active_name, self.active = prepared.name, grid
+            self.places = prepared.places
             self.version += 1
             derived = prepared.derived if len(prepared.derived) == len(self._users) else (None,) * len(self._users)
             for user, made in zip(self._users, derived, strict=True):
@@ -130,6 +141,18 @@ class MapService:
         as the selection, or ``grid`` as given (not persisted). Raises `ConfigError`. Heavy: start-up only;
         a running robot uses `prepare` off its thread, then `swap`."""
         return self.swap(self.prepare(name, grid), persist=grid is None)
+
+    def set_places(self, places: Places) -> None:
+        """Replace the active map's places: stored with the map first (`ConfigError` or `OSError`: nothing
+        changes), then used by navigation and shown."""
+        with self._lock:
+            name = self.active_name
+            if name is None or self.slam is not None:
+                raise ConfigError("places are kept on a map: select a map first (and finish mapping)",
+                                  path="places")
+            self.store.save_places(name, places)
+            self.places = places
+        self.on_event("places", f"places of map {name}: {', '.join(places) or 'none'}")
 
     # -- mapping -----------------------------------------------------------------------------------------
     def begin(self) -> None:
@@ -195,6 +218,7 @@ class MapService:
                 raise
             self.slam, self.collecting = None, False
             self.active_name, self.active = stored, grid
+            self.places = NO_PLACES
             self.version += 1
             for user in self._users:
                 user.use_map(grid, None)

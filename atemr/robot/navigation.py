@@ -25,7 +25,7 @@ class RobotNavigation(NavigatorPort):
                  scan: Callable[[], LaserScan | None], velocity: Callable[[], Twist | None],
                  params: NavParams | None = None) -> None:
         super().__init__(None, pose=localization.map_pose, scan=scan, localized=lambda: localization.localized,
-                         velocity=velocity)
+                         velocity=velocity, places=lambda: maps.places)
         self.params = params
         if maps.active is not None:
             self.use_map(maps.active, None)

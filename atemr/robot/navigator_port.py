@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
+from atemr.domain.places import NO_PLACES, Places
 from atemr.errors import NavigationError
 from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.skills.nav.navigator import Navigator, NavStatus
@@ -26,15 +27,18 @@ class NavigatorPort:
     """The agent's navigation: ``Agent(spec, port, link, navigation=NavigatorPort(navigator, ...))``.
 
     ``pose`` gives the map-frame pose (None before any), ``scan`` the latest lidar scan (None: none yet),
-    ``localized`` whether the pose can be trusted, ``velocity`` the measured twist if known. Without a
-    navigator (a robot that has no map yet) every goal is refused with `NO_MAP`.
+    ``localized`` whether the pose can be trusted, ``velocity`` the measured twist if known, ``places`` the
+    active map's named places. Without a navigator (a robot that has no map yet) every goal is refused with
+    `NO_MAP`.
     """
 
     def __init__(self, navigator: Navigator | None, *, pose: Callable[[], Pose2D | None],
                  scan: Callable[[], LaserScan | None] = lambda: None, localized: Callable[[], bool] = lambda: True,
-                 velocity: Callable[[], Twist | None] = lambda: None) -> None:
+                 velocity: Callable[[], Twist | None] = lambda: None,
+                 places: Callable[[], Places] = lambda: NO_PLACES) -> None:
         self.navigator = navigator
         self._pose, self._scan, self._localized, self._velocity = pose, scan, localized, velocity
+        self._places = places
         self.last_status: NavStatus | None = None
 
     def check_goal(self, goal: Pose2D) -> str | None:
@@ -57,6 +61,9 @@ class NavigatorPort:
         self.last_status = status
         reason = status.message or (status.reason or "")
         return NavProgress(status.state, status.twist, status.distance_left_m, status.eta_s, reason)
+
+    def places(self) -> Places:
+        return self._places()
 
     def cancel(self, now: float) -> None:
         if self.navigator is not None:

@@ -18,8 +18,10 @@ if TYPE_CHECKING:
     from atemr.io.recording.mcap_writer import RecordingWriter
     from atemr.io.secondary_emulator.board import SecondaryCore
     from atemr.io.secondary_link import SecondaryLink
+    from atemr.io.sim.battery import SimBattery
     from atemr.io.sim.simulation import Simulation
     from atemr.io.system_monitor import SystemMonitor
+    from atemr.robot.battery import BatteryWatch
     from atemr.robot.control import RobotControl
     from atemr.robot.gateway import RobotGatewayImpl
     from atemr.robot.health import HealthBoard
@@ -29,6 +31,7 @@ if TYPE_CHECKING:
     from atemr.robot.port import RobotPortImpl
     from atemr.robot.recorder import RunRecorder
     from atemr.robot.reload import ReloadWatcher
+    from atemr.robot.routines import RoutineRunner
     from atemr.robot.settings_store import SettingsStore
     from atemr.robot.wheels import WheelOdometryFeed
     from atemr.skills.localization.pipeline import LocalizationPipeline
@@ -75,3 +78,9 @@ class RobotParts:
     dashboard: DashboardServer | None = None
     state_publisher: StatePublisher | None = None
     control: RobotControl | None = None
+    #: The care routines (scheduled missions), `atemr.robot.routines`.
+    routines: RoutineRunner | None = None
+    #: The state of charge from the motors' supply voltage, and the reactions at its limits.
+    battery: BatteryWatch | None = None
+    #: The simulated pack (simulation with emulated motors): the truth the estimate is checked against.
+    sim_battery: SimBattery | None = None

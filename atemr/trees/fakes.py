@@ -10,6 +10,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+from atemr.domain.places import Places
 from atemr.domain.status import ComponentHealth, PowerState
 from atemr.errors import HardwareError, NavigationError
 from atemr.io.can import PrimaryStatus
@@ -148,6 +149,8 @@ class StraightLineNavigation:
     goals: list[Pose2D] = field(default_factory=list)
     routes: list[list[tuple[float, float]] | None] = field(default_factory=list)
     cancels: list[float] = field(default_factory=list)
+    #: The named places `places` answers (``GoToPlace`` looks them up).
+    known_places: Places = field(default_factory=Places)
     _goal: Pose2D | None = field(default=None, init=False)
     _via: list[tuple[float, float]] = field(default_factory=list, init=False)
     _t: float = field(default=0.0, init=False)
@@ -189,6 +192,9 @@ class StraightLineNavigation:
         self.port.current_pose = Pose2D(g.x_m, g.y_m, g.yaw_rad)
         self._state = "SUCCEEDED"
         return NavProgress("SUCCEEDED", distance_left_m=0.0)
+
+    def places(self) -> Places:
+        return self.known_places
 
     def cancel(self, now: float) -> None:
         self.cancels.append(now)

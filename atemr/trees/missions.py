@@ -6,17 +6,18 @@ A mission file (``trees/missions/*.yaml``)::
       name: kitchen-check
       description: drive to the kitchen, take a picture, come back
       world: studio                      # the world it was written for (informational)
-      home: {x_m: 0.0, y_m: 0.0, yaw_rad: 0.0}
+      home: {x_m: 0.0, y_m: 0.0, yaw_rad: 0.0}   # or a place: home: {place: home}
       defaults: {timeout_s: 120, retries: 0}
       steps:
         - go_to: {x_m: 3.0, y_m: 1.5, yaw_rad: 1.57}
+        - go_to: {place: kitchen}          # a named place of the active map
           timeout_s: 60                  # per step: a Timeout decorator on the agent clock
           retries: 1                     # per step: a Retry decorator (retries + 1 attempts)
         - capture_image: {label: kitchen}
         - wait: {duration_s: 5}
         - rotate: {angle_rad: 3.14}
         - relocalize: {timeout_s: 30}      # global relocalization, wait until localized
-        - visit: {waypoints: [{x_m: 1, y_m: 0}, {x_m: 1, y_m: 1}]}
+        - visit: {waypoints: [{x_m: 1, y_m: 0}, {x_m: 1, y_m: 1}, kitchen, {place: bedroom}]}
         - patrol: {waypoints: [...], loops: 3}   # loops: 0 = forever
         - follow_path: {points: [[1, 0], [1, 2], [3, 2]], yaw_rad: 0}   # along this route, in order
         - start_mapping: {}                # SLAM from here on (a map of what the robot sees on its way)
@@ -25,7 +26,8 @@ A mission file (``trees/missions/*.yaml``)::
         - return_home: {}
 
 Step kinds are a fixed grammar (a typo is an error with the closest kinds); each kind names the
-behaviour it compiles to (``go_to``, ``visit``, ``patrol`` and ``return_home`` → ``GoToPose``;
+behaviour it compiles to (``go_to``, ``visit``, ``patrol`` and ``return_home`` → ``GoToPose``, or
+``GoToPlace`` for a named place;
 ``follow_path`` → ``FollowPath``; ``wait`` → ``Wait``; ``capture_image`` → ``CaptureImage``; ``rotate`` →
 ``Rotate``; ``relocalize`` → ``Relocalize``; ``start_mapping``, ``save_map``, ``stop_mapping`` → the leaves
 of those names). A mission that ends without saving the map it started drops it (Exec's exit).
@@ -33,6 +35,11 @@ A kind whose behaviour is not registered (a build without a leaf, a plugin remov
 parameters fully checked, and is reported as *not runnable here*: the file is right, the build is not
 ready for it. The agent refuses to start such a mission with that reason, and one that drives to poses on
 a robot without navigation.
+
+Places are names, not poses, in the mission: a mission file is valid on its own, and `Mission.check_places`
+says whether a map has every place it names (file:line:col of the step, and the closest names). ``atemr
+mission validate`` checks them against the mission's map, the agent against the active map before the
+mission starts, and ``GoToPlace`` looks the pose up when its step begins.
 """
 
 from __future__ import annotations
@@ -45,6 +52,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from atemr.domain.places import Places
 from atemr.errors import ConfigError
 from atemr.msgs import Pose2D
 from atemr.trees.behaviours import NoParams, behaviours, parse_params
@@ -52,7 +60,7 @@ from atemr.trees.builder import NodeSpec, marked_subset
 from atemr.trees.leaves.mapping import SaveMapParams
 from atemr.trees.leaves.media import CaptureImageParams
 from atemr.trees.leaves.motion import RotateParams
-from atemr.trees.leaves.navigation import GO_TO_POSE, FollowPathParams, RelocalizeParams
+from atemr.trees.leaves.navigation import GO_TO_PLACE, GO_TO_POSE, FollowPathParams, PlaceParams, RelocalizeParams
 from atemr.trees.leaves.timing import WaitParams
 from atemr.trees.nodes import RepeatOptions, RetryOptions, SequenceOptions, TimeoutOptions
 from atemr.trees.params import PoseParams
@@ -77,6 +85,8 @@ class Step:
     spec: NodeSpec
     line: int | None = None
     column: int | None = None
+    #: The named places the step drives to, in order.
+    places: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -91,16 +101,34 @@ class Mission:
     world: str | None = None
     file: str | None = None
 
+    #: The home pose named as a place (``home: {place: home}``), if so.
+    home_place: str | None = None
+
     def missing_behaviours(self) -> list[str]:
         """Behaviours the steps need that this build does not register (empty: runnable)."""
         return sorted({b for s in self.steps for b in s.behaviours if b not in behaviours})
+
+    def place_names(self) -> list[str]:
+        """Every place the mission names, once each, in order."""
+        return list(dict.fromkeys(name for s in self.steps for name in s.places))
+
+    def check_places(self, places: Places, where: str = "this map") -> None:
+        """`ConfigError` at the first step naming a place ``places`` (those of ``where``) lacks, with the
+        closest names."""
+        on = f" on {where}"
+        for step in self.steps:
+            for name in step.places:
+                if name not in places:
+                    raise ConfigError(f"mission '{self.name}' step {step.index}: no place named '{name}'{on} "
+                                      f"({places.hint(name)})", file=self.file, line=step.line, column=step.column,
+                                      path=f"mission.steps[{step.index}]")
 
     def report(self) -> dict[str, Any]:
         """A JSON-able summary for ``atemr mission validate --json``."""
         missing = set(self.missing_behaviours())
         return {
             "name": self.name, "file": self.file, "world": self.world, "description": self.description,
-            "runnable": not missing, "missing_behaviours": sorted(missing),
+            "runnable": not missing, "missing_behaviours": sorted(missing), "places": self.place_names(),
             "steps": [
                 {"index": s.index, "kind": s.kind, "name": s.name, "line": s.line, "behaviours": list(s.behaviours),
                  "runnable": not (set(s.behaviours) & missing)}
@@ -113,8 +141,10 @@ def _leaf(kind: str, name: str, params: Any, path: str) -> NodeSpec:
     return NodeSpec(kind, name, "leaf", params, path=path)
 
 
-def _go_to(pose: PoseParams, name: str, path: str) -> NodeSpec:
-    return _leaf(GO_TO_POSE, name, pose, path)
+def _go_to(target: PoseParams | PlaceParams, name: str, path: str) -> NodeSpec:
+    if isinstance(target, PlaceParams):
+        return _leaf(GO_TO_PLACE, name, target, path)
+    return _leaf(GO_TO_POSE, name, target, path)
 
 
 def goal_task(goal: Pose2D) -> Mission:
@@ -145,15 +175,26 @@ _MISSION_KEYS = ("name", "description", "world", "home", "defaults", "steps")
 _STEP_COMMON = ("name", "timeout_s", "retries")
 
 
-def _waypoints(raw: Any, source: Source, path: str, container: Any, key: Any) -> list[PoseParams]:
+Target = PoseParams | PlaceParams
+
+
+def _target(item: Any, source: Source, path: str, container: Any, key: Any) -> Target:
+    """A pose ``{x_m, y_m, yaw_rad}``, or a named place: ``{place: kitchen}`` (or, in a list, ``kitchen``)."""
+    if isinstance(item, str):
+        item = {"place": item}
+    if not isinstance(item, Mapping):
+        raise source.error(f"a pose is a mapping {{x_m, y_m, yaw_rad}} or a place {{place: name}}, got {item!r}",
+                           path, container, key)
+    if "place" in item:
+        return parse_params(PlaceParams, item, source, path, container=container, key=key)
+    return parse_params(PoseParams, item, source, path, container=container, key=key)
+
+
+def _waypoints(raw: Any, source: Source, path: str, container: Any, key: Any) -> list[Target]:
     if not isinstance(raw, list) or not raw:
-        raise source.error("'waypoints' must be a non-empty list of poses {x_m, y_m, yaw_rad}", path, container, key)
-    poses = []
-    for i, item in enumerate(raw):
-        if not isinstance(item, Mapping):
-            raise source.error(f"a pose is a mapping {{x_m, y_m, yaw_rad}}, got {item!r}", f"{path}[{i}]", raw, i)
-        poses.append(parse_params(PoseParams, item, source, f"{path}[{i}]", container=raw, key=i))
-    return poses
+        raise source.error("'waypoints' must be a non-empty list of poses {x_m, y_m, yaw_rad} or places",
+                           path, container, key)
+    return [_target(item, source, f"{path}[{i}]", raw, i) for i, item in enumerate(raw)]
 
 
 def _check_keys(node: Mapping[str, Any], allowed: tuple[str, ...], source: Source, path: str, what: str) -> None:
@@ -174,7 +215,7 @@ class _StepText:
     path: str
     node: Mapping[str, Any]
     name: str
-    home: PoseParams | None
+    home: PoseParams | PlaceParams | None
 
     def error(self, message: str, container: Any = None, key: Any = None) -> ConfigError:
         return self.source.error(message, self.path, self.node if container is None else container, key)
@@ -190,14 +231,15 @@ StepCompiler = Callable[[_StepText], NodeSpec]
 
 
 def _compile_go_to(at: _StepText) -> NodeSpec:
-    return _go_to(parse_params(PoseParams, at.mapping(), at.source, at.path, container=at.node), at.name, at.path)
+    return _go_to(_target(at.mapping(), at.source, at.path, at.node, None), at.name, at.path)
 
 
 def _compile_visit(at: _StepText, *, allow_loops: bool = False) -> NodeSpec:
     raw = at.mapping()
     _check_keys(raw, ("waypoints", "loops") if allow_loops else ("waypoints",), at.source, at.path, "this step")
     points = _waypoints(raw.get("waypoints"), at.source, f"{at.path}.waypoints", raw, "waypoints")
-    children = tuple(_go_to(p, f"{at.name}: waypoint {i}", f"{at.path}.waypoints[{i}]") for i, p in enumerate(points))
+    children = tuple(_go_to(p, f"{at.name}: " + (p.place if isinstance(p, PlaceParams) else f"waypoint {i}"),
+                            f"{at.path}.waypoints[{i}]") for i, p in enumerate(points))
     return NodeSpec("Sequence", at.name, "composite", SequenceOptions(True), children, path=at.path)
 
 
@@ -264,11 +306,12 @@ def parse_mission(document: Any, file: str | None = None) -> Mission:
     for key in ("description", "world"):
         if key in body and not isinstance(body[key], str):
             raise source.error(f"'{key}' must be a string", f"mission.{key}", body, key)
-    home = None
+    home: PoseParams | PlaceParams | None = None
     if "home" in body:
         if not isinstance(body["home"], Mapping):
-            raise source.error("'home' is a pose {x_m, y_m, yaw_rad}", "mission.home", body, "home")
-        home = parse_params(PoseParams, body["home"], source, "mission.home", container=body, key="home")
+            raise source.error("'home' is a pose {x_m, y_m, yaw_rad} or a place {place: home}", "mission.home",
+                               body, "home")
+        home = _target(body["home"], source, "mission.home", body, "home")
     defaults = parse_params(StepDefaults, body.get("defaults"), source, "mission.defaults", container=body,
                             key="defaults") if isinstance(body.get("defaults", {}), Mapping) else None
     if defaults is None:
@@ -280,11 +323,12 @@ def parse_mission(document: Any, file: str | None = None) -> Mission:
     steps = tuple(_parse_step(s, i, source, raw_steps, home=home, defaults=defaults) for i, s in enumerate(raw_steps))
     root = NodeSpec("Sequence", name, "composite", SequenceOptions(True), tuple(s.spec for s in steps),
                     path="mission.steps", file=file)
-    return Mission(name, steps, root, home.pose() if home else None, str(body.get("description", "")),
-                   body.get("world"), file)
+    return Mission(name, steps, root, home.pose() if isinstance(home, PoseParams) else None,
+                   str(body.get("description", "")), body.get("world"), file,
+                   home.place if isinstance(home, PlaceParams) else None)
 
 
-def _parse_step(node: Any, i: int, source: Source, raw: list[Any], *, home: PoseParams | None,
+def _parse_step(node: Any, i: int, source: Source, raw: list[Any], *, home: PoseParams | PlaceParams | None,
                 defaults: StepDefaults) -> Step:
     path = f"mission.steps[{i}]"
     if not isinstance(node, Mapping):
@@ -308,6 +352,9 @@ def _parse_step(node: Any, i: int, source: Source, raw: list[Any], *, home: Pose
     retries = common.retries if "retries" in node else defaults.retries
     compiler, needs = STEP_KINDS[kind]
     spec = compiler(_StepText(node[kind], source, f"{path}.{kind}", node, label, home))
+    places = tuple(n.options.place for n in spec.walk() if n.type == GO_TO_PLACE)
+    if places:  # the same kinds drive to places with GoToPlace instead of (or beside) GoToPose
+        needs = tuple(dict.fromkeys(n.type for n in spec.walk() if n.type in (GO_TO_POSE, GO_TO_PLACE)))
     if timeout_s is not None:
         spec = NodeSpec("Timeout", f"{label} (timeout {timeout_s:g} s)", "decorator", TimeoutOptions(timeout_s),
                         (spec,), path=path)
@@ -316,5 +363,5 @@ def _parse_step(node: Any, i: int, source: Source, raw: list[Any], *, home: Pose
                         path=path)
     line, column = mark_of(raw, i)
     return Step(i, kind, label, needs, dataclasses.replace(spec, file=source.name, line=line, column=column),
-                line, column)
+                line, column, places)
 

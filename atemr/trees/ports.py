@@ -17,6 +17,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
+from atemr.domain.places import Places
 from atemr.domain.status import ComponentHealth, HardwareBits, PowerState
 from atemr.io.can import PrimaryStatus
 from atemr.msgs import ZERO_TWIST, Pose2D, Twist
@@ -148,4 +149,8 @@ class NavigationPort(Protocol):
 
     def cancel(self, now: float) -> None:
         """Stop pursuing the goal (the next update is CANCELED)."""
+        ...
+
+    def places(self) -> Places:
+        """The active map's named places (none without a map)."""
         ...

@@ -4,7 +4,9 @@
 a step is ``pending`` until it first runs, ``running`` (with the distance left to its target pose, if it
 drives to one), then ``reached`` or ``failed``; steps after a failure stay ``not run``. When a step ends,
 the robot's pose is recorded and, for steps that drive to a pose, the distance and heading error to that
-pose. `TaskProgress.report` is the JSON the dashboard shows and that a mission run prints.
+pose. A step that drives to a named place is measured against the place's pose on the active map
+(``places``), as it was when the task began. `TaskProgress.report` is the JSON the dashboard shows and
+that a mission run prints.
 """
 
 from __future__ import annotations
@@ -14,10 +16,11 @@ from typing import Any
 
 import py_trees
 
+from atemr.domain.places import NO_PLACES, Places
 from atemr.msgs import Pose2D
 from atemr.trees.behaviours import Leaf
 from atemr.trees.leaves.motion import wrap_angle
-from atemr.trees.leaves.navigation import FollowPathParams
+from atemr.trees.leaves.navigation import FollowPathParams, PlaceParams
 from atemr.trees.missions import Mission
 from atemr.trees.params import PoseParams
 
@@ -48,9 +51,14 @@ class StepRecord:
         return out
 
 
-def _target(step_spec: Any) -> Pose2D | None:
-    poses = [n.options for n in step_spec.walk() if isinstance(n.options, (PoseParams, FollowPathParams))]
-    return poses[-1].pose() if poses else None
+def _target(step_spec: Any, places: Places) -> Pose2D | None:
+    poses: list[Pose2D | None] = []
+    for node in step_spec.walk():
+        if isinstance(node.options, (PoseParams, FollowPathParams)):
+            poses.append(node.options.pose())
+        elif isinstance(node.options, PlaceParams):
+            poses.append(places[node.options.place].pose if node.options.place in places else None)
+    return poses[-1] if poses else None
 
 
 def deepest_failure(root: py_trees.behaviour.Behaviour) -> tuple[py_trees.behaviour.Behaviour, str] | None:
@@ -70,22 +78,24 @@ def _why_failed(node: py_trees.behaviour.Behaviour) -> str | None:
     return (found[1] if found is not None else "") or node.feedback_message or None
 
 
-def step_record(step: Any) -> StepRecord:
-    """A fresh (pending) record for a mission step."""
-    return StepRecord(step.index, step.kind, step.name, target=_target(step.spec))
+def step_record(step: Any, places: Places = NO_PLACES) -> StepRecord:
+    """A fresh (pending) record for a mission step (``places``: the active map's, for steps that name one)."""
+    return StepRecord(step.index, step.kind, step.name, target=_target(step.spec, places))
 
 
 class TaskProgress:
     """Follows ``root`` (the built task: a Sequence with one child per step of ``mission``)."""
 
-    def __init__(self, mission: Mission, root: py_trees.behaviour.Behaviour, started_s: float) -> None:
+    def __init__(self, mission: Mission, root: py_trees.behaviour.Behaviour, started_s: float,
+                 places: Places = NO_PLACES) -> None:
         self.mission = mission
+        self.places = places
         self.root = root
         self.started_s = started_s
         self.finished_s: float | None = None
         self.outcome = "running"
         self.reason: str | None = None
-        self.steps = [step_record(s) for s in mission.steps]
+        self.steps = [step_record(s, places) for s in mission.steps]
         self._nodes = list(root.children) if len(root.children) == len(self.steps) else [root]
 
     def retarget(self, mission: Mission, steps: list[StepRecord]) -> None:

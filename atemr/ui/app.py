@@ -135,9 +135,10 @@ def create_app(
     from atemr.ui.control import bp as control_bp
     from atemr.ui.mapping import bp as mapping_bp
     from atemr.ui.media import bp as media_bp
+    from atemr.ui.routines import bp as routines_bp
     from atemr.ui.settings import bp as settings_bp
 
-    for bp in (auth_bp, control_bp, mapping_bp, settings_bp, media_bp, agent_bp):
+    for bp in (auth_bp, control_bp, mapping_bp, settings_bp, media_bp, agent_bp, routines_bp):
         app.register_blueprint(bp)
     app.add_url_rule("/", "index", lambda: redirect(url_for("control.page")))
     # Browsers ask for /favicon.ico on their own (downloads, bookmarks) whatever the pages link.

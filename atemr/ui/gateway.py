@@ -153,6 +153,37 @@ class RobotGateway(Protocol):
         """Tell the robot the map directory changed (an upload or a delete), so its list is fresh."""
         ...
 
+    # -- places ------------------------------------------------------------------------------------
+    def go_to_place(self, name: str) -> CommandResult:
+        """Drive to the active map's place ``name`` (AUTO only, as a goal; refused with the closest names)."""
+        ...
+
+    def save_place(self, name: str, pose: Pose2D, kind: str = "place", previous: str | None = None) -> CommandResult:
+        """Add place ``name`` at ``pose`` on the active map, or (``previous``) move and/or rename that place;
+        stored with the map at once."""
+        ...
+
+    def delete_place(self, name: str) -> CommandResult:
+        ...
+
+    # -- routines ----------------------------------------------------------------------------------
+    def routines(self) -> dict[str, Any] | None:
+        """The care routines for the Routines page (`atemr.robot.routines.RoutineRunner.snapshot`: ``timezone``,
+        ``now``, ``routines`` with ``schedule`` and ``next``, ``running``, ``history``, ``error``), or None."""
+        ...
+
+    def save_routine(self, routine: dict[str, Any], previous: str | None = None) -> CommandResult:
+        """Add a routine (``{name, mission, at | every_min+from+to, days, enabled}``, as in the routines file), or
+        replace ``previous``; checked whole before it is stored."""
+        ...
+
+    def delete_routine(self, name: str) -> CommandResult:
+        ...
+
+    def set_routines_timezone(self, timezone: str) -> CommandResult:
+        """The IANA time zone the routines' times are in (``Europe/Berlin``)."""
+        ...
+
     # -- settings ----------------------------------------------------------------------------------
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:
         """New speed limits, applied at once without a restart, persisted; a refusal keeps the old ones."""

@@ -92,6 +92,26 @@ class AutonomyJson(TypedDict):
     now: float
 
 
+class PlaceJson(TypedDict):
+    """A named place of the active map (`atemr.domain.places.Place`): where "Go to" sends the robot."""
+
+    name: str
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    #: ``dock`` where the robot charges (``home``), else ``place``.
+    kind: str
+
+
+class BatteryJson(TypedDict):
+    """The state of charge estimated from the motors' supply voltage (`atemr.robot.battery.BatteryWatch`)."""
+
+    percent: float
+    voltage_v: float
+    #: ``ok``, ``low`` (below the warning limit), ``return`` (going home to charge), ``critical`` (stopped).
+    level: str
+
+
 class RobotState(TypedDict):
     """One snapshot of the robot as the dashboard shows it."""
 
@@ -139,6 +159,10 @@ class RobotState(TypedDict):
     missions: list[str]
     #: The stored maps, by name.
     maps: list[str]
+    #: The active map's named places, in their order.
+    places: list[PlaceJson]
+    #: None until the motors have reported a plausible supply voltage.
+    battery: BatteryJson | None
     #: The latest events, oldest first.
     events: list[EventJson]
     autonomy: AutonomyJson

@@ -12,6 +12,7 @@ from typing import Any
 import py_trees
 import pytest
 
+from atemr.domain.places import Place, Places
 from atemr.domain.status import ComponentHealth, PowerState, StateCode
 from atemr.errors import AtemrError, ConfigError, HardwareError
 from atemr.msgs import Pose2D, Twist
@@ -43,6 +44,7 @@ SAMPLES: dict[str, dict[str, Any]] = {
     "WatchHeartbeat": {},
     "WatchHealth": {"components": ["left_motor"]},
     "GoToPose": {"x_m": 1.0, "y_m": 0.5, "yaw_rad": 0.3},
+    "GoToPlace": {"place": "kitchen"},
     "FollowPath": {"points": [[1.0, 0.0], [1.0, 1.0]]},
     "Relocalize": {"timeout_s": 0.3},
     "StartMapping": {},
@@ -50,7 +52,10 @@ SAMPLES: dict[str, dict[str, Any]] = {
     "StopMapping": {},
 }
 #: Leaves that command a velocity, and on which mux input.
-DRIVING = {"DriveJoystick": "joystick", "Rotate": "agent", "GoToPose": "navigation", "FollowPath": "navigation"}
+DRIVING = {"DriveJoystick": "joystick", "Rotate": "agent", "GoToPose": "navigation", "FollowPath": "navigation",
+           "GoToPlace": "navigation"}
+#: The places the benches' navigation knows (the active map's, on a robot).
+PLACES = Places([Place("kitchen", Pose2D(1.0, 0.5, 1.0)), Place("home", Pose2D(0.0, 0.0, 0.0), "dock")])
 
 
 class Bench:
@@ -60,7 +65,7 @@ class Bench:
                  state: str = "IDLE.MANUAL") -> None:
         self.port = port or RecordingPort(dt_s=0.1)
         self.link = link if link is not None else RecordingLink()
-        self.navigation = StraightLineNavigation(self.port)
+        self.navigation = StraightLineNavigation(self.port, known_places=PLACES)
         self.ctx = AgentContext(port=self.port, link=self.link, state=state, navigation=self.navigation)
         self.link.time_source = lambda: self.ctx.now
         self.leaf = leaf
@@ -327,6 +332,21 @@ def test_go_to_pose_refused_failed_and_interrupted() -> None:
     for _ in lonely.tick():
         pass
     assert lonely.status == Status.FAILURE and lonely.reason == "navigation is not available on this robot"
+
+
+def test_go_to_place_looks_the_place_up_when_it_starts() -> None:
+    bench = Bench(make("GoToPlace", place="KITCHEN"))
+    for _ in range(60):
+        if bench.tick() != Status.RUNNING:
+            break
+    assert bench.leaf.status == Status.SUCCESS and bench.navigation.goals == [Pose2D(1.0, 0.5, 1.0)]
+    bench.navigation.known_places = PLACES.with_place(Place("kitchen", Pose2D(2.0, 0.5, 0.0)), replace=True)
+    bench.tick()  # a place moved on the dashboard: the next start goes to where it is now
+    assert bench.navigation.goals[-1] == Pose2D(2.0, 0.5, 0.0)
+    gone = Bench(make("GoToPlace", place="kichen"))
+    gone.navigation.known_places = PLACES.without("kitchen").with_place(Place("kitchenette", Pose2D(3, 3, 0)))
+    assert gone.tick() == Status.FAILURE and gone.navigation.goals == []
+    assert gone.leaf.reason == "goal refused: no place named 'kichen' on this map (closest: kitchenette)"
 
 
 def test_relocalize_waits_for_localization() -> None:

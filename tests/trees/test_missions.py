@@ -8,8 +8,11 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from atemr.domain.places import Place, Places
 from atemr.errors import ConfigError
+from atemr.io.map_store import MapStore
 from atemr.io.sim.world import load_world
+from atemr.msgs import Pose2D
 from atemr.trees.behaviours import behaviours
 from atemr.trees.missions import Mission, load_mission, parse_mission
 from atemr.yamlsafe import load_yaml
@@ -28,7 +31,7 @@ def test_at_least_three_missions_ship_for_the_default_world() -> None:
 
 
 @pytest.mark.parametrize("path", IN_A_WORLD, ids=[p.stem for p in IN_A_WORLD])
-def test_shipped_mission_poses_are_in_free_space_with_clearance(path: Path) -> None:
+def test_shipped_mission_poses_are_in_free_space_with_clearance(path: Path, tmp_path: Path) -> None:
     mission = load_mission(path)
     assert mission.world is not None
     world = load_world(mission.world)
@@ -39,7 +42,10 @@ def test_shipped_mission_poses_are_in_free_space_with_clearance(path: Path) -> N
     for thing in world.furniture:  # the unmapped ones too (laundry basket, plant): navigation pads those
         occupied |= thing.contains(x_m, y_m)
     clearance_m = ndimage.distance_transform_edt(~occupied) * grid.resolution_m
+    places = MapStore(tmp_path).places(mission.world)
+    mission.check_places(places, mission.world)
     poses = [n.options for n in mission.spec.walk() if n.type == "GoToPose"]
+    poses += [places[n.options.place].pose for n in mission.spec.walk() if n.type == "GoToPlace"]
     assert poses
     for pose in poses:
         row, col = grid.world_to_cell(pose.x_m, pose.y_m)
@@ -96,6 +102,9 @@ BAD = [
     ("bad waypoint", "    - visit: {waypoints: [{x_m: 1, y_m: 1}, 7]}\n", "7", ["a pose is a mapping"]),
     ("bad timeout", "    - wait: {duration_s: 1}\n      timeout_s: 0\n", "0\n", ["must be at least 0.1"]),
     ("bad label", "    - capture_image: {label: ../../etc}\n", "{label", ["label must be"]),
+    ("place and pose", "    - go_to: {place: kitchen, x_m: 1}\n", "x_m", ["unknown key 'x_m'"]),
+    ("bad place name", "    - go_to: {place: '<kitchen>'}\n", "{place", ["invalid place name"]),
+    ("bad place waypoint", "    - visit: {waypoints: [kitchen, 7]}\n", "7", ["or a place {place: name}"]),
 ]
 
 
@@ -124,6 +133,35 @@ def test_mission_document_errors(text: str, words: list[str]) -> None:
         parse(text)
     for word in words:
         assert word in str(info.value)
+
+
+PLACES_MISSION = """mission:
+  name: by-name
+  home: {place: Home}
+  steps:
+    - wait: {duration_s: 1}
+    - go_to: {place: kitchen}
+    - patrol: {waypoints: [bedroom, {place: bathroom}, {x_m: 1, y_m: 2}], loops: 2}
+    - return_home: {}
+"""
+
+
+def test_missions_name_places_and_a_missing_one_is_refused_with_the_closest_names() -> None:
+    mission = parse(PLACES_MISSION)
+    assert mission.place_names() == ["kitchen", "bedroom", "bathroom", "Home"]
+    assert [s.behaviours for s in mission.steps] == [("Wait",), ("GoToPlace",), ("GoToPlace", "GoToPose"),
+                                                     ("GoToPlace",)]
+    assert mission.report()["places"] == ["kitchen", "bedroom", "bathroom", "Home"]
+    patrol = [n for n in mission.steps[2].spec.walk() if n.type in ("GoToPlace", "GoToPose")]
+    assert [n.name for n in patrol] == ["step 2: patrol: loop: bedroom", "step 2: patrol: loop: bathroom",
+                                        "step 2: patrol: loop: waypoint 2"]
+    here = Places([Place(n, Pose2D(1, 1, 0)) for n in ("home", "kitchen", "bedroom", "bathroom")])
+    mission.check_places(here)  # names are matched whatever their case
+    with pytest.raises(ConfigError) as info:
+        mission.check_places(here.without("bedroom").with_place(Place("bedroom 2", Pose2D(0, 0, 0))), "map flat")
+    assert info.value.reason == ("mission 'by-name' step 2: no place named 'bedroom' on map flat "
+                                 "(closest: bedroom 2, bathroom)")
+    assert (info.value.file, info.value.line) == ("m.yaml", 7)
 
 
 def test_missing_behaviours_are_reported_not_hidden(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -39,7 +39,7 @@ class RecordingGateway:
             "stop_cause": None, "level1": {}, "level2": {},
             "system": None, "limits": {"linear_mps": 0.5, "angular_radps": 1.0}, "awareness": False,
             "wifi_ssid": None, "mapping": False, "recording": False, "mission": None, "missions": ["patrol"],
-            "maps": [], "events": [],
+            "maps": [], "places": [], "battery": None, "events": [],
             "autonomy": {"level": "full", "levels": ["off", "low", "high", "full"], "timeout_s": 30.0,
                          "pending": None, "now": 0.0},
         }
@@ -48,6 +48,13 @@ class RecordingGateway:
         self.screen: bytes | None = None
         self.agent: dict[str, Any] | None = None
         self.maps_changed_count = 0
+        self.routine_data: dict[str, Any] | None = {
+            "timezone": "Europe/Berlin", "now": "2026-06-03 08:00 CEST", "running": None, "error": None,
+            "routines": [{"name": "check-on-resident", "mission": "patrol", "at": "09:00", "enabled": True,
+                          "schedule": "daily at 09:00", "next": "2026-06-03 09:00 CEST"}],
+            "history": [{"routine": "check-on-resident", "stamp": "2026-06-02 09:00 CEST", "time": "09:00",
+                         "outcome": "skipped", "reason": "robot in MANUAL", "mission": "patrol"}],
+        }
 
     def _cmd(self, name: str, *args: Any) -> CommandResult:
         self.calls.append((name, args))
@@ -111,6 +118,27 @@ class RecordingGateway:
 
     def maps_changed(self) -> None:
         self.maps_changed_count += 1
+
+    def routines(self) -> dict[str, Any] | None:
+        return self.routine_data
+
+    def save_routine(self, routine: dict[str, Any], previous: str | None = None) -> CommandResult:
+        return self._cmd("save_routine", routine, previous)
+
+    def delete_routine(self, name: str) -> CommandResult:
+        return self._cmd("delete_routine", name)
+
+    def set_routines_timezone(self, timezone: str) -> CommandResult:
+        return self._cmd("set_routines_timezone", timezone)
+
+    def go_to_place(self, name: str) -> CommandResult:
+        return self._cmd("go_to_place", name)
+
+    def save_place(self, name: str, pose: Pose2D, kind: str = "place", previous: str | None = None) -> CommandResult:
+        return self._cmd("save_place", name, pose, kind, previous)
+
+    def delete_place(self, name: str) -> CommandResult:
+        return self._cmd("delete_place", name)
 
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:
         return self._cmd("set_limits", linear_mps, angular_radps)

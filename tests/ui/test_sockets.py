@@ -68,6 +68,12 @@ EVENTS = [
     ("autonomy_deny", {"id": 4}, ("answer_transition", (4, False, "alice"))),
     ("autonomy_level", {"level": "low"}, ("set_autonomy", ("low", "alice"))),
     ("agent_reload", None, ("reload_agent", ())),
+    ("go_to_place", {"name": "kitchen"}, ("go_to_place", ("kitchen",))),
+    ("place_save", {"name": "Mum's armchair", "x_m": 1.0, "y_m": 2.0, "yaw_rad": 0.5},
+     ("save_place", ("Mum's armchair", Pose2D(1.0, 2.0, 0.5), "place", None))),
+    ("place_save", {"name": "hall", "x_m": 1.0, "y_m": 2.0, "yaw_rad": 0, "kind": "dock", "previous": "home"},
+     ("save_place", ("hall", Pose2D(1.0, 2.0, 0.0), "dock", "home"))),
+    ("place_delete", {"name": "hall"}, ("delete_place", ("hall",))),
 ]
 
 
@@ -118,6 +124,12 @@ BAD = [
     ("autonomy_deny", None),
     ("autonomy_level", {"level": "max"}),
     ("autonomy_level", {"level": 2}),
+    ("go_to_place", {"name": ""}),
+    ("go_to_place", {"name": "x" * 41}),
+    ("place_save", {"name": "hall", "x_m": 1.0, "y_m": math.nan, "yaw_rad": 0}),
+    ("place_save", {"name": "hall", "x_m": 1.0, "y_m": 2.0}),
+    ("place_save", {"name": "hall", "x_m": 1.0, "y_m": 2.0, "yaw_rad": 0, "previous": 7}),
+    ("place_delete", {"name": 3}),
 ]
 
 

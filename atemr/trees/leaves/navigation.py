@@ -9,7 +9,8 @@ from dataclasses import dataclass, field
 import py_trees
 
 from atemr.clock import due
-from atemr.errors import AtemrError
+from atemr.domain.places import check_name
+from atemr.errors import AtemrError, ConfigError, NavigationError
 from atemr.msgs import ZERO_TWIST, Pose2D
 from atemr.trees.behaviours import Leaf, behaviours
 from atemr.trees.params import PoseParams
@@ -21,8 +22,10 @@ Status = py_trees.common.Status
 GO_TO_POSE = "GoToPose"
 #: Navigation's route step (`FollowPath`).
 FOLLOW_PATH = "FollowPath"
+#: Navigation's step to a named place of the active map (`GoToPlace`).
+GO_TO_PLACE = "GoToPlace"
 #: The steps that drive the base through navigation (a mission with one needs navigation on the robot).
-DRIVES = (GO_TO_POSE, FOLLOW_PATH)
+DRIVES = (GO_TO_POSE, FOLLOW_PATH, GO_TO_PLACE)
 
 
 class NavigationGoal(Leaf):
@@ -87,6 +90,36 @@ class GoToPose(NavigationGoal):
 
     def start(self, navigation: NavigationPort) -> None:
         navigation.start(self.params.pose(), self.ctx.now)
+
+
+@dataclass(frozen=True)
+class PlaceParams:
+    """A named place of the active map (``kitchen``, ``home``): the parameters of ``GoToPlace``."""
+
+    place: str = field(default="", metadata={"required": True})
+
+    def validate(self) -> None:
+        try:
+            check_name(self.place)
+        except ConfigError as exc:
+            raise ValueError(exc.reason) from None
+
+
+@behaviours.register(GO_TO_PLACE)
+class GoToPlace(NavigationGoal):
+    """Drive to a named place of the active map. The name is looked up when the step starts, not when the
+    mission is written, so a place moved on the dashboard is where the robot goes next; a place that is no
+    longer there fails the step with the closest names (see `NavigationGoal`)."""
+
+    Params = PlaceParams
+    summary = "drive to a named place of the active map with navigation"
+
+    def start(self, navigation: NavigationPort) -> None:
+        try:
+            place = navigation.places().find(self.params.place)
+        except ConfigError as exc:
+            raise NavigationError(exc.reason) from None
+        navigation.start(place.pose, self.ctx.now)
 
 
 @dataclass(frozen=True)

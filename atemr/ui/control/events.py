@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from atemr.domain.places import MAX_NAME_CHARS
 from atemr.msgs import Twist
 from atemr.ui import payload
 from atemr.ui.gateway import CommandResult, RobotGateway
@@ -43,6 +44,12 @@ def mode(robot: RobotGateway, data: Any) -> CommandResult:
 def goal(robot: RobotGateway, data: Any) -> CommandResult:
     """``{x_m, y_m, yaw_rad}`` in the map frame."""
     return robot.set_goal(payload.pose("goal", data))
+
+
+@events.on("go_to_place")
+def go_to_place(robot: RobotGateway, data: Any) -> CommandResult:
+    """``{name}``: a named place of the active map (the "Go to" list)."""
+    return robot.go_to_place(payload.text("go_to_place", data, "name", max_len=MAX_NAME_CHARS))
 
 
 @events.on("initial_pose")

@@ -50,14 +50,18 @@ def _refused(message: str, status: int) -> tuple[str, int]:
 @bp.route("/mapping/upload", methods=["POST"])
 @role_required("user")
 def upload() -> Any:
-    """A ROS map: ``yaml`` (name.yaml) and ``image`` (the PGM/PNG it names), stored through the robot's map
-    store, which validates it first (nothing is stored when it is refused)."""
+    """A ROS map: ``yaml`` (name.yaml), ``image`` (the PGM/PNG it names) and optionally ``places`` (its
+    name.places.yaml from an export), stored through the robot's map store, which validates them first
+    (nothing is stored when it is refused)."""
     yaml_file = request.files.get("yaml")
     image_file = request.files.get("image")
     if yaml_file is None or image_file is None or not yaml_file.filename or not image_file.filename:
         return _refused("Upload both the map's .yaml and the image it names.", 400)
     try:
-        name = _store().upload_map(yaml_file.filename, yaml_file.read(), image_file.filename, image_file.read())
+        places_file = request.files.get("places")
+        places = places_file.read() if places_file is not None and places_file.filename else None
+        name = _store().upload_map(yaml_file.filename, yaml_file.read(), image_file.filename, image_file.read(),
+                                   places)
     except MapExistsError as exc:
         return _refused(f"Map upload refused: {exc}", 409)
     except MediaError as exc:

@@ -1,10 +1,12 @@
-"""Socket.IO events of the Mapping page: begin/end a mapping session, save or discard, select a map."""
+"""Socket.IO events of the Mapping page: begin/end a mapping session, save or discard, select a map; and the
+active map's named places (add, move, rename, delete), which the Control page edits too."""
 
 from __future__ import annotations
 
 import re
 from typing import Any
 
+from atemr.domain.places import MAX_NAME_CHARS
 from atemr.errors import ProtocolError
 from atemr.ui import payload
 from atemr.ui.gateway import CommandResult, RobotGateway
@@ -50,3 +52,21 @@ def map_discard(robot: RobotGateway, data: Any) -> CommandResult:
 def map_select(robot: RobotGateway, data: Any) -> CommandResult:
     """``{name}``: switch the active map."""
     return robot.select_map(map_name("map_select", data))
+
+
+@events.on("place_save")
+def place_save(robot: RobotGateway, data: Any) -> CommandResult:
+    """``{name, x_m, y_m, yaw_rad, kind?, previous?}``: add a place, or move and/or rename ``previous``."""
+    name = payload.text("place_save", data, "name", max_len=MAX_NAME_CHARS)
+    pose = payload.pose("place_save", data)
+    fields = payload.mapping("place_save", data)
+    kind = payload.text("place_save", data, "kind", max_len=8) if "kind" in fields else "place"
+    previous = payload.text("place_save", data, "previous", max_len=MAX_NAME_CHARS) \
+        if fields.get("previous") is not None else None
+    return robot.save_place(name, pose, kind, previous)
+
+
+@events.on("place_delete")
+def place_delete(robot: RobotGateway, data: Any) -> CommandResult:
+    """``{name}``."""
+    return robot.delete_place(payload.text("place_delete", data, "name", max_len=MAX_NAME_CHARS))

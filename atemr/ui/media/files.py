@@ -24,7 +24,7 @@ from werkzeug.security import safe_join
 from werkzeug.utils import secure_filename
 
 from atemr.errors import AtemrError, ConfigError
-from atemr.io.map_store import MapStore, clean_name
+from atemr.io.map_store import PLACES_SUFFIX, MapStore, clean_name, places_text
 from atemr.io.recording.agent_trace import RECORDING_SUFFIXES, decode_agent_trace
 from atemr.io.trace_file import TraceContents
 from atemr.ui.media.thumbnails import Thumbnails
@@ -222,11 +222,19 @@ class MediaStore:
         return files
 
     def map_zip(self, name: str) -> bytes:
-        """A map's YAML and image as one zip, for download."""
+        """A map's YAML, image and places (``name.places.yaml``, when it has any) as one zip, for download:
+        what `upload_map` takes back."""
         buf = io.BytesIO()
+        yaml_path = self.path("maps", name)
         with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
-            for path in self.map_files(self.path("maps", name)):
+            for path in self.map_files(yaml_path):
                 zf.write(path, path.name)
+            try:
+                places = self.maps.places(self.map_name(name))
+            except ConfigError as exc:
+                raise MediaError(f"the map's places cannot be read: {exc}") from None
+            if len(places):
+                zf.writestr(yaml_path.stem + PLACES_SUFFIX, places_text(places))
         return buf.getvalue()
 
     # -- deleting -------------------------------------------------------------------------------------
@@ -254,9 +262,11 @@ class MediaStore:
         return len(deletable)
 
     # -- uploading maps -------------------------------------------------------------------------------
-    def upload_map(self, yaml_name: str, yaml_bytes: bytes, image_name: str, image_bytes: bytes) -> str:
+    def upload_map(self, yaml_name: str, yaml_bytes: bytes, image_name: str, image_bytes: bytes,
+                   places_bytes: bytes | None = None) -> str:
         """Store an uploaded map pair through the map store (which validates it with the package's map
-        reader: keys, thresholds, an image that is one of the uploaded files, size); returns its name.
+        reader: keys, thresholds, an image that is one of the uploaded files, size), with its places file
+        (``places_bytes``, the ``.places.yaml`` of an export) when given; returns its name.
 
         `MediaError` says why an upload was refused (nothing is stored then); `MapExistsError` when a map of that
         name exists already.
@@ -277,8 +287,11 @@ class MediaStore:
             raise MediaError(exc.reason) from None
         if name not in self.maps.builtins and self.maps.exists(name):
             raise MapExistsError(f"a map named '{name}' exists already; delete it first or rename the upload")
+        files = {yaml_safe: yaml_bytes, image_safe: image_bytes}
+        if places_bytes:
+            files[Path(yaml_safe).stem + PLACES_SUFFIX] = places_bytes
         try:
-            return self.maps.upload({yaml_safe: yaml_bytes, image_safe: image_bytes}, name=name)
+            return self.maps.upload(files, name=name)
         except ConfigError as exc:
             raise MediaError(f"not a valid ROS map: {exc}") from None
 

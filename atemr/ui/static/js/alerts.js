@@ -74,6 +74,8 @@
       return known || [`Localization: ${e.text}`, "info"];
     }
     if (kind === "refused") return [e.text, "warning"];
+    if (kind === "battery") return [e.text, /critical/.test(e.text) ? "error" : "warning"];
+    if (kind === "routine") return [`Routine ${e.text}`, /skipped|missed|failed|refused|cancelled/.test(e.text) ? "warning" : "ok"];
     if (kind === "heartbeat" || kind === "motor fault" || kind === "can bus" || kind === "component error") {
       return [e.text, /restored|cleared/.test(e.text) ? "ok" : "error"];
     }

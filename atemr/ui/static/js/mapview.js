@@ -1,4 +1,5 @@
-// The map canvas: the occupancy grid image, robot pose, lidar points, global/local path and goal, with
+// The map canvas: the occupancy grid image, robot pose, lidar points, global/local path, goal and the named
+// places (a labelled marker each), with
 // pan (drag), zoom (wheel, pinch, +/- keys) and a "command" mode in which press-drag-release gives a pose
 // (position at the press, heading along the drag) to a callback: initial pose, goal, kidnap.
 "use strict";
@@ -185,6 +186,7 @@ class MapView {
         ctx.fillRect(sx - 1.5, sy - 1.5, 3, 3);
       }
     }
+    if (Array.isArray(s.places)) for (const p of s.places) this.place(p);
     if (s.goal) this.arrow(s.goal, "#d4a72c", 0.35);
     if (this.pending) this.arrow(this.pending, "#8250df", 0.5);
     if (s.pose) this.robot(s.pose);
@@ -227,6 +229,15 @@ class MapView {
     ctx.strokeStyle = color; ctx.fillStyle = color; ctx.lineWidth = 3;
     ctx.beginPath(); ctx.arc(sx, sy, 4, 0, 2 * Math.PI); ctx.fill();
     ctx.beginPath(); ctx.moveTo(sx, sy); ctx.lineTo(ex, ey); ctx.stroke();
+  }
+
+  place(p) {
+    const { ctx } = this;
+    this.arrow(p, p.kind === "dock" ? "#1a7f37" : "#bf3989", 0.3);
+    const [sx, sy] = this.toScreen(p.x_m, p.y_m);
+    ctx.font = `${Math.round(12 * (window.devicePixelRatio || 1))}px sans-serif`;
+    ctx.lineWidth = 3; ctx.strokeStyle = "#fff"; ctx.fillStyle = "#24292f";
+    ctx.strokeText(p.name, sx + 7, sy - 7); ctx.fillText(p.name, sx + 7, sy - 7);
   }
 
   robot(pose) {

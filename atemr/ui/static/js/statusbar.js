@@ -80,6 +80,18 @@
       emergency.textContent = "NO EMERGENCY"; emergency.className = "ind online"; emergency.title = "emergency (brakes)";
     }
     showAutonomy(s.autonomy);
+    showBattery(s.battery);
+  }
+
+  // The battery's charge (estimated from the motors' supply voltage), on every page.
+  function showBattery(b) {
+    const battery = document.getElementById("battery");
+    if (!battery) return;
+    if (!b) { battery.textContent = "BAT:—"; battery.className = "ind"; return; }
+    battery.textContent = `BAT:${Math.round(b.percent)}%`;
+    battery.className = `ind ${b.level === "ok" ? "online" : b.level === "low" ? "warning" : "error"}`;
+    battery.title = `battery ${b.percent.toFixed(0)} % (${b.voltage_v.toFixed(1)} V)` +
+      (b.level === "return" ? ": going home to charge" : b.level === "critical" ? ": critical, stopped" : "");
   }
 
   // Operator autonomy: the level in the bar, and a transition waiting for the operator with Confirm/Deny.

@@ -1,0 +1,54 @@
+"""The Routines page (issue 27): admins only; it lists each routine's schedule and next run and the last runs
+with their outcome; its forms reach the robot as routines of the routines file, and a refusal is shown beside
+the form with what was typed kept."""
+
+from __future__ import annotations
+
+import re
+
+
+def test_a_user_has_no_routines_page(alice):
+    assert alice.get("/routines").status_code == 403
+    assert "Routines</a>" not in alice.get("/control").get_data(as_text=True)
+
+
+def test_an_admin_sees_each_routine_its_next_run_and_the_last_runs(admin):
+    page = admin.get("/routines")
+    assert page.status_code == 200
+    html = page.get_data(as_text=True)
+    assert "Routines</a>" in html
+    assert 'data-routine="check-on-resident"' in html and "2026-06-03 09:00 CEST" in html
+    assert "robot in MANUAL" in html and "outcome-skipped" in html
+
+
+def test_a_routine_from_the_form_reaches_the_robot(admin, gateway, ui):
+    form = {"name": "night patrol", "mission": "patrol", "kind": "every", "every_min": "30", "from": "21:00",
+            "to": "23:00", "days": ["mon", "tue", "wed", "thu", "fri"], "enabled": "on"}
+    answer = ui.post(admin, "/routines/save", form, follow_redirects=True)
+    assert answer.status_code == 200 and "Routine night patrol saved." in answer.get_data(as_text=True)
+    assert gateway.calls == [("save_routine", ({"name": "night patrol", "mission": "patrol", "every_min": 30,
+                                                 "from": "21:00", "to": "23:00",
+                                                 "days": ["mon", "tue", "wed", "thu", "fri"]}, None))]
+    ui.post(admin, "/routines/save", {"name": "m", "mission": "patrol", "kind": "at", "at": "07:30",
+                                      "days": ["mon", "tue", "wed", "thu", "fri", "sat", "sun"],
+                                      "previous": "check-on-resident"})
+    assert gateway.calls[-1] == ("save_routine", ({"name": "m", "mission": "patrol", "at": "07:30", "enabled": False},
+                                                  "check-on-resident"))
+    ui.post(admin, "/routines/delete", {"name": "m"})
+    ui.post(admin, "/routines/timezone", {"timezone": "Europe/Lisbon"})
+    assert gateway.names()[-2:] == ["delete_routine", "set_routines_timezone"]
+
+
+def test_a_refused_routine_is_shown_beside_the_form_with_what_was_typed(admin, gateway, ui):
+    gateway.refuse["save_routine"] = "routine 'x': expected a time of day HH:MM (24-hour), got '25:00'"
+    answer = ui.post(admin, "/routines/save", {"name": "x", "mission": "patrol", "kind": "at", "at": "25:00",
+                                               "days": ["sat"], "enabled": "on"})
+    html = answer.get_data(as_text=True)
+    assert answer.status_code == 400 and 'id="routine-error"' in html and "got &#39;25:00&#39;" in html
+    assert 'value="x"' in html
+    assert re.search(r'value="sat"\s+checked', html) and not re.search(r'value="mon"\s+checked', html)
+
+
+def test_a_user_cannot_change_routines(alice, gateway, ui):
+    answer = ui.post(alice, "/routines/save", {"name": "x", "mission": "patrol", "kind": "at", "at": "09:00"})
+    assert answer.status_code == 403 and gateway.calls == []
