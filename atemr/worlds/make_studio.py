@@ -48,15 +48,18 @@ def _cells(box: tuple[float, float, float, float], xs: np.ndarray, ys: np.ndarra
     return (xs >= x0) & (xs <= x1) & (ys >= y0) & (ys <= y1)
 
 
-def build_studio_map(world_file: Path = HERE / "world.yaml") -> OccupancyMap:
-    """The studio's occupancy grid from the walls above and the mapped furniture of the world file."""
-    rows, cols = np.indices(SIZE_CELLS)
-    xs = ORIGIN.x_m + (cols + 0.5) * RESOLUTION_M
-    ys = ORIGIN.y_m + (rows + 0.5) * RESOLUTION_M
-    data = np.full(SIZE_CELLS, UNKNOWN, dtype=np.int8)
-    for box in FLOOR:
+def rasterize(name: str, size_cells: tuple[int, int], origin: Pose2D, *, floor: list[tuple[float, float, float, float]],
+              walls: list[tuple[float, float, float, float]], world_file: Path,
+              resolution_m: float = RESOLUTION_M) -> OccupancyMap:
+    """An occupancy grid from floor and wall boxes ``[x0, y0, x1, y1]`` (m) and the ``mapped: true`` furniture of
+    ``world_file``: what mapping the place would give (unknown outside the floor)."""
+    rows, cols = np.indices(size_cells)
+    xs = origin.x_m + (cols + 0.5) * resolution_m
+    ys = origin.y_m + (rows + 0.5) * resolution_m
+    data = np.full(size_cells, UNKNOWN, dtype=np.int8)
+    for box in floor:
         data[_cells(box, xs, ys)] = FREE
-    for box in WALLS:
+    for box in walls:
         data[_cells(box, xs, ys)] = OCCUPIED
     world = load_yaml(world_file)
     for item in world.get("furniture", []):
@@ -67,7 +70,12 @@ def build_studio_map(world_file: Path = HERE / "world.yaml") -> OccupancyMap:
         else:
             cx, cy, r = item["circle"]
             data[(xs - cx) ** 2 + (ys - cy) ** 2 <= r * r] = OCCUPIED
-    return OccupancyMap(data, RESOLUTION_M, ORIGIN, name="studio")
+    return OccupancyMap(data, resolution_m, origin, name=name)
+
+
+def build_studio_map(world_file: Path = HERE / "world.yaml") -> OccupancyMap:
+    """The studio's occupancy grid from the walls above and the mapped furniture of the world file."""
+    return rasterize("studio", SIZE_CELLS, ORIGIN, floor=FLOOR, walls=WALLS, world_file=world_file)
 
 
 def main(argv: list[str] | None = None) -> int:

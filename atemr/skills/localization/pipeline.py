@@ -10,8 +10,10 @@ until the next tick). Each tick handles the newest scan:
    relocalization).
 
 Tick it at the lidar rate (10 Hz). Outputs: `odom_pose`, `estimate` (map pose + covariance, None while
-not localized), `localized` (0x153 bit 4), `map_to_odom`, and `drain_events` for the agent and the
-dashboard. No I/O and no clock of its own: every time comes from the inputs or the scheduler's ``now``.
+not localized), `confidence` and `localized` (confidence at or above the limit: 0x153 bit 4, the dashboard,
+the agent's guards), `candidates` (while global localization is ambiguous), `map_to_odom`, and
+`drain_events` for the agent and the dashboard. Selecting another map drops the pose (an event says so).
+No I/O and no clock of its own: every time comes from the inputs or the scheduler's ``now``.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from atemr.msgs import ImuSample, LaserScan, Pose2D, WheelSpeeds
 from atemr.skills.diff_drive import DiffDrive
 from atemr.skills.localization.amcl import PoseEstimate
 from atemr.skills.localization.geometry import as_array, as_pose, compose, relative
+from atemr.skills.localization.global_search import Hypothesis
 from atemr.skills.localization.icp import IcpTarget, icp
 from atemr.skills.localization.localizer import LocalizationEvent, Localizer, LocalizerParams
 from atemr.skills.localization.odometry_ekf import OdometryEkf, OdometryEkfParams
@@ -82,6 +85,9 @@ class LocalizationPipeline:
         localizer = prepared if prepared is not None else self.prepare_map(grid)
         if self.localizer is not None:
             self._events.extend(self.localizer.events)
+            self._events.append(LocalizationEvent(self.odometry.t, "map_changed",
+                                                  f"map {grid.name} selected: not localized until a pose is set "
+                                                  "or found (FIND POSE)"))
         self.localizer = localizer
 
     def _need(self) -> Localizer:
@@ -161,7 +167,28 @@ class LocalizationPipeline:
 
     @property
     def localized(self) -> bool:
+        """Whether the confidence is at or above the limit (`Localizer.localized`); False without a map."""
         return self.localizer is not None and self.localizer.localized
+
+    @property
+    def confidence(self) -> float:
+        """The one confidence number (`Localizer.confidence`); 0 without a map."""
+        return 0.0 if self.localizer is None else self.localizer.confidence
+
+    @property
+    def min_confidence(self) -> float:
+        """The localization limit the confidence is compared with."""
+        return self.localizer_params.monitor.min_confidence
+
+    @property
+    def state(self) -> str:
+        """``no map``, or the localizer's state (localized, lost, searching, ambiguous, failed, ...)."""
+        return "no map" if self.localizer is None else self.localizer.state
+
+    @property
+    def candidates(self) -> tuple[Hypothesis, ...]:
+        """The places global localization could not tell apart (while ambiguous), best first."""
+        return () if self.localizer is None else self.localizer.candidates
 
     @property
     def estimate(self) -> PoseEstimate | None:
