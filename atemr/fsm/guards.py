@@ -79,8 +79,9 @@ def auto_mode(g: GuardInput) -> str | None:
 
 @guards.register("mission_runnable")
 def mission_runnable(g: GuardInput) -> str | None:
-    """The event carries a validated mission whose every step has a registered behaviour, and navigation
-    exists when a step drives to a pose."""
+    """The event carries a validated mission whose every step has a registered behaviour, navigation exists
+    when a step drives to a pose, and the robot is localized (AUTO can outlive the pose: a map switched in
+    IDLE.AUTO, a kidnap)."""
     from atemr.trees.missions import Mission
 
     mission = g.kwargs.get("mission")
@@ -93,6 +94,9 @@ def mission_runnable(g: GuardInput) -> str | None:
     if drives and g.context.navigation is None:
         return (f"mission '{mission.name}' drives to poses (steps {', '.join(map(str, drives))}) and "
                 "navigation is not available on this robot")
+    status = g.context.port.localization_status()
+    if status is not None and not status.localized:
+        return f"mission '{mission.name}' refused: {status.why_not()}"
     return None
 
 
@@ -108,8 +112,9 @@ def level1_ok(g: GuardInput) -> str | None:
     bad = sorted(n for n, h in health.items() if n in HARDWARE_COMPONENTS and not h.ok)
     if bad:
         problems.append(f"unhealthy: {', '.join(bad)}")
-    if g.context.port.localized() is False:
-        problems.append("not localized: select a map and set the robot's pose")
+    status = g.context.port.localization_status()
+    if status is not None and not status.localized:
+        problems.append(status.why_not())
     return f"level-1 status not OK ({'; '.join(problems)})" if problems else None
 
 

@@ -44,6 +44,7 @@ from atemr.io.control_socket import ControlConnection, ControlServer, control_so
 from atemr.io.sim.simulation import Simulation
 from atemr.msgs import Pose2D
 from atemr.robot.core import Robot
+from atemr.robot.port import localization_status
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.trees.missions import Mission, mission_from_goals, parse_mission
 from atemr.yamlsafe import load_yaml
@@ -290,6 +291,7 @@ class RobotControl:
             **{k: snapshot[k] for k in ("state", "mode", "task", "task_progress", "last_task", "error",
                                         "valid_triggers", "transitions")},
             "pose": asdict(pose) if pose is not None else None,
+            "localization": None if self.localization is None else localization_status(self.localization).as_dict(),
             "control": self.session.summary() if self.session is not None else None,
             "last_control": self.last.summary() if self.last is not None else None,
         }

@@ -42,14 +42,14 @@ from atemr.io.devices.drivers import camera_rate_hz
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
 from atemr.robot.mapping import PreparedMap
-from atemr.robot.port import jpeg
+from atemr.robot.port import jpeg, localization_status
 from atemr.robot.reload import ReloadWatcher
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
 from atemr.skills.ramp import checked_limits
 from atemr.ui.gateway import CommandResult, MapImage
 from atemr.ui.snapshot import points_json, pose_json, render_map, scan_points, status_levels, system_json
-from atemr.ui.state import AgentState, MissionJson, Mode, RobotState
+from atemr.ui.state import AgentState, LocalizationJson, MissionJson, Mode, RobotState
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +61,8 @@ WIFI_WAIT_S = 10.0
 MAX_BUTTON_HOLD_S = 10.0
 #: Events shown on the dashboard.
 EVENTS_SHOWN = 30
+#: Candidate places of an ambiguous global localization drawn on the map at most.
+MAX_CANDIDATES_SHOWN = 12
 #: Longest a web request waits for a map to be read and prepared before answering "still loading".
 MAP_WAIT_S = 30.0
 #: Queued actions the pump runs per tick at most (the rest wait for the next tick) ...
@@ -255,6 +257,7 @@ class RobotGatewayImpl:
             "active_map": self.maps.active_name,
             "map_version": self.maps.version,
             "pose": pose_json(pose),
+            "localization": self._localization(),
             "scan": points_json(scan_points(scan, pose)) if scan is not None and pose is not None else [],
             "global_path": points_json(status.global_path) if running and status is not None else [],
             "local_path": points_json(status.local_trajectory) if running and status is not None else [],
@@ -276,6 +279,15 @@ class RobotGatewayImpl:
             "autonomy": {"level": autonomy["level"], "levels": autonomy["levels"], "timeout_s": autonomy["timeout_s"],
                          "pending": autonomy["pending"], "now": autonomy["now"]},
         }
+
+    def _localization(self) -> LocalizationJson:
+        localization = self.robot.parts.localization
+        status = localization_status(localization)
+        return {"confidence": status.confidence, "limit": status.limit, "localized": status.localized,
+                "state": status.state,
+                "candidates": [{"x_m": round(h.pose.x_m, 3), "y_m": round(h.pose.y_m, 3),
+                                "yaw_rad": round(h.pose.yaw_rad, 3), "agreement": round(h.agreement, 3)}
+                               for h in localization.candidates[:MAX_CANDIDATES_SHOWN]]}
 
     def map_image(self) -> MapImage | None:
         """The drawable map, rendered once per map version."""
@@ -318,6 +330,10 @@ class RobotGatewayImpl:
         state = self.agent.state
         if state == f"IDLE.{mode}":
             return CommandResult.accepted()
+        if mode == "AUTO":  # the guards answer now: AUTO refused with the reason, not accepted then undone
+            why = self.agent.refusal("set_auto")
+            if why is not None:
+                return CommandResult.refused(why)
         return self._submit("set_auto" if mode == "AUTO" else "set_manual")
 
     def set_goal(self, goal: Pose2D) -> CommandResult:
@@ -569,6 +585,9 @@ class RobotGatewayImpl:
             mission = load_mission(self.missions_dir / f"{name}.yaml")
         except ConfigError as exc:
             return CommandResult.refused(f"mission {brief(name)} is not valid: {exc}")
+        why = self.agent.refusal("start_mission", mission=mission)
+        if why is not None:
+            return CommandResult.refused(why)
         return self._submit("start_mission", mission=mission)
 
     def stop_mission(self) -> CommandResult:

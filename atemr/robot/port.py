@@ -22,7 +22,12 @@ from atemr.robot.health import HealthBoard
 from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.skills.localization.pipeline import LocalizationPipeline
-from atemr.trees.ports import ComponentHealth, Mode, VelocitySource
+from atemr.trees.ports import ComponentHealth, LocalizationStatus, Mode, VelocitySource
+
+
+def localization_status(pipeline: LocalizationPipeline) -> LocalizationStatus:
+    """The one confidence number, its limit and the localizer's state, as every consumer shows them."""
+    return LocalizationStatus(round(pipeline.confidence, 4), pipeline.min_confidence, pipeline.state)
 
 
 def jpeg(frame: NDArray[np.uint8], quality: int = 85) -> bytes:
@@ -82,7 +87,10 @@ class RobotPortImpl:
         return str(path)
 
     def localized(self) -> bool | None:
-        return self.localization.localized
+        return localization_status(self.localization).localized
+
+    def localization_status(self) -> LocalizationStatus | None:
+        return localization_status(self.localization)
 
     def relocalize(self, now: float) -> None:
         self.localization.start_global(now)

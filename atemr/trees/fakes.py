@@ -13,7 +13,15 @@ from dataclasses import dataclass, field
 from atemr.errors import HardwareError, NavigationError
 from atemr.io.can import PowerState, PrimaryStatus
 from atemr.msgs import Pose2D, Twist
-from atemr.trees.ports import HARDWARE_COMPONENTS, ComponentHealth, Mode, NavProgress, NavState, VelocitySource
+from atemr.trees.ports import (
+    HARDWARE_COMPONENTS,
+    ComponentHealth,
+    LocalizationStatus,
+    Mode,
+    NavProgress,
+    NavState,
+    VelocitySource,
+)
 
 
 def all_healthy() -> dict[str, ComponentHealth]:
@@ -79,6 +87,11 @@ class RecordingPort:
 
     def localized(self) -> bool | None:
         return self.is_localized
+
+    def localization_status(self) -> LocalizationStatus | None:
+        if self.is_localized is None:
+            return None
+        return LocalizationStatus(0.95 if self.is_localized else 0.0, 0.7, "localized" if self.is_localized else "lost")
 
     def relocalize(self, now: float) -> None:
         if self.is_localized is None:

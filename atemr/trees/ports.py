@@ -39,6 +39,35 @@ class ComponentHealth:
     detail: str = ""
 
 
+@dataclass(frozen=True)
+class LocalizationStatus:
+    """Localization as every consumer shows it (dashboard, CAN 0x153 bit 4, ``mission run --json``, the guards):
+    the one confidence number, the limit it is compared with, and the localizer's state (``localized``,
+    ``lost``, ``searching``, ``ambiguous``, ``failed``, ``pose set``, ``uninitialized``, ``no map``).
+    Localized means ``confidence >= limit``, nothing else."""
+
+    confidence: float
+    limit: float
+    state: str
+
+    @property
+    def localized(self) -> bool:
+        return self.confidence >= self.limit
+
+    def as_dict(self) -> dict[str, float | bool | str]:
+        """``{"confidence", "limit", "localized", "state"}`` for a JSON report."""
+        return {"confidence": self.confidence, "limit": self.limit, "localized": self.localized, "state": self.state}
+
+    def why_not(self) -> str:
+        """Why the robot is not localized ("" when it is), for a refusal the operator can act on."""
+        if self.localized:
+            return ""
+        if self.state == "no map":
+            return "not localized: no map is selected; select or build a map, then set the robot's pose"
+        return (f"not localized (confidence {self.confidence:.0%}, needs {self.limit:.0%}; {self.state}): set the "
+                "robot's pose on the map or FIND POSE")
+
+
 @runtime_checkable
 class RobotPort(Protocol):
     """What the agent asks of the robot. Times are the agent's injected ``now`` (seconds)."""
@@ -73,7 +102,11 @@ class RobotPort(Protocol):
 
     def localized(self) -> bool | None:
         """True when localization is confident; None when this robot cannot localize at all (the 0x153
-        LOCALIZATION bit)."""
+        LOCALIZATION bit). The same as ``localization_status().localized``."""
+        ...
+
+    def localization_status(self) -> LocalizationStatus | None:
+        """The confidence number, its limit and the localizer's state; None when this robot cannot localize."""
         ...
 
     def relocalize(self, now: float) -> None:

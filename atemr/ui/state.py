@@ -78,6 +78,28 @@ class AutonomyJson(TypedDict):
     now: float
 
 
+class CandidateJson(TypedDict):
+    """A place global localization could not rule out, and the share of the scan on the map there."""
+
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    agreement: float
+
+
+class LocalizationJson(TypedDict):
+    """Localization as every consumer shows it (`atemr.trees.ports.LocalizationStatus`): the one confidence
+    number (0 to 1), the limit it must reach, whether it does (localized), the localizer's state (localized,
+    lost, searching, ambiguous, failed, pose set, uninitialized, no map), and while global localization is
+    ambiguous, the places it cannot tell apart, best first."""
+
+    confidence: float
+    limit: float
+    localized: bool
+    state: str
+    candidates: list[CandidateJson]
+
+
 class RobotState(TypedDict):
     """One snapshot of the robot as the dashboard shows it."""
 
@@ -93,6 +115,7 @@ class RobotState(TypedDict):
     map_version: int
     #: None when the robot does not know where it is.
     pose: PoseJson | None
+    localization: LocalizationJson
     #: Valid lidar returns in the map frame (empty when not localized).
     scan: Points
     global_path: Points

@@ -123,6 +123,7 @@ def test_kidnapped_robot_is_noticed_and_recovered(capsys: pytest.CaptureFixture[
     assert lost and events[lost[0]][0] - result["kidnapped_s"] < 1.0, events  # noticed within a few scans
     found = [t for t, kind in events[lost[0]:] if kind in ("relocalized", "localized")]  # on that scan, often
     assert found, events
+    assert result["localization"]["localized"] and result["localization"]["confidence"] >= 0.7
     assert result["outcome"] == "reached", result.get("reason")
     truth, goal = result["true_pose"], (3.4, 2.2)
     assert math.hypot(truth["x_m"] - goal[0], truth["y_m"] - goal[1]) <= 0.25

@@ -184,6 +184,8 @@ class MapView {
       }
     }
     if (s.goal) this.arrow(s.goal, "#d4a72c", 0.35);
+    const candidates = (s.localization && s.localization.candidates) || [];
+    for (const c of candidates) this.arrow(c, "#bf8700", 0.45);  // places an ambiguous search cannot tell apart
     if (s.pose) this.robot(s.pose);
     if (this.drag && this.drag.end && this.commandMode) {
       const [x, y] = this.drag.start;
