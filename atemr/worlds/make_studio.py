@@ -9,6 +9,7 @@ the shipped map can be checked for being up to date (``tests/io/sim/test_worlds.
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -78,14 +79,21 @@ def build_studio_map(world_file: Path = HERE / "world.yaml") -> OccupancyMap:
     return rasterize("studio", SIZE_CELLS, ORIGIN, floor=FLOOR, walls=WALLS, world_file=world_file)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=HERE, help="directory to write studio.pgm and studio.yaml")
+def write_map(argv: list[str] | None, description: str, build: Callable[[], OccupancyMap], here: Path) -> int:
+    """The command line of a world's map generator: ``--out DIR`` (default ``here``), write ``<name>.pgm`` and
+    ``<name>.yaml`` there."""
+    grid = build()
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--out", type=Path, default=here, help=f"directory to write {grid.name}.pgm and .yaml")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    path = save_map(build_studio_map(), args.out / "studio.yaml")
+    path = save_map(grid, args.out / f"{grid.name}.yaml")
     print(f"wrote {path} and {path.with_suffix('.pgm')}")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    return write_map(argv, __doc__.splitlines()[0], build_studio_map, HERE)
 
 
 if __name__ == "__main__":

@@ -10,12 +10,11 @@ shows global localization answering "ambiguous" (both rooms, as candidates) inst
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from atemr.io.sim.maps import OccupancyMap, save_map
+from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import Pose2D
-from atemr.worlds.make_studio import rasterize
+from atemr.worlds.make_studio import rasterize, write_map
 
 HERE = Path(__file__).resolve().parent / "twin_rooms"
 ORIGIN = Pose2D(-0.5, -0.5, 0.0)
@@ -35,13 +34,7 @@ def build_twin_rooms_map(world_file: Path = HERE / "world.yaml") -> OccupancyMap
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=HERE, help="directory to write twin_rooms.pgm and .yaml")
-    args = parser.parse_args(argv)
-    args.out.mkdir(parents=True, exist_ok=True)
-    path = save_map(build_twin_rooms_map(), args.out / "twin_rooms.yaml")
-    print(f"wrote {path} and {path.with_suffix('.pgm')}")
-    return 0
+    return write_map(argv, __doc__.splitlines()[0], build_twin_rooms_map, HERE)
 
 
 if __name__ == "__main__":

@@ -310,7 +310,9 @@ class Localizer:
         match = self.matcher.match(points, est.pose, window_xy_m=p.hold_window_m, window_yaw_rad=p.hold_window_rad)
         if self._fit(match.pose, points, sensor) < max(p.monitor.min_confidence, self._fit(est.pose, points, sensor)):
             return
-        self.map_ekf.reset(PoseEstimate(now, match.pose, est.covariance), odom)
+        # the match is a measurement of the pose, as precise as a matched pose is: the map EKF starts from it
+        # (keeping the old covariance would grow it by the EKF's floor at every correction)
+        self.map_ekf.reset(PoseEstimate(now, match.pose, self._matched_covariance()), odom)
         self.amcl.rebase(match.pose, odom, now=now)
 
     def _relocalize(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
@@ -343,14 +345,17 @@ class Localizer:
 
     def _track_from(self, now: float, pose: Pose2D, odom: Pose2D, confidence: float) -> None:
         """Tracking starts at a checked ``pose`` (odometry ``odom``), with the confidence it was found with."""
-        p = self.params
-        cov = np.diag([p.matched_std_m**2, p.matched_std_m**2, p.matched_std_rad**2])
+        cov = self._matched_covariance()
         self.amcl.initialize(pose, cov, now=now, odom=odom)
         self.map_ekf.reset(PoseEstimate(now, pose, cov), odom)
         self.monitor.reset(confidence, now)
         self._last_good = (pose, odom)
         self._last_fix = now
         self._enter(Phase.TRACKING, 0.0)
+
+    def _matched_covariance(self) -> FloatArray:
+        p = self.params
+        return np.diag([p.matched_std_m**2, p.matched_std_m**2, p.matched_std_rad**2])
 
     def _event(self, now: float, kind: EventKind, detail: str) -> None:
         self.events.append(LocalizationEvent(now, kind, detail))

@@ -45,7 +45,7 @@ def test_standing_idle_among_people_is_never_lost_and_a_kidnap_is_noticed() -> N
     truth = world.start
     localizer.set_initial_pose(0.0, truth, odom=Pose2D())
     dt = 1.0 / SCAN_HZ
-    worst_confidence, worst_error = 1.0, 0.0
+    worst_confidence, worst_error, worst_std = 1.0, 0.0, 0.0
     t, passes = 0.0, 0
     end = idle_seconds()
     while t < end:
@@ -59,10 +59,12 @@ def test_standing_idle_among_people_is_never_lost_and_a_kidnap_is_noticed() -> N
             estimate = localizer.estimate
             assert estimate is not None, f"not localized at t={t:.1f} s: {localizer.events[-3:]}"
             worst_error = max(worst_error, estimate.pose.distance_to(truth))
+            worst_std = max(worst_std, estimate.std_xy_m)
     lost = [e for e in localizer.events if e.kind == "lost"]
     assert not lost, lost
     assert passes > 0.05 * end * SCAN_HZ, "the carer walked past within 2.5 m"
     assert worst_confidence >= 0.9 and worst_error < 0.05, (worst_confidence, worst_error)
+    assert worst_std < 0.1, worst_std  # the map pose's uncertainty does not creep up while it stands
     assert DRIFT_RADPS * end > 0.09  # the odometry drifted by more than 5°: the map pose did not
 
     # carried 2 m across the living room, facing the other way: noticed within 5 s, found again
