@@ -159,9 +159,11 @@ class Hypotheses:
             return np.zeros(self.poses.shape[0])
         return np.hstack(self.hits).mean(axis=1)
 
-    def ranked(self) -> tuple[Hypothesis, ...]:
-        """The places as of the latest scan, best agreement first."""
-        poses, agreement = self.current(), self.agreement
+    def ranked(self, odom_delta: FloatArray | None = None) -> tuple[Hypothesis, ...]:
+        """The places, best agreement first: as of the latest scan added, or moved by ``odom_delta`` (the odometry
+        since the first scan, base frame of the first) when given."""
+        poses = self.current() if odom_delta is None else compose(self.poses, np.asarray(odom_delta, np.float64))
+        agreement = self.agreement
         order = np.argsort(-agreement, kind="stable")
         return tuple(Hypothesis(as_pose(poses[i]), float(agreement[i])) for i in order)
 

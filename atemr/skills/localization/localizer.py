@@ -140,6 +140,7 @@ class Localizer:
         self._last_good: tuple[Pose2D, Pose2D] | None = None  # (map pose, odometry) when last known good
         self._mark: tuple[float, Pose2D] | None = None  # (time, odometry) of the last view while not tracking
         self._last_fix = 0.0
+        self._odom: Pose2D | None = None  # the odometry of the latest scan
 
     # -- operator ----------------------------------------------------------------------------------
     def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None, *,
@@ -187,10 +188,14 @@ class Localizer:
 
     @property
     def candidates(self) -> tuple[Hypothesis, ...]:
-        """The places under consideration while ambiguous (best first, as of the latest scan), else ()."""
-        if self.phase is not Phase.AMBIGUOUS or self._hypotheses is None:
+        """The places under consideration while ambiguous (best first, carried along to the latest odometry),
+        else ()."""
+        hyps = self._hypotheses
+        if self.phase is not Phase.AMBIGUOUS or hyps is None:
             return ()
-        return self._hypotheses.ranked()
+        if self._odom is None:
+            return hyps.ranked()
+        return hyps.ranked(relative(hyps.first_odom, as_array(self._odom)))
 
     @property
     def estimate(self) -> PoseEstimate | None:
@@ -206,6 +211,7 @@ class Localizer:
         if not (math.isfinite(now) and is_finite_pose(odom)):
             return self.state
         points, sensor = scan_points(scan), sensor_origin(scan)
+        self._odom = odom
         if self.phase is Phase.TRACKING:
             self.map_ekf.predict(now, odom)
             self._track(now, odom, points, sensor)

@@ -27,6 +27,7 @@ from atemr.io.sim.scene import Scene
 from atemr.io.sim.world import load_world
 from atemr.msgs import Pose2D
 from atemr.skills.localization.global_search import GlobalSearchParams, mcnemar_z
+from atemr.skills.localization.localizer import Localizer
 from atemr.skills.localization.scan import scan_points, sensor_origin
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -134,3 +135,42 @@ def test_bad_parameters_name_the_key() -> None:
         GlobalSearchParams(min_agreement=1.0)
     with pytest.raises(ConfigError, match="beams"):
         GlobalSearchParams(keep=0)
+
+
+def drive_straight(world_name: str, start: Pose2D, metres: float) -> tuple[Localizer, Pose2D, list[str]]:
+    """FIND POSE at ``start``, then the operator drives straight ahead (a scan every 4 cm, exact odometry)."""
+    world = load_world(world_name)
+    scene, lidar = Scene(world), Lidar(LidarParams(), np.random.default_rng(0))
+    localizer = Localizer(world.map, np.random.default_rng(0))
+    localizer.start_global(0.0, "test")
+    states, truth = [], start
+    for k in range(int(metres / 0.04) + 1):
+        d = 0.04 * k
+        truth = Pose2D(start.x_m + d * math.cos(start.yaw_rad), start.y_m + d * math.sin(start.yaw_rad), start.yaw_rad)
+        states.append(localizer.update(0.1 * k, Pose2D(d, 0.0, 0.0), lidar.scan(0.1 * k, truth, scene,
+                                                                               np.zeros((0, 2)), np.zeros(0))))
+    return localizer, truth, states
+
+
+def test_an_ambiguous_robot_decides_once_it_has_moved(shared_dir: Path) -> None:
+    """One scan cannot tell this place of the sandbox from its near mirror; a metre of driving can. Every
+    candidate is carried along and the new views pooled: localized at the true place, never the twin."""
+    world = shared_dir / "worlds" / "external" / "nav2_tb3_sandbox.yaml"
+    if not world.is_file():
+        pytest.skip(f"{world} is not there")
+    localizer, truth, states = drive_straight(str(world), Pose2D(-0.525, -0.075, 1.533), 1.0)
+    assert states[0] == "ambiguous" and states[-1] == "localized", states
+    assert "localized" not in states[:states.index("localized")] and "lost" not in states
+    kinds = [e.kind for e in localizer.events]
+    assert kinds == ["global_start", "ambiguous", "localized"] and "views" in localizer.events[-1].detail
+    estimate = localizer.estimate
+    assert estimate is not None and estimate.pose.distance_to(truth) < 0.05
+
+
+def test_twin_rooms_stay_ambiguous_while_driving_both_candidates_carried_along() -> None:
+    localizer, truth, states = drive_straight("twin_rooms", Pose2D(1.0, 1.75, 0.0), 1.2)
+    assert set(states) == {"ambiguous"}, states
+    twin = Pose2D(8.15 - truth.x_m, 3.5 - truth.y_m, truth.yaw_rad + math.pi)
+    places = localizer.candidates
+    assert any(h.pose.distance_to(truth) < 0.1 for h in places) and any(h.pose.distance_to(twin) < 0.1
+                                                                        for h in places), places
