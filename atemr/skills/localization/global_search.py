@@ -319,8 +319,10 @@ class GlobalSearch:
 
     # -- stage 2: refinement --------------------------------------------------------------------------
     def thin(self, points: FloatArray) -> FloatArray:
-        """The valid points, at most ``beams`` of them, evenly spread."""
+        """The valid points within ``range_max_m`` (farther ones would wrap round the correlation's padding: a
+        lidar configured for a longer range than the search), at most ``beams`` of them, evenly spread."""
         pts = _valid(points)
+        pts = pts[np.hypot(pts[:, 0], pts[:, 1]) <= self.params.range_max_m]
         if pts.shape[0] <= self.params.beams:
             return pts
         return pts[np.linspace(0, pts.shape[0] - 1, self.params.beams).round().astype(np.intp)]

@@ -111,10 +111,14 @@ def test_a_scan_from_elsewhere_fails_and_says_why() -> None:
 
 
 def test_the_issues_robot_is_found_where_it_stands() -> None:
-    """Issue 21: at about (5.23, 4.58) the old search converged in another room, sure of itself."""
+    """Issue 21: at about (5.23, 4.58) the old search converged in another room, sure of itself. Returns from
+    beyond the search's range (a lidar set up for a longer one) do not wrap round into it."""
     truth = Pose2D(5.23, 4.58, -2.6)
     world, points, sensor = scan_from("studio", truth)
-    result = quality.search_for(world).localize(points, sensor)
+    far = np.array([[x, y] for x in (-30.0, 25.0) for y in (-18.0, 40.0)])
+    search = quality.search_for(world)
+    assert not np.isin(search.thin(np.vstack([points, far])), far).all(axis=1).any()
+    result = search.localize(np.vstack([points, far]), sensor)
     assert result.outcome == "localized" and result.pose is not None, result.reason
     assert result.pose.distance_to(truth) < 0.1 and result.confidence > 0.9
 
