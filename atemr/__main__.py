@@ -1,7 +1,6 @@
-"""``python -m atemr`` is the ``atemr`` command."""
-
 import sys
 
 from atemr.cli.main import main
 
-sys.exit(main())
+if __name__ == "__main__":  # a spawned process (the recording's writer) imports this module without running it
+    sys.exit(main())

@@ -93,6 +93,15 @@ class MotorsConfig:
 
 
 @dataclass(frozen=True)
+class FoxgloveConfig:
+    """The live Foxglove WebSocket server (`atemr.ui.foxglove`): the recording's channels, live."""
+
+    enabled: bool = field(default=False, metadata={"help": "serve the robot's channels to Foxglove"})
+    host: str = field(default="127.0.0.1", metadata={"help": "address it listens on (0.0.0.0: all)"})
+    port: int = field(default=8765, metadata={"min": 0, "max": 65535, "help": "TCP port (0: any free port)"})
+
+
+@dataclass(frozen=True)
 class UiConfig:
     """The operator dashboard (Flask + Socket.IO). Paths left empty live under ``data_dir``."""
 
@@ -126,6 +135,7 @@ class UiConfig:
     user_permissions: tuple[Permission, ...] = field(default=(), metadata={
         "help": "destructive or safety actions the user role may do too (admin always may): any of "
                 + ", ".join(PERMISSIONS) + "; comma-separated in the environment"})
+    foxglove: FoxgloveConfig = field(default_factory=FoxgloveConfig)
 
 
 @dataclass(frozen=True)
@@ -159,17 +169,25 @@ class AgentConfig:
 
 @dataclass(frozen=True)
 class TraceConfig:
-    """Recording the agent (transitions, node statuses, blackboard writes, pose) under ``data_dir/traces``."""
+    """Recording every run to MCAP under ``data_dir/traces``: the agent (transitions, node statuses, blackboard
+    writes), the sensors, odometry, poses, transforms, map, path, camera, CAN frames and health."""
 
     enabled: bool = field(default=True, metadata={"help": "record every run under data_dir/traces"})
     file: Path | None = field(default=None, metadata={"help": "record to this file instead (atemr mission run "
                                                                "--trace); its parts are never deleted"})
-    max_file_mb: float = field(default=8.0, metadata={"min": 0.004, "max": 4096.0,
-                                                      "help": "a trace file past this size continues in a new part"})
+    max_file_mb: float = field(default=64.0, metadata={"min": 0.004, "max": 4096.0,
+                                                       "help": "a recording past this size continues in a new part"})
     max_files: int = field(default=20, metadata={"min": 1, "max": 100_000,
-                                                 "help": "recorded run-*.atrace kept (oldest deleted, uploads never)"})
+                                                 "help": "recorded run-*.mcap parts kept (oldest deleted, uploads "
+                                                         "never)"})
     pose_hz: float = field(default=2.0, metadata={"min": 0.0, "max": 50.0,
-                                                  "help": "robot poses recorded per second (0: none)"})
+                                                  "help": "agent poses recorded per second for the replay map "
+                                                          "(0: none)"})
+    camera_hz: float = field(default=1.0, metadata={"min": 0.0, "max": 30.0,
+                                                    "help": "camera frames recorded per second as JPEG (0: none)"})
+    writer: Literal["auto", "process", "thread", "inline"] = field(default="auto", metadata={
+        "help": "who encodes and writes: a process of its own (auto on a paced robot), a thread, or the robot's "
+                "loop (auto in a headless simulation: repeatable, nothing dropped)"})
 
 
 @dataclass(frozen=True)

@@ -71,7 +71,7 @@ def _describe(tp: Any) -> str:
     return getattr(tp, "__name__", str(tp))
 
 
-def coerce(value: Any, tp: Any, *, from_text: bool) -> Any:
+def coerce(value: Any, tp: Any, *, from_text: bool) -> Any:  # noqa: PLR0912, PLR0915  one branch per supported type, in the order tried
     """Convert ``value`` to type ``tp`` or raise ``ValueError`` with what was expected.
 
     ``from_text`` is true for environment variables and CLI strings, where ``"5"`` means 5.

@@ -164,7 +164,7 @@ _Loader.add_constructor("tag:yaml.org,2002:seq", _Loader.construct_marked_sequen
 _Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_bounded_int)
 
 
-def load_yaml(source: str | Path, *, text: str | None = None, max_bytes: int = MAX_BYTES) -> Any:
+def load_yaml(source: str | Path, *, text: str | None = None, max_bytes: int = MAX_BYTES) -> Any:  # noqa: PLR0912  each read and parse failure becomes a ConfigError with its place
     """Parse one YAML document safely.
 
     ``source`` is a path to read, or (with ``text``) the name used in error messages. Raises

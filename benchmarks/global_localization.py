@@ -1,4 +1,4 @@
-"""Global localization quality (issue 21's "Done when"): seeded random true poses, one scan each, FIND POSE's search.
+"""Global localization quality (issue 21's "Done when"): seeded random true poses, one scan each, FIND POSITION.
 
     python benchmarks/global_localization.py                 # 50 poses on the studio and the 4 external maps
     python benchmarks/global_localization.py --worlds studio --poses 10 --json out.json
@@ -7,8 +7,8 @@ For each world, `pick_poses` draws true poses where the robot can stand: in the 
 everything the world holds (walls, mapped and unmapped furniture) by the robot's radius, off drop zones,
 any heading. The world's people and pets are put at random places of their paths and areas (the robot never
 under one). One scan is simulated from the true pose exactly as the robot's lidar makes it (360 beams, 1 cm
-noise, dropouts, unmapped furniture and moving people seen), and the global search the robot's FIND POSE runs
-(`atemr.skills.localization.global_search`, the shipped configuration) decides: localized, ambiguous or failed.
+noise, dropouts, unmapped furniture and moving people seen), and the global search the robot's FIND POSITION
+runs (`atemr.skills.localization.global_search`, the shipped configuration) decides: localized, ambiguous or failed.
 
 Judged against the truth: a *localized* answer is right within 0.3 m and 10°, otherwise it is confidently
 wrong; an *ambiguous* one must list the true place among its candidates (within the distance at which two

@@ -25,11 +25,11 @@ from atemr.clock import WallClock
 from atemr.config import CanConfig
 from atemr.errors import AtemrError, HardwareError
 from atemr.io.can.bus import open_bus
+from atemr.io.secondary_emulator.board import BoardConfig, SecondaryCore, mermaid_diagram
+from atemr.io.secondary_emulator.display import render_pixels, render_text
+from atemr.io.secondary_emulator.portal import DEFAULT_PORT, PortalHost
 from atemr.msgs import CliffReadings
 from atemr.scheduler import Scheduler
-from secondary_core.board import BoardConfig, SecondaryCore, mermaid_diagram
-from secondary_core.display import render_pixels, render_text
-from secondary_core.portal import DEFAULT_PORT, PortalHost
 
 log = logging.getLogger(__name__)
 

@@ -17,12 +17,12 @@ from typing import Any
 import can
 
 from atemr.clock import SimClock
-from atemr.io.can import PowerState
+from atemr.domain.status import PowerState
 from atemr.io.network import RecordingNetworkBackend
+from atemr.io.secondary_emulator.board import BoardConfig, SecondaryCore
 from atemr.io.secondary_link import SecondaryLink
 from atemr.msgs import CliffReadings
 from atemr.scheduler import Scheduler
-from secondary_core.board import BoardConfig, SecondaryCore
 
 _counter = itertools.count()
 

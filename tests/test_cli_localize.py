@@ -1,4 +1,4 @@
-"""``atemr localize``: the simulated whole robot put somewhere without being told, FIND POSE, the answer judged
+"""``atemr localize``: the simulated whole robot put somewhere without being told, FIND POSITION, the answer judged
 against the simulator's ground truth (issue 21)."""
 
 from __future__ import annotations

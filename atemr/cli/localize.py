@@ -1,8 +1,8 @@
-"""``atemr localize --world W [--seed N] --true-pose X,Y,YAW [--json]``: FIND POSE on the simulated whole robot.
+"""``atemr localize --world W [--seed N] --true-pose X,Y,YAW [--json]``: FIND POSITION on the simulated robot.
 
 The whole robot (CAN motors, secondary core, agent, localization) starts headless in the world as usual, on its
 map, localized at the world's start. Then, within one instant, the simulator puts it at ``--true-pose``
-without telling it, and global localization is started exactly as the dashboard's FIND POSE starts it
+without telling it, and global localization is started exactly as the dashboard's FIND POSITION starts it
 (`Localizer.start_global`); the robot runs until the search has answered. The answer:
 
     {"outcome": "localized" | "ambiguous" | "failed", "pose", "confidence", "candidates", "error_m", "error_rad",
@@ -35,7 +35,7 @@ ANSWERED = ("localized", "ambiguous", "failed")
 
 
 class LocalizeCommand:
-    help = "put the simulated robot somewhere without telling it, run FIND POSE, report what it found"
+    help = "put the simulated robot somewhere without telling it, run FIND POSITION, report what it found"
 
     def configure(self, parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--world", help="simulated world: a shipped world's name or a world/map YAML "
@@ -71,7 +71,8 @@ def _pose(pose: Pose2D) -> dict[str, float]:
 
 def localize(truth: Pose2D, *, world: str | None = None, seed: int | None = None, config_file: Path | None = None,
              timeout_s: float = 10.0) -> dict[str, Any]:
-    """Run FIND POSE on the headless simulated robot put at ``truth``; the JSON-able result (module docstring)."""
+    """Run FIND POSITION on the headless simulated robot put at ``truth``; the JSON-able result (module
+    docstring)."""
     from atemr.config import load_config
     from atemr.robot.headless import build_headless_robot
 

@@ -16,7 +16,7 @@ from atemr.logsetup import configure_logging
 #: The built-in subcommands, in the order ``--help`` lists them.
 COMMAND_MODULES = ["atemr.cli.run", "atemr.cli.dashboard", "atemr.cli.bench", "atemr.cli.user", "atemr.cli.fuzzy",
                    "atemr.cli.sim", "atemr.cli.can", "atemr.cli.tree", "atemr.cli.mission", "atemr.cli.trace",
-                   "atemr.cli.hw", "atemr.cli.localize"]
+                   "atemr.cli.replay", "atemr.cli.hw", "atemr.cli.localize"]
 
 
 def build_parser() -> argparse.ArgumentParser:

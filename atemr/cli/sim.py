@@ -70,7 +70,7 @@ class SimCommand:
                                  "directly (what the simulator benchmark measures)")
         parser.add_argument("--json", action="store_true", help="print the summary as JSON")
 
-    def run(self, args: argparse.Namespace) -> int:
+    def run(self, args: argparse.Namespace) -> int:  # noqa: PLR0912, PLR0915  one command read top to bottom: build either stack, run it, report
         from atemr.clock import RealTimeSimClock, SimClock, WallClock
         from atemr.config import load_config
         from atemr.io.sim.simulation import build_simulation, params_from_config

@@ -1,19 +1,20 @@
-"""``atemr trace show FILE [--json]``: the transitions of a recorded agent trace, with times and reasons.
+"""``atemr trace show FILE [--json]``: the agent's transitions in a recording, with times and reasons;
+``atemr trace convert OLD.atrace NEW.mcap``: a trace recorded before MCAP, as an MCAP recording.
 
-A trace is what the robot records under ``data_dir/traces`` (or ``atemr mission run --trace FILE``). A
-damaged or cut file is read up to the damage: the warning (file and byte offset) goes to stderr and the exit
-code is 1; a file that is not a trace at all exits 2.
+A recording is what the robot writes under ``data_dir/traces`` (or ``atemr mission run --trace FILE``): MCAP,
+whose agent topics hold what ``.atrace`` files held (those still open). A damaged or cut file is read up to
+the damage: the warning (file and byte offset) goes to stderr and the exit code is 1; a file that is not a
+recording at all exits 2.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
-from atemr.cli.command import commands
+from atemr.cli.command import commands, report_and_warn
 
 
 class TraceCommand:
@@ -24,21 +25,24 @@ class TraceCommand:
         show = sub.add_parser("show", help="print the transitions of a trace with times and reasons")
         show.add_argument("file", type=Path, metavar="FILE")
         show.add_argument("--json", action="store_true", help="print one JSON document")
+        convert = sub.add_parser("convert", help="write an old .atrace trace as an MCAP recording")
+        convert.add_argument("file", type=Path, metavar="FILE.atrace")
+        convert.add_argument("output", type=Path, metavar="OUT.mcap")
 
     def run(self, args: argparse.Namespace) -> int:
         from atemr.fsm.trace_timeline import TraceTimeline
-        from atemr.io.trace_file import read_trace
+        from atemr.io.recording.agent_trace import convert_atrace, read_agent_trace
 
-        contents = read_trace(args.file)
+        if args.trace_action == "convert":
+            converted = convert_atrace(args.file, args.output)
+            print(f"{args.output}: {len(converted.records)} records from {args.file}")
+            for warning in converted.warnings:
+                print(f"warning: {warning}", file=sys.stderr)
+            return 1 if converted.warnings else 0
+        contents = read_agent_trace(args.file)
         timeline = TraceTimeline(contents.records, name=str(args.file), warnings=contents.warnings)
         report = {"file": str(args.file), **{k: v for k, v in timeline.summary().items() if k != "name"}}
-        if args.json:
-            print(json.dumps(report, indent=2))
-        else:
-            print_report(report)
-        for warning in contents.warnings:
-            print(f"warning: {warning}", file=sys.stderr)
-        return 1 if contents.warnings else 0
+        return report_and_warn(report, as_json=args.json, printer=print_report, warnings=contents.warnings)
 
 
 def print_report(report: dict[str, Any]) -> None:

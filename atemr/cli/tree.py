@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING, Any
 from atemr.cli.command import commands
 
 if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --help` stays fast
+    from atemr.fsm.export import Drawing
     from atemr.fsm.spec import AgentSpec
-    from atemr.trees.export import Drawing
     from atemr.trees.missions import Mission
 
 
@@ -31,7 +31,7 @@ def load_document(path: Path) -> AgentSpec | Mission:
 
 
 def drawing_for(document: AgentSpec | Mission, state: str | None) -> Drawing:
-    from atemr.trees.export import Drawing, ExportError, drawing_of
+    from atemr.fsm.export import Drawing, ExportError, drawing_of
     from atemr.trees.missions import Mission
 
     if isinstance(document, Mission):
@@ -71,7 +71,7 @@ class TreeCommand:
         export.add_argument("--output", "-o", type=Path, help="write here instead of standard output")
 
     def run(self, args: argparse.Namespace) -> int:
-        from atemr.trees.export import ExportError, exporters
+        from atemr.fsm.export import ExportError, exporters
 
         if args.tree_action == "export" and args.format not in exporters:
             raise ExportError(exporters.unknown_message(args.format))

@@ -7,5 +7,7 @@
 - `atemr.fsm.mission_run`: run one mission on an agent to its end with a JSON result;
 - `atemr.fsm.autonomy`: operator autonomy levels: which transitions wait for the operator's confirmation;
 - `atemr.fsm.reload`: hot reload at a safe boundary (IDLE for the document, between steps for a mission);
-- `atemr.fsm.codes`: state names → CAN 0x153 state codes.
+- `atemr.fsm.export`: the machine and its trees drawn as ASCII, Mermaid, JSON, DOT, SVG or PNG.
+
+State names and their CAN 0x153 codes (`state_code`, `top_level`) are domain values, `atemr.domain.status`.
 """

@@ -37,9 +37,9 @@ from typing import Any
 import py_trees
 
 from atemr.config import Config
+from atemr.domain.status import state_code, top_level
 from atemr.errors import AtemrError, ConfigError
 from atemr.fsm.autonomy import DEFAULT_LEVEL, DEFAULT_TIMEOUT_S, Answer, AutonomyGate, Level
-from atemr.fsm.codes import state_code, top_level
 from atemr.fsm.machine import Lifecycle, TransitionRecord
 from atemr.fsm.reload import ReloadReport, swap_pending_steps
 from atemr.fsm.spec import AgentSpec, StateSpec, load_agent

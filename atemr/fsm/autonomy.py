@@ -28,8 +28,8 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any, Literal, cast
 
+from atemr.domain.status import top_level
 from atemr.errors import ConfigError
-from atemr.fsm.codes import top_level
 
 Level = Literal["off", "low", "high", "full"]
 #: The levels, lowest first.

@@ -20,6 +20,8 @@ from atemr.registry import Registry
 from atemr.trees.behaviours import behaviours
 from atemr.trees.context import AgentContext
 from atemr.trees.leaves.mapping import finish_mapping, map_name_problem, start_mapping
+from atemr.trees.leaves.navigation import DRIVES, GO_TO_POSE
+from atemr.trees.missions import Mission, goal_task
 from atemr.trees.ports import HARDWARE_COMPONENTS
 
 
@@ -40,11 +42,6 @@ guards: Registry[Guard] = Registry("guards")
 callbacks: Registry[Callback] = Registry("callbacks")
 
 log = logging.getLogger(__name__)
-
-#: Navigation's goal step; a goal can be executed only once a behaviour of this name is registered.
-GO_TO_POSE = "GoToPose"
-#: The steps that drive the base through navigation (a mission with one needs navigation on the robot).
-DRIVES = (GO_TO_POSE, "FollowPath")
 
 
 # -- guards ----------------------------------------------------------------------------------------
@@ -82,8 +79,6 @@ def mission_runnable(g: GuardInput) -> str | None:
     """The event carries a validated mission whose every step has a registered behaviour, navigation exists
     when a step drives to a pose, and the robot is localized (AUTO can outlive the pose: a map switched in
     IDLE.AUTO, a kidnap)."""
-    from atemr.trees.missions import Mission
-
     mission = g.kwargs.get("mission")
     if not isinstance(mission, Mission):
         return f"start_mission needs a validated Mission, got {type(mission).__name__}"
@@ -167,8 +162,6 @@ def stop_motors(g: GuardInput) -> None:
 @callbacks.register("set_goal_task")
 def set_goal_task(g: GuardInput) -> None:
     """Make the event's goal Exec's task (a single GoToPose step)."""
-    from atemr.trees.missions import goal_task
-
     g.context.task = goal_task(g.kwargs["goal"])
 
 

@@ -20,9 +20,9 @@ from transitions import EventData
 from transitions.extensions import HierarchicalMachine
 from transitions.extensions.nesting import NestedState
 
+from atemr.domain.status import SEPARATOR, state_code
 from atemr.errors import AtemrError
 from atemr.fsm.autonomy import AutonomyGate, ConfirmRequest, safety_reason
-from atemr.fsm.codes import SEPARATOR, state_code
 from atemr.fsm.guards import Callback, Guard, GuardInput, callbacks, guards
 from atemr.fsm.spec import AgentSpec, TransitionDict, TransitionSpec
 from atemr.registry import Registry

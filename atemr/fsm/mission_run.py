@@ -17,8 +17,8 @@ from collections.abc import Callable
 from dataclasses import asdict
 from typing import Any
 
+from atemr.domain.status import top_level
 from atemr.fsm.agent import Agent
-from atemr.fsm.codes import top_level
 from atemr.trees.missions import Mission
 
 #: Robot seconds to wait for the agent's answer to a command (it answers at its next tick).
@@ -82,7 +82,7 @@ class MissionRun:
         self._finish(reason=reason, outcome=None if self._new_report() is not None else
                      "interrupted" if running else "not started")
 
-    def poll(self) -> bool:
+    def poll(self) -> bool:  # noqa: PLR0912  one branch per run phase; a method per phase would be the fix
         """Look at the agent and take the next step of the run; True once the run is over."""
         agent = self.agent
         for _ in range(4):  # a few phases may pass in one poll (IDLE already reached, AUTO already on)

@@ -35,9 +35,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NotRequired, TypedDict
 
+from atemr.domain.status import SEPARATOR, TOP_LEVEL_STATES
 from atemr.errors import ConfigError
 from atemr.fsm.autonomy import LEVELS, Level, safety_reason
-from atemr.fsm.codes import SEPARATOR, TOP_LEVEL_STATES
 from atemr.fsm.guards import callbacks, guards
 from atemr.registry import Registry
 from atemr.trees.builder import NodeSpec, parse_node
@@ -284,7 +284,7 @@ def _where(node: Any, source: Source, path: str) -> Where:
     return Where(source.name, line, column, path)
 
 
-def _parse_states(raw: list[Any], parent: str | None, source: Source, path: str,
+def _parse_states(raw: list[Any], parent: str | None, source: Source, path: str,  # noqa: PLR0912  checks one state's keys in document order, one error each
                   out: dict[str, StateSpec]) -> list[str]:
     names: list[str] = []
     for i, node in enumerate(raw):

@@ -120,7 +120,7 @@ def _value(bb: dict[str, dict[str, Any]], key: str) -> Any:
     return None if entry is None else entry.get("value")
 
 
-def _apply(state: _State, r: Record) -> None:
+def _apply(state: _State, r: Record) -> None:  # noqa: PLR0912  one branch per trace record kind
     kind = r["k"]
     if kind == "snap":
         state.state = str(r.get("state") or "")

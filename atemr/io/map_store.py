@@ -27,8 +27,9 @@ from pathlib import Path
 
 from werkzeug.utils import secure_filename
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError, brief, brief_text
-from atemr.io.sim.maps import DEFAULT_MAX_MAP_CELLS, OccupancyMap, load_map, save_map
+from atemr.io.sim.maps import DEFAULT_MAX_MAP_CELLS, load_map, save_map
 from atemr.yamlsafe import load_yaml
 
 #: The shipped default world's map: a built-in every store offers.

@@ -32,12 +32,11 @@ import can
 
 from atemr.clock import due
 from atemr.config import Config
+from atemr.domain.status import AgentBits, ComponentHealth, HardwareBits, PowerRequest, PowerState, StateCode
 from atemr.errors import AtemrError, ProtocolError
 from atemr.io.can import (
     PASSWORD,
     SSID,
-    AgentBits,
-    HardwareBits,
     Heartbeat,
     IpAddress,
     IpRequest,
@@ -45,11 +44,8 @@ from atemr.io.can import (
     IrRear,
     Message,
     Power,
-    PowerRequest,
-    PowerState,
     PrimaryStatus,
     SegmentedReceiver,
-    StateCode,
     WifiPasswordSegment,
     WifiSsidSegment,
 )
@@ -57,7 +53,6 @@ from atemr.io.can.endpoint import PolledCanEndpoint
 from atemr.io.devices.base import DeviceInfo, Subscribers
 from atemr.io.network import NetworkBackend, NmcliBackend, RecordingNetworkBackend, usable_ipv4
 from atemr.msgs import CliffReadings
-from atemr.trees.ports import ComponentHealth
 
 log = logging.getLogger(__name__)
 

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from atemr.errors import ConfigError
+from atemr.io.rotation import files_by_age, part_path, prune_oldest
 
 log = logging.getLogger(__name__)
 
@@ -124,19 +125,9 @@ def read_trace(path: str | Path) -> TraceContents:
     return decode_trace(data, path)
 
 
-def part_path(base: Path, index: int) -> Path:
-    """Part ``index`` of a rotated trace: the base name itself, then ``name.1.atrace``, ``name.2.atrace``, ..."""
-    if index == 0:
-        return base
-    return base.with_name(f"{base.name.removesuffix(SUFFIX)}.{index}{SUFFIX}")
-
-
 def trace_files(directory: Path, pattern: str = f"*{SUFFIX}") -> list[Path]:
     """The trace files of ``directory`` matching ``pattern``, oldest first (by modification time, then name)."""
-    if not directory.is_dir():
-        return []
-    files = [p for p in directory.glob(pattern) if p.is_file()]
-    return sorted(files, key=lambda p: (p.stat().st_mtime_ns, p.name))
+    return files_by_age(directory, pattern)
 
 
 class TraceWriter:
@@ -202,17 +193,8 @@ class TraceWriter:
         self._prune()
 
     def _prune(self) -> None:
-        if self.max_files is None:
-            return
-        mine = [p for p in self.parts if p.exists()]
-        files = [p for p in trace_files(self.base.parent, self.prune) if p not in mine] + mine  # own: newest last
-        for old in files[: max(0, len(files) - self.max_files)]:
-            if old == self.parts[-1]:
-                continue
-            try:
-                old.unlink()
-            except OSError as exc:
-                log.warning("cannot delete the old trace %s: %s", old, exc.strerror)
+        if self.max_files is not None:
+            prune_oldest(self.base.parent, self.prune, self.max_files, self.parts)
 
     def flush(self) -> None:
         if self._file is not None:

@@ -19,40 +19,45 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from atemr.clock import Clock, RealTimeSimClock, SimClock, WallClock
 from atemr.config import Config
-from atemr.errors import AtemrError, HardwareError
+from atemr.domain.status import ComponentHealth
+from atemr.errors import AtemrError, ConfigError, HardwareError
 from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
-from atemr.fsm.recording import AgentRecorder
 from atemr.io.can.supervisor import BusSupervisor
 from atemr.io.devices.base import fresh
 from atemr.io.devices.drivers import DeviceContext, Devices, build_devices, driver_name, needs_world
 from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
+from atemr.io.recording.mcap_writer import SUFFIX, RecordingWriter
 from atemr.io.secondary_link import SecondaryLink, build_secondary_link
 from atemr.io.sim.simulation import Simulation
 from atemr.io.system_monitor import SystemMonitor
-from atemr.io.trace_file import SUFFIX, TraceWriter
 from atemr.msgs import Twist, WheelSpeeds
-from atemr.robot.core import Robot, Ticker
+from atemr.robot.core import Robot
 from atemr.robot.health import FRESH_S, HealthBoard
-from atemr.robot.inputs import MotionInputs
+from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP, MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
 from atemr.robot.parts import RobotParts
-from atemr.robot.port import RobotPortImpl
+from atemr.robot.port import RobotPortImpl, SecondaryLinkPort, jpeg
+from atemr.robot.recorder import RATE_HZ as RECORDER_HZ
+from atemr.robot.recorder import MessageSink, RecorderSources, RunRecorder
 from atemr.robot.reload import RATE_HZ as RELOAD_RATE_HZ
 from atemr.robot.reload import ReloadWatcher
 from atemr.robot.settings_store import SettingsStore
+from atemr.robot.wheels import WheelOdometryFeed
 from atemr.scheduler import Component, Scheduler
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.motion_pipeline import ControlInputs, MotionControl, MotionPipeline
 from atemr.skills.ramp import checked_limits
-from atemr.trees.ports import ComponentHealth
-from atemr.trees.secondary import SecondaryLinkPort
+
+if TYPE_CHECKING:
+    from atemr.io.secondary_emulator.board import SecondaryCore
 
 log = logging.getLogger(__name__)
 
@@ -102,17 +107,18 @@ def _wire(robot: Robot) -> None:
     inputs = MotionInputs()
     health = HealthBoard(clock.now)
 
-    sim = _add_simulation(robot) if needs_world(config) else None
+    sim, board = _add_simulation(robot) if needs_world(config) else (None, None)
     devices = _add_devices(robot, health, sim)
     primary = _add_primary(robot, inputs, health, settings, devices)
-    store, localization, maps = _add_localization(robot, sim, devices, primary.driver)
-    port, navigation, agent = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
+    store, localization, maps, wheels = _add_localization(robot, sim, devices, primary.driver)
+    port, navigation, agent, watcher = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
                                          localization=localization, maps=maps)
     system_monitor = SystemMonitor(config.data_dir)  # scheduled last of the always-present parts, below
     robot.parts = RobotParts(
         settings=settings, inputs=inputs, health=health, devices=devices, driver=primary.driver, link=primary.link,
         pipeline=primary.pipeline, motion=primary.motion, map_store=store, localization=localization, maps=maps,
-        port=port, navigation=navigation, agent=agent, system_monitor=system_monitor, sim=sim,
+        wheels=wheels, port=port, navigation=navigation, agent=agent, reload_watcher=watcher,
+        system_monitor=system_monitor, sim=sim, secondary_board=board,
     )
     _add_recorder(robot)
     if config.ui.enabled:
@@ -142,7 +148,7 @@ def _add_control(robot: Robot) -> None:
 
 
 def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
-                      driver: RmdDriver) -> tuple[MapStore, LocalizationPipeline, MapService]:
+                      driver: RmdDriver) -> tuple[MapStore, LocalizationPipeline, MapService, WheelOdometryFeed]:
     """Odometry fusion + AMCL against the active map, and the map service (active map, mapping)."""
     cfg = robot.config
     # The shipped maps are maps of simulated worlds: a robot without one is offered only the maps it made
@@ -156,10 +162,8 @@ def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
     localization = LocalizationPipeline(None, rng, localizer=cfg.localization.localizer_params())
     maps = MapService(store, localization, cfg.localization.slam_params(), on_event=robot.event)
 
-    def feed_wheels(now: float) -> None:
-        localization.on_wheels(now, driver.feedback())
-
-    robot.add(Ticker("wheel_odometry", feed_wheels), RATES["odometry"])
+    wheels = WheelOdometryFeed(driver, localization)
+    robot.add(wheels, RATES["odometry"])
     simulated_lidar = driver_name(cfg, "lidar") == "sim"
     robot.add(localization, cfg.sim.lidar_hz if simulated_lidar else RATES["localization"])
     devices.lidar.subscribe(localization.on_scan)
@@ -176,11 +180,13 @@ def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
         name = store.selected_name()
         if name is not None:
             maps.activate(name)
-    return store, localization, maps
+    return store, localization, maps, wheels
 
 
-def _add_agent(robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, devices: Devices,
-               localization: LocalizationPipeline, maps: MapService) -> tuple[RobotPortImpl, RobotNavigation, Agent]:
+def _add_agent(
+    robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, devices: Devices,
+    localization: LocalizationPipeline, maps: MapService,
+) -> tuple[RobotPortImpl, RobotNavigation, Agent, ReloadWatcher]:
     """The agent (lifecycle + trees + Monitor) over the robot's ports; when it halts, the robot stops."""
     cfg = robot.config
     camera = devices.camera
@@ -199,43 +205,92 @@ def _add_agent(robot: Robot, primary: _Primary, *, inputs: MotionInputs, health:
     agent = Agent.from_config(cfg, port, SecondaryLinkPort(primary.link), navigation=navigation, on_halt=robot.stop)
     robot.add(agent, cfg.agent.rate_hz)
     # Hot reload: edits of the agent document and the missions are validated and handed to the agent.
-    robot.add(ReloadWatcher(agent, Path(agent.spec.file or DEFAULT_AGENT_FILE)), RATES["reload_watcher"])
-    return port, navigation, agent
+    watcher = ReloadWatcher(agent, Path(agent.spec.file or DEFAULT_AGENT_FILE))
+    robot.add(watcher, RATES["reload_watcher"])
+    return port, navigation, agent, watcher
 
 
 def trace_path(config: Config, wall_time: float) -> Path:
-    """Where this run's trace goes: ``trace.file``, else a new ``data_dir/traces/run-<local date-time>.atrace``."""
+    """Where this run's recording goes: ``trace.file``, else a new ``data_dir/traces/run-<local date-time>.mcap``."""
     if config.trace.file is not None:
+        if config.trace.file.suffix.lower() != SUFFIX:
+            raise ConfigError(f"recordings are MCAP files: name it *{SUFFIX}, got {config.trace.file.name!r}",
+                              path="trace.file")
         return config.trace.file
     stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(wall_time))
     path = config.data_dir / "traces" / f"run-{stamp}{SUFFIX}"
     n = 1
-    while path.exists():  # two runs in one second keep both traces
+    while path.exists():  # two runs in one second keep both recordings
         n += 1
         path = path.with_name(f"run-{stamp}-{n}{SUFFIX}")
     return path
 
 
-def _add_recorder(robot: Robot) -> None:
-    """Record the agent (`AgentRecorder` → `TraceWriter`) when ``trace.enabled`` or ``trace.file`` is set."""
+def _recording_writer(robot: Robot, meta: dict[str, object]) -> RecordingWriter | None:
+    """The MCAP writer when ``trace.enabled`` or ``trace.file`` is set: threaded on a paced robot, inline in a
+    headless simulation (repeatable, nothing dropped)."""
     cfg = robot.config
     if not cfg.trace.enabled and cfg.trace.file is None:
+        return None
+    wall = WallClock().wall_time()
+    metadata = {k: "" if v is None else str(v) for k, v in meta.items()}
+    metadata["started"] = time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(wall))
+    mode = cfg.trace.writer
+    if mode == "auto":
+        mode = "process" if robot.scheduler.realtime else "inline"
+    options = {"max_bytes": int(cfg.trace.max_file_mb * 1024 * 1024),
+               "max_files": None if cfg.trace.file is not None else cfg.trace.max_files,
+               "prune": f"run-*{SUFFIX}", "metadata": metadata}
+    path = trace_path(cfg, wall)
+    if mode == "process":
+        from atemr.io.recording.writer_process import ProcessRecordingWriter
+
+        return ProcessRecordingWriter(path, **options)
+    return RecordingWriter(path, threaded=mode == "thread", **options)  # type: ignore[arg-type]
+
+
+def _add_recorder(robot: Robot) -> None:
+    """Record the run (`RunRecorder` → `RecordingWriter`) and serve it live (``ui.foxglove``), when asked."""
+    cfg, parts = robot.config, robot.parts
+    sim = parts.sim
+    meta: dict[str, object] = {"world": cfg.sim.world if sim is not None else None,
+                               "seed": cfg.sim.seed if sim is not None else None,
+                               "map": parts.maps.active_name, "simulation": cfg.simulation}
+    writer = _recording_writer(robot, meta)
+    live = None
+    if cfg.ui.foxglove.enabled:
+        try:
+            from atemr.ui.foxglove import FoxgloveLive  # lazy: the SDK loads only when the live view is on
+        except ImportError:
+            raise ConfigError("the live view needs the Foxglove SDK: pip install 'atemr[foxglove]'",
+                              path="ui.foxglove.enabled") from None
+        live = FoxgloveLive(cfg.ui.foxglove.host, cfg.ui.foxglove.port, robot_name=cfg.secondary.robot_name)
+    sinks: list[MessageSink] = []
+    if writer is not None:
+        sinks.append(writer)
+    if live is not None:
+        sinks.append(live)
+    if not sinks:
         return
-    agent = robot.parts.agent
-    sim = robot.parts.sim
-    meta = {"world": cfg.sim.world if sim is not None else None, "seed": cfg.sim.seed if sim is not None else None,
-            "map": robot.parts.maps.active_name, "simulation": cfg.simulation}
-    writer = TraceWriter(trace_path(cfg, WallClock().wall_time()), max_bytes=int(cfg.trace.max_file_mb * 1024 * 1024),
-                         max_files=None if cfg.trace.file is not None else cfg.trace.max_files,
-                         prune=f"run-*{SUFFIX}")
-    recorder = AgentRecorder(agent, writer.write, pose_hz=cfg.trace.pose_hz, meta=meta)
-    writer.preamble = recorder.preamble
+    sources = RecorderSources(devices=parts.devices, localization=parts.localization, maps=parts.maps,
+                              navigation=parts.navigation, agent=parts.agent, health=parts.health, sim=sim,
+                              can_tap=robot.open_bus(), jpeg=jpeg)
+    recorder = RunRecorder(sources, sinks, camera_hz=cfg.trace.camera_hz, pose_hz=cfg.trace.pose_hz, meta=meta,
+                           threaded_maps=robot.scheduler.realtime)
+    if writer is not None:
+        writer.preamble = recorder.preamble
     recorder.attach()
-    robot.parts = replace(robot.parts, trace=writer)
-    robot.add(writer, 1.0)
+    parts.wheels.subscribe(recorder.on_wheels)
+    robot.event_listeners.append(recorder.on_event)
+    if live is not None:
+        robot.add(live, 1.0)  # started before the recorder, stopped after it
+    robot.add(recorder, RECORDER_HZ)
+    if writer is not None:
+        robot.add(writer, 1.0)
+    robot.parts = replace(parts, trace=writer, recorder=recorder, foxglove=live)
 
 
-def _add_simulation(robot: Robot) -> Simulation:
+def _add_simulation(robot: Robot) -> tuple[Simulation, SecondaryCore | None]:
     """The simulated world, with the emulated CAN devices the configuration asks for in it.
 
     With ``emulated`` motors, the two motor emulators answer on the robot's bus and their models are the
@@ -244,9 +299,10 @@ def _add_simulation(robot: Robot) -> Simulation:
     answers on the bus and reads the world's cliff sensors.
     """
     from atemr.io.motors.emulator import RmdMotorEmulator
+    from atemr.io.secondary_emulator.board import SecondaryCore
+    from atemr.io.secondary_emulator.wiring import emulated_secondary
     from atemr.io.sim.base import MountedWheel
     from atemr.io.sim.simulation import build_simulation, params_from_config
-    from secondary_core.wiring import emulated_secondary
 
     cfg = robot.config
     emulators: list[RmdMotorEmulator] = []
@@ -265,10 +321,13 @@ def _add_simulation(robot: Robot) -> Simulation:
         robot.add(component, rate)
     for emulator in emulators:
         robot.add(emulator, RATES["motor_emulator"])
+    board: SecondaryCore | None = None
     if driver_name(cfg, "secondary") == "emulated":
         for board_part, rate in emulated_secondary(cfg, robot.open_bus(), lambda: sim.cliff_source.latest):
             robot.add(board_part, rate)
-    return sim
+            if isinstance(board_part, SecondaryCore):
+                board = board_part
+    return sim, board
 
 
 def _add_devices(robot: Robot, health: HealthBoard, sim: Simulation | None) -> Devices:
@@ -293,7 +352,6 @@ class _Primary:
 
 
 #: The safety-stop reason held while the CAN bus is faulted (`MotionInputs.set_safety_stop`).
-CAN_BUS_STOP = "CAN bus fault"
 
 
 def _add_can_bus(robot: Robot, inputs: MotionInputs, health: HealthBoard) -> BusSupervisor:
@@ -336,7 +394,7 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
 
     def on_heartbeat(ok: bool) -> None:
         # DESIGN §10: both cores stop the motors when the heartbeat fails for 2 s.
-        inputs.set_safety_stop("heartbeat lost", not ok)
+        inputs.set_safety_stop(HEARTBEAT_STOP, not ok)
         robot.event("heartbeat", "0x157 heartbeat " + ("restored" if ok else "lost: motors stopped"))
 
     link_inbox, motors_inbox = can_bus.inbox("secondary_link"), can_bus.inbox("motors")

@@ -36,15 +36,14 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import asdict
 from typing import Any, cast
 
+from atemr.domain.status import top_level
 from atemr.errors import ControlError, brief
 from atemr.fsm.agent import Agent
-from atemr.fsm.codes import top_level
 from atemr.fsm.mission_run import MissionRun
 from atemr.io.control_socket import ControlConnection, ControlServer, control_socket_path
 from atemr.io.sim.simulation import Simulation
 from atemr.msgs import Pose2D
 from atemr.robot.core import Robot
-from atemr.robot.port import localization_status
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.trees.missions import Mission, mission_from_goals, parse_mission
 from atemr.yamlsafe import load_yaml
@@ -291,7 +290,7 @@ class RobotControl:
             **{k: snapshot[k] for k in ("state", "mode", "task", "task_progress", "last_task", "error",
                                         "valid_triggers", "transitions")},
             "pose": asdict(pose) if pose is not None else None,
-            "localization": None if self.localization is None else localization_status(self.localization).as_dict(),
+            "localization": None if self.localization is None else self.localization.status.as_dict(),
             "control": self.session.summary() if self.session is not None else None,
             "last_control": self.last.summary() if self.last is not None else None,
         }

@@ -58,6 +58,8 @@ class Robot:
     events: deque[RobotEvent] = field(default_factory=lambda: deque(maxlen=200))
     #: CAN buses opened for the parts; closed after every part has shut down.
     buses: list[can.BusABC] = field(default_factory=list)
+    #: Called with ``(t, kind, text)`` for every event, on the thread that raised it (the recorder queues them).
+    event_listeners: list[Callable[[float, str, str], None]] = field(default_factory=list)
     _parts: RobotParts | None = None
     _events_lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -84,9 +86,12 @@ class Robot:
 
     def event(self, kind: str, text: str) -> None:
         """Record an event for the dashboard (thread-safe) and log it."""
+        event = RobotEvent(self.clock.now(), kind, text)
         with self._events_lock:
-            self.events.append(RobotEvent(self.clock.now(), kind, text))
+            self.events.append(event)
         log.info("%s: %s", kind, text)
+        for listener in self.event_listeners:
+            listener(event.t, kind, text)
 
     def recent_events(self, n: int = 20) -> list[EventJson]:
         with self._events_lock:

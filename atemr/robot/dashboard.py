@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from atemr.domain.status import ComponentHealth
 from atemr.robot.core import Robot
 from atemr.robot.gateway import RobotGatewayImpl
-from atemr.trees.ports import ComponentHealth
 from atemr.ui.message_queue import StatePublisher
 from atemr.ui.server import PUSH_RATE_HZ, DashboardServer
 from atemr.ui.users import HASH_METHOD

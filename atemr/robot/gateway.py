@@ -15,8 +15,8 @@ navigation's costmap) in the gateway's own worker thread, one map at a time, whi
 only the finished map is queued, and the pump swaps it in between two ticks (`MapService.swap`).
 
 Building the gateway schedules two small components on the robot: the pump above and, when the robot
-has a camera, the `VideoRecorder`. Build it before the robot starts (`atemr.robot.dashboard.add_dashboard`
-does).
+has a camera, the `VideoRecorder` (which only queues raw frames there; its own worker encodes). Build it
+before the robot starts (`atemr.robot.dashboard.add_dashboard` does).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from collections.abc import Callable
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,15 +41,24 @@ from atemr.fsm.agent import DEFAULT_AGENT_FILE
 from atemr.io.devices.drivers import camera_rate_hz
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
+from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
-from atemr.robot.port import jpeg, localization_status
-from atemr.robot.reload import ReloadWatcher
+from atemr.robot.plain_words import plain_outcome, plain_refusal
+from atemr.robot.port import jpeg
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
 from atemr.skills.ramp import checked_limits
 from atemr.ui.gateway import CommandResult, MapImage
-from atemr.ui.snapshot import points_json, pose_json, render_map, scan_points, status_levels, system_json
-from atemr.ui.state import AgentState, LocalizationJson, MissionJson, Mode, RobotState
+from atemr.ui.snapshot import (
+    navigation_json,
+    points_json,
+    pose_json,
+    render_map,
+    scan_points,
+    status_levels,
+    system_json,
+)
+from atemr.ui.state import LocalizationJson, MissionJson, Mode, RobotState, StopCause, top_state
 
 log = logging.getLogger(__name__)
 
@@ -130,6 +139,8 @@ class RobotGatewayImpl:
         self._map_key: tuple[int, int] | None = None
         self._listing: dict[str, tuple[int, list[str]]] = {}
         self._wifi = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-wifi")
+        #: The newest finished task already told as an event (goal reached, mission finished).
+        self._last_report: dict[str, Any] | None = None
         #: Reads and prepares selected maps off the robot's thread, one at a time.
         self._loader = ThreadPoolExecutor(max_workers=1, thread_name_prefix="dashboard-maps")
         #: The map being loaded or waiting for its swap (another selection is refused meanwhile).
@@ -137,9 +148,12 @@ class RobotGatewayImpl:
         robot.add(_Pump(self), pump_rate_hz)
         self.recorder: VideoRecorder | None = None
         if self.camera is not None:
-            self.recorder = VideoRecorder(self.config.data_dir / "media" / "videos", self._camera_frame,
-                                          WallClock().wall_time)
-            robot.add(self.recorder, camera_rate_hz(self.config))
+            camera = self.camera
+            rate_hz = camera_rate_hz(self.config)
+            self.recorder = VideoRecorder(self.config.data_dir / "media" / "videos", lambda: camera.latest,
+                                          WallClock().wall_time, rate_hz=rate_hz,
+                                          on_failure=lambda why: robot.event("video", why))
+            robot.add(self.recorder, rate_hz)
 
     # -- the robot's thread ------------------------------------------------------------------------------
     def _pump(self, now: float) -> None:
@@ -168,6 +182,10 @@ class RobotGatewayImpl:
                 self.robot.event("refused", f"{trigger}: {result.reason}")
         for event in self.robot.parts.localization.drain_events():
             self.robot.event(f"localization {event.kind}", event.detail)
+        reports = self.agent.task_reports
+        if reports and reports[-1] is not self._last_report:
+            self._last_report = reports[-1]
+            self.robot.event(*plain_outcome(reports[-1]))
 
     def _queue(self, what: str, action: Callable[[float], object]) -> CommandResult:
         """Queue ``action(now)`` for the robot's thread; refused when `MAX_QUEUED_ACTIONS` wait already."""
@@ -179,8 +197,8 @@ class RobotGatewayImpl:
     def _submit(self, trigger: str, **kwargs: Any) -> CommandResult:
         """Queue ``trigger`` for the agent if it may be taken in the current state; else refuse at once."""
         why = self.agent.precheck(trigger)
-        if why is not None:
-            return CommandResult.refused(why)
+        if why is not None:  # the agent's own words stay on the Agent page; the carer reads plain ones
+            return CommandResult.refused(plain_refusal(trigger, self.agent.state))
         command_id = self.agent.submit(trigger, origin="dashboard", **kwargs)
         with self._lock:
             self._watched.append((command_id, trigger))
@@ -243,7 +261,7 @@ class RobotGatewayImpl:
         scan = self.robot.devices.lidar.latest
         status, goal = self._navigation()
         running = status is not None and status.state == "RUNNING"
-        agent_state = cast(AgentState, str(agent["state"]).split(".")[0])
+        agent_state = top_state(str(agent["state"]))
         wheels = parts.driver.feedback()
         last = parts.motion.last
         level1, level2 = status_levels(self.link.status)
@@ -262,8 +280,11 @@ class RobotGatewayImpl:
             "global_path": points_json(status.global_path) if running and status is not None else [],
             "local_path": points_json(status.local_trajectory) if running and status is not None else [],
             "goal": pose_json(goal) if running and agent_state == "EXEC" else None,
+            "navigation": navigation_json(status) if running and agent_state == "EXEC" and status is not None
+            else None,
             "wheel_speeds": {"left_radps": round(wheels.left_radps, 3), "right_radps": round(wheels.right_radps, 3)},
             "emergency": bool(last is not None and (last.emergency or last.cliff_stop)),
+            "stop_cause": self._stop_cause(),
             "level1": level1,
             "level2": level2,
             "system": system_json(parts.system_monitor.latest),
@@ -282,12 +303,27 @@ class RobotGatewayImpl:
 
     def _localization(self) -> LocalizationJson:
         localization = self.robot.parts.localization
-        status = localization_status(localization)
+        status = localization.status
         return {"confidence": status.confidence, "limit": status.limit, "localized": status.localized,
                 "state": status.state,
                 "candidates": [{"x_m": round(h.pose.x_m, 3), "y_m": round(h.pose.y_m, 3),
                                 "yaw_rad": round(h.pose.yaw_rad, 3), "agreement": round(h.agreement, 3)}
                                for h in localization.candidates[:MAX_CANDIDATES_SHOWN]]}
+
+    def _stop_cause(self) -> StopCause | None:
+        """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge, an obstacle
+        in the stop zone, the heartbeat between the cores lost, a motor fault, a CAN bus fault."""
+        parts = self.robot.parts
+        last = parts.motion.last
+        stops = self.inputs.safety_stops
+        causes: list[tuple[bool, StopCause]] = [
+            (last is not None and last.cliff_stop, "cliff"),
+            (last is not None and last.emergency, "obstacle"),
+            (HEARTBEAT_STOP in stops, "heartbeat"),
+            (parts.driver.fault is not None, "motor"),
+            (CAN_BUS_STOP in stops, "bus"),
+        ]
+        return next((cause for held, cause in causes if held), None)
 
     def map_image(self) -> MapImage | None:
         """The drawable map, rendered once per map version."""
@@ -308,9 +344,8 @@ class RobotGatewayImpl:
         return None if frame is None else frame[1]
 
     def secondary_screen_png(self) -> bytes | None:
-        core = self.robot.components.get("secondary_core")
-        screen = getattr(core, "screen_png", None)
-        return None if screen is None else cast(bytes, screen(scale=2, color=True))
+        board = self.robot.parts.secondary_board
+        return None if board is None else board.screen_png(scale=2, color=True)
 
     def agent_snapshot(self) -> dict[str, Any] | None:
         return self.agent.snapshot()
@@ -610,10 +645,7 @@ class RobotGatewayImpl:
         return CommandResult.accepted()
 
     def reload_agent(self) -> CommandResult:
-        watcher: ReloadWatcher | None = cast("ReloadWatcher | None", self.robot.components.get("reload_watcher"))
-        if watcher is None:
-            return CommandResult.refused("this robot does not watch its agent document")
-        watcher.request()
+        self.robot.parts.reload_watcher.request()
         return CommandResult.accepted()
 
     # -- simulation panel --------------------------------------------------------------------------------
@@ -631,12 +663,12 @@ class RobotGatewayImpl:
         return CommandResult.accepted()
 
     def sim_button(self, hold_s: float) -> CommandResult:
-        core = self.robot.components.get("secondary_core")
-        if self.sim is None or core is None:
+        board = self.robot.parts.secondary_board
+        if self.sim is None or board is None:
             return CommandResult.refused("not a simulation")
         if not _finite(hold_s) or not 0 < hold_s <= MAX_BUTTON_HOLD_S:
             return CommandResult.refused(f"a button press lasts 0-{MAX_BUTTON_HOLD_S:g} s, got {brief(hold_s)}")
-        cast(Any, core).button.hold(float(hold_s))
+        board.button.hold(float(hold_s))
         return CommandResult.accepted()
 
     def _in_world(self, x_m: float, y_m: float) -> str | None:

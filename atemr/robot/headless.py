@@ -21,20 +21,20 @@ from atemr.clock import SimClock
 from atemr.config import Config
 from atemr.robot.assembly import build_robot
 from atemr.robot.core import Robot
-from atemr.robot.port import localization_status
 
 _RUNS = itertools.count()
 
 
 def headless_config(config: Config) -> Config:
-    """``config`` for a headless run: dashboard, message queue, portal and control socket off, a private
-    virtual CAN channel, and a trace only when ``trace.file`` names one (``--trace``): headless runs do not
-    fill ``data_dir/traces``."""
+    """``config`` for a headless run: dashboard, Foxglove server, message queue, portal and control socket off, a
+    private virtual CAN channel, and a recording only when ``trace.file`` names one (``--trace``): headless runs
+    do not fill ``data_dir/traces``."""
     if not config.simulation:
         raise ValueError("a headless run is a simulation")
     return dataclasses.replace(
         config,
-        ui=dataclasses.replace(config.ui, enabled=False, message_queue=None),
+        ui=dataclasses.replace(config.ui, enabled=False, message_queue=None,
+                               foxglove=dataclasses.replace(config.ui.foxglove, enabled=False)),
         secondary=dataclasses.replace(config.secondary, portal_serve=False),
         trace=dataclasses.replace(config.trace, enabled=False),
         control=dataclasses.replace(config.control, enabled=False),
@@ -140,7 +140,7 @@ class TruthWatch:
                 "max_m": float(errors[:, 0].max()) if len(errors) else None,
                 "rmse_yaw_rad": float(np.sqrt(np.mean(errors[:, 1] ** 2))) if len(errors) else None,
             },
-            "localization": {**localization_status(self.localization).as_dict(),
+            "localization": {**self.localization.status.as_dict(),
                              "lowest_confidence": None if self._lowest is None else round(self._lowest, 4)},
             "localization_events": self._events,
             "kidnapped_s": self.kidnapped_at,

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from atemr.trees.ports import ComponentHealth
+from atemr.domain.status import ComponentHealth
 
 #: How old the secondary core's newest IR frame may be before the cliff sensors count as silent, in seconds
 #: (the lidar, IMU and camera judge their own freshness: `atemr.io.devices`).

@@ -20,6 +20,12 @@ from atemr.skills.motion_pipeline import ControlInputs, Mode, TimedTwist
 Source = str  # "joystick" | "navigation" | "agent"
 
 
+#: The safety stops the robot's wiring holds by name (`MotionInputs.set_safety_stop`), for whoever reports why
+#: the robot is stopped.
+CAN_BUS_STOP = "CAN bus fault"
+HEARTBEAT_STOP = "heartbeat lost"
+
+
 @dataclass
 class MotionInputs:
     """Latest timed twists by source, the mode, awareness and the safety-stop reasons."""

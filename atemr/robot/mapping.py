@@ -20,9 +20,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import NavigationError
 from atemr.io.map_store import MapStore
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.localizer import Localizer
 from atemr.skills.localization.pipeline import LocalizationPipeline

@@ -1,6 +1,6 @@
 """Navigation on the robot: the agent's `NavigatorPort` over one `Navigator`, kept on the active map.
 
-`atemr.trees.navigator_port.NavigatorPort` adapts a `Navigator` to the agent's `NavigationPort`; this
+`atemr.robot.navigator_port.NavigatorPort` adapts a `Navigator` to the agent's `NavigationPort`; this
 module gives it its inputs on the robot (the localized map pose, the latest scan, the localization flag,
 the measured twist) and gives the navigator each new map's costmap, prepared off the robot's thread when
 the map service switches maps (`atemr.robot.mapping.MapUser`).
@@ -10,12 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from atemr.io.sim.maps import OccupancyMap
+from atemr.domain.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D, Twist
 from atemr.robot.mapping import MapService
+from atemr.robot.navigator_port import NavigatorPort
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.nav.navigator import Navigator, NavMap, NavParams
-from atemr.trees.navigator_port import NavigatorPort
 
 
 class RobotNavigation(NavigatorPort):

@@ -15,10 +15,11 @@ if TYPE_CHECKING:
     from atemr.io.devices.drivers import Devices
     from atemr.io.map_store import MapStore
     from atemr.io.motors.driver import RmdDriver
+    from atemr.io.recording.mcap_writer import RecordingWriter
+    from atemr.io.secondary_emulator.board import SecondaryCore
     from atemr.io.secondary_link import SecondaryLink
     from atemr.io.sim.simulation import Simulation
     from atemr.io.system_monitor import SystemMonitor
-    from atemr.io.trace_file import TraceWriter
     from atemr.robot.control import RobotControl
     from atemr.robot.gateway import RobotGatewayImpl
     from atemr.robot.health import HealthBoard
@@ -26,9 +27,13 @@ if TYPE_CHECKING:
     from atemr.robot.mapping import MapService
     from atemr.robot.navigation import RobotNavigation
     from atemr.robot.port import RobotPortImpl
+    from atemr.robot.recorder import RunRecorder
+    from atemr.robot.reload import ReloadWatcher
     from atemr.robot.settings_store import SettingsStore
+    from atemr.robot.wheels import WheelOdometryFeed
     from atemr.skills.localization.pipeline import LocalizationPipeline
     from atemr.skills.motion_pipeline import MotionControl, MotionPipeline
+    from atemr.ui.foxglove import FoxgloveLive
     from atemr.ui.message_queue import StatePublisher
     from atemr.ui.server import DashboardServer
 
@@ -38,7 +43,8 @@ class RobotParts:
     """The parts of one assembled robot (see `atemr.robot.assembly` for how they connect).
 
     ``sim`` is the simulated world when one runs (in simulation, or for devices driven by it); the dashboard,
-    the state publisher, the control socket and the trace exist when the configuration asks for them.
+    the state publisher, the control socket, the recording and the Foxglove server
+    exist when the configuration asks for them.
     """
 
     settings: SettingsStore
@@ -52,12 +58,19 @@ class RobotParts:
     map_store: MapStore
     localization: LocalizationPipeline
     maps: MapService
+    wheels: WheelOdometryFeed
     port: RobotPortImpl
     navigation: RobotNavigation
     agent: Agent
+    reload_watcher: ReloadWatcher
     system_monitor: SystemMonitor
     sim: Simulation | None = None
-    trace: TraceWriter | None = None
+    #: The emulated secondary core's board, when the simulation runs one (its screen and button on the page).
+    secondary_board: SecondaryCore | None = None
+    #: The MCAP recording of this run (``trace.enabled`` or ``trace.file``).
+    trace: RecordingWriter | None = None
+    recorder: RunRecorder | None = None
+    foxglove: FoxgloveLive | None = None
     gateway: RobotGatewayImpl | None = None
     dashboard: DashboardServer | None = None
     state_publisher: StatePublisher | None = None

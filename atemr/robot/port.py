@@ -1,8 +1,11 @@
-"""The agent's `RobotPort` implemented over the assembled robot's parts.
+"""The agent's ports implemented over the assembled robot's parts: `RobotPortImpl` and `SecondaryLinkPort`.
 
 Everything the agent's leaves and guards ask of the robot goes through here: velocity onto the motion
 inputs, health from the health board, pose from localization (odometry before it), camera frames to the
-media directory, mapping to the map service.
+media directory, mapping to the map service, and the 0x153 status and 0x150 power byte to the secondary
+link. The ports themselves are the agent's (`atemr.trees.ports`); their adapters live in `atemr.robot`,
+the one layer that may know both the agent and the parts. Navigation's adapter is
+`atemr.robot.navigator_port.NavigatorPort`.
 """
 
 from __future__ import annotations
@@ -16,18 +19,16 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
+from atemr.domain.status import ComponentHealth, LocalizationStatus, PowerState
 from atemr.errors import HardwareError
+from atemr.io.can import PrimaryStatus
+from atemr.io.secondary_link import SecondaryLink
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.health import HealthBoard
 from atemr.robot.inputs import MotionInputs
 from atemr.robot.mapping import MapService
 from atemr.skills.localization.pipeline import LocalizationPipeline
-from atemr.trees.ports import ComponentHealth, LocalizationStatus, Mode, VelocitySource
-
-
-def localization_status(pipeline: LocalizationPipeline) -> LocalizationStatus:
-    """The one confidence number, its limit and the localizer's state, as every consumer shows them."""
-    return LocalizationStatus(round(pipeline.confidence, 4), pipeline.min_confidence, pipeline.state)
+from atemr.trees.ports import Mode, VelocitySource
 
 
 def jpeg(frame: NDArray[np.uint8], quality: int = 85) -> bytes:
@@ -87,10 +88,10 @@ class RobotPortImpl:
         return str(path)
 
     def localized(self) -> bool | None:
-        return localization_status(self.localization).localized
+        return self.localization.status.localized
 
     def localization_status(self) -> LocalizationStatus | None:
-        return localization_status(self.localization)
+        return self.localization.status
 
     def relocalize(self, now: float) -> None:
         self.localization.start_global(now)
@@ -103,3 +104,27 @@ class RobotPortImpl:
 
     def clear_faults(self) -> str | None:
         return self.health_board.clear_faults()
+
+
+class SecondaryLinkPort:
+    """The agent's `LinkPort` over the real `atemr.io.secondary_link.SecondaryLink` (the primary's end of the
+    CAN link), ticked by the same scheduler: ``Agent(spec, robot_port, SecondaryLinkPort(link))``.
+
+    The link itself sends the 0x157 heartbeat every 0.5 s, and re-sends 0x153 and 0x150 at 2 Hz and at once
+    on change; the agent only sets what they carry and reads what came back.
+    """
+
+    def __init__(self, link: SecondaryLink) -> None:
+        self.link = link
+
+    def publish_status(self, status: PrimaryStatus) -> None:
+        self.link.set_status(status.agent, status.hardware, status.state)
+
+    def set_power_state(self, state: PowerState) -> None:
+        self.link.set_power_state(state)
+
+    def power_off_requested(self) -> bool:
+        return bool(self.link.power_off_requested)
+
+    def heartbeat_ok(self) -> bool:
+        return bool(self.link.heartbeat_ok)

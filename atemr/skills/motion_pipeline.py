@@ -216,8 +216,9 @@ class MotionPipeline:
             self._travel_at_scan_m = self._travel_m - self._last_v * max(0.0, now - scan.t)
         return self._hex
 
-    def tick(self, inputs: ControlInputs) -> ControlResult:
-        """One control period at ``inputs.now``."""
+    def _take_inputs(self, inputs: ControlInputs) -> None:
+        """Check the time and mode, count the distance driven since the last tick, apply new limits, note a mode
+        or awareness switch (a state change for the idle detector), and hand the commands to the mux."""
         now = inputs.now
         if not math.isfinite(now):
             raise ConfigError(f"motion pipeline: now must be a finite time, got {now!r}")
@@ -232,11 +233,26 @@ class MotionPipeline:
             if self._mode is not None:
                 self.ramp.idle_detector.wake(now)  # a mode or awareness switch is a state change
             self._mode, self._awareness = inputs.mode, inputs.awareness
-
         for name, cmd in ((JOYSTICK, inputs.joystick), (NAVIGATION, inputs.navigation), (AGENT, inputs.agent)):
             if cmd is not None:
                 self.mux.publish(name, cmd.twist, cmd.t)
         self.mux.set_lock(SAFETY_STOP, inputs.safety_stop)
+
+    def _reactive_twist(self, mode: str, hexes: HexSectors, now: float) -> tuple[Twist | None, float]:
+        """The reactive layer's twist and τ: assisting a moving joystick in MANUAL, the IDLE engine while idle,
+        else none."""
+        joystick = self.mux.fresh_command(JOYSTICK, now)
+        if mode == "MANUAL" and joystick is not None and not joystick.is_zero:
+            assist = self.reactive.manual_assist(hexes, joystick)
+            return assist.twist, assist.tau
+        if self.ramp.idle:
+            return self.reactive.idle_twist(hexes), 0.0
+        return None, 0.0
+
+    def tick(self, inputs: ControlInputs) -> ControlResult:
+        """One control period at ``inputs.now``."""
+        now = inputs.now
+        self._take_inputs(inputs)
         admissible = set(MODE_INPUTS[inputs.mode])
 
         # the operator's or planner's command this tick (for idle detection and the MANUAL engine)
@@ -251,16 +267,9 @@ class MotionPipeline:
         tau = 0.0
         if inputs.awareness and hexes is not None:
             admissible.add(REACTIVE)
-            joystick = self.mux.fresh_command(JOYSTICK, now)
-            if inputs.mode == "MANUAL" and joystick is not None and not joystick.is_zero:
-                assist = self.reactive.manual_assist(hexes, joystick)
-                reactive, tau = assist.twist, assist.tau
-            elif self.ramp.idle:
-                reactive = self.reactive.idle_twist(hexes)
-            if reactive is not None:
-                self.mux.publish(REACTIVE, reactive, now)
-            else:
-                self.mux.clear(REACTIVE)
+            reactive, tau = self._reactive_twist(inputs.mode, hexes, now)
+        if reactive is not None:
+            self.mux.publish(REACTIVE, reactive, now)
         else:
             self.mux.clear(REACTIVE)
 

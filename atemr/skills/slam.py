@@ -39,8 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from atemr.domain.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.geometry import FloatArray, as_array, as_pose, compose, is_finite_pose, relative
 from atemr.skills.localization.icp import IcpParams, IcpTarget, icp

@@ -88,7 +88,7 @@ def _split_options(node: Mapping[str, Any], extra: Sequence[str], options_cls: t
     return marked_subset(node, [k for k in node if k in names and k not in extra])
 
 
-def parse_node(node: Any, source: Source, path: str, *, parent: Any = None, key: Any = None,
+def parse_node(node: Any, source: Source, path: str, *, parent: Any = None, key: Any = None,  # noqa: PLR0912  one branch per node family after the common keys
                allow_task: bool = True) -> NodeSpec:
     """Validate one node document (and its whole subtree) into a `NodeSpec`."""
     if not isinstance(node, Mapping):

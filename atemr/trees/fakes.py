@@ -10,18 +10,11 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
+from atemr.domain.status import ComponentHealth, LocalizationStatus, PowerState
 from atemr.errors import HardwareError, NavigationError
-from atemr.io.can import PowerState, PrimaryStatus
+from atemr.io.can import PrimaryStatus
 from atemr.msgs import Pose2D, Twist
-from atemr.trees.ports import (
-    HARDWARE_COMPONENTS,
-    ComponentHealth,
-    LocalizationStatus,
-    Mode,
-    NavProgress,
-    NavState,
-    VelocitySource,
-)
+from atemr.trees.ports import HARDWARE_COMPONENTS, Mode, NavProgress, NavState, VelocitySource
 
 
 def all_healthy() -> dict[str, ComponentHealth]:

@@ -46,14 +46,13 @@ from pathlib import Path
 from typing import Any
 
 from atemr.errors import ConfigError
-from atemr.fsm.guards import GO_TO_POSE
 from atemr.msgs import Pose2D
 from atemr.trees.behaviours import NoParams, behaviours, parse_params
 from atemr.trees.builder import NodeSpec, marked_subset
 from atemr.trees.leaves.mapping import SaveMapParams
 from atemr.trees.leaves.media import CaptureImageParams
 from atemr.trees.leaves.motion import RotateParams
-from atemr.trees.leaves.navigation import FollowPathParams, RelocalizeParams
+from atemr.trees.leaves.navigation import GO_TO_POSE, FollowPathParams, RelocalizeParams
 from atemr.trees.leaves.timing import WaitParams
 from atemr.trees.nodes import RepeatOptions, RetryOptions, SequenceOptions, TimeoutOptions
 from atemr.trees.params import PoseParams

@@ -17,7 +17,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
-from atemr.io.can import HardwareBits, PowerState, PrimaryStatus
+from atemr.domain.status import ComponentHealth, HardwareBits, LocalizationStatus, PowerState
+from atemr.io.can import PrimaryStatus
 from atemr.msgs import ZERO_TWIST, Pose2D, Twist
 
 #: The motion pipeline's inputs the agent may command (`atemr.skills.motion_pipeline`): the operator's
@@ -29,43 +30,6 @@ Mode = Literal["MANUAL", "AUTO"]
 #: Components whose health fills a 0x153 hardware bit: ``HardwareBits`` member names in lower case
 #: (``left_motor``, ``right_motor``, ``imu``, ``lidar``, ``camera``, ``webserver``, ``ir_front``, ``ir_rear``).
 HARDWARE_COMPONENTS: dict[str, HardwareBits] = {str(b.name).lower(): b for b in HardwareBits if b}
-
-
-@dataclass(frozen=True)
-class ComponentHealth:
-    """One component's health as the port sees it: ``ok`` and, when not, why (for the dashboard)."""
-
-    ok: bool
-    detail: str = ""
-
-
-@dataclass(frozen=True)
-class LocalizationStatus:
-    """Localization as every consumer shows it (dashboard, CAN 0x153 bit 4, ``mission run --json``, the guards):
-    the one confidence number, the limit it is compared with, and the localizer's state (``localized``,
-    ``lost``, ``searching``, ``ambiguous``, ``failed``, ``pose set``, ``uninitialized``, ``no map``).
-    Localized means ``confidence >= limit``, nothing else."""
-
-    confidence: float
-    limit: float
-    state: str
-
-    @property
-    def localized(self) -> bool:
-        return self.confidence >= self.limit
-
-    def as_dict(self) -> dict[str, float | bool | str]:
-        """``{"confidence", "limit", "localized", "state"}`` for a JSON report."""
-        return {"confidence": self.confidence, "limit": self.limit, "localized": self.localized, "state": self.state}
-
-    def why_not(self) -> str:
-        """Why the robot is not localized ("" when it is), for a refusal the operator can act on."""
-        if self.localized:
-            return ""
-        if self.state == "no map":
-            return "not localized: no map is selected; select or build a map, then set the robot's pose"
-        return (f"not localized (confidence {self.confidence:.0%}, needs {self.limit:.0%}; {self.state}): set the "
-                "robot's pose on the map or FIND POSE")
 
 
 @runtime_checkable

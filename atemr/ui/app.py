@@ -40,10 +40,11 @@ from atemr.ui.security import (
     refusal,
     trusted_hosts,
 )
+from atemr.ui.state import STATE_RATE_HZ
 from atemr.ui.users import HASH_METHOD, PasswordHashBusy, UserStore
 
 #: Endpoints reachable before the root admin has a password (everything else redirects to first start).
-FIRST_START_OPEN = frozenset({"auth.first_start", "static"})
+FIRST_START_OPEN = frozenset({"auth.first_start", "static", "favicon"})
 
 
 def database_path(config: Config) -> Path:
@@ -135,6 +136,8 @@ def create_app(
     for bp in (auth_bp, control_bp, mapping_bp, settings_bp, media_bp, agent_bp):
         app.register_blueprint(bp)
     app.add_url_rule("/", "index", lambda: redirect(url_for("control.page")))
+    # Browsers ask for /favicon.ico on their own (downloads, bookmarks) whatever the pages link.
+    app.add_url_rule("/favicon.ico", "favicon", lambda: app.send_static_file("favicon.svg"))
 
     socketio = SocketIO(
         app,
@@ -199,4 +202,5 @@ def _template_globals() -> dict[str, Any]:
     config: Config = current_app.config["ATEMR_CONFIG"]
     own = current_app.extensions["atemr.gateway"] is not None
     return {"current_user": current_user(), "version": __version__, "simulation": config.simulation,
-            "robot_name": config.secondary.robot_name if own else "", "may": may, "refusal": refusal}
+            "robot_name": config.secondary.robot_name if own else "", "may": may, "refusal": refusal,
+            "state_period_ms": round(1000 / STATE_RATE_HZ)}

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar, cast
 from urllib.parse import urlsplit
 
-from flask import abort, current_app, flash, g, redirect, request, session, url_for
+from flask import abort, current_app, flash, g, make_response, redirect, request, session, url_for
 from werkzeug.wrappers import Response
 
 from atemr.clock import Clock
@@ -319,6 +319,11 @@ def logout_user() -> str | None:
     return token
 
 
+def _wants_json() -> bool:
+    """Whether this request is an API call (answered with a bare status) rather than a page."""
+    return request.path.startswith("/api/") or request.accept_mimetypes.best == "application/json"
+
+
 def role_required(role: Role) -> Callable[[F], F]:
     """Route decorator: anonymous → login page (401 for JSON/API), role too low → no-access page (403)."""
 
@@ -326,7 +331,7 @@ def role_required(role: Role) -> Callable[[F], F]:
         @functools.wraps(view)
         def wrapped(*args: Any, **kwargs: Any) -> Any:
             user = current_user()
-            wants_json = request.path.startswith("/api/") or request.accept_mimetypes.best == "application/json"
+            wants_json = _wants_json()
             if user is None:
                 if wants_json:
                     abort(401)
@@ -366,8 +371,8 @@ def refusal(permission: Permission) -> str:
 
 def permission_required(permission: Permission, back: str) -> Callable[[F], F]:
     """Route decorator for a form that does a destructive or safety action: with at least the ``user``
-    role but without ``permission``, the form is refused with a message on the page it came from
-    (``back``, an endpoint), or 403 for JSON; nothing is changed."""
+    role but without ``permission``, the request is refused with 403 and nothing is changed; a browser gets
+    the page the form is on (``back``, an endpoint) with the reason shown, JSON clients a bare 403."""
 
     def decorate(view: F) -> F:
         @role_required("user")
@@ -377,10 +382,12 @@ def permission_required(permission: Permission, back: str) -> Callable[[F], F]:
                 user = current_user()
                 log.warning("%s refused for %s: needs the permission %r", request.path,
                             user.username if user else "anonymous", permission)
-                if request.path.startswith("/api/") or request.accept_mimetypes.best == "application/json":
+                if _wants_json():
                     abort(403)
                 flash(f"Refused: {refusal(permission)}.", "error")
-                return redirect(url_for(back))
+                page = make_response(current_app.view_functions[back]())
+                page.status_code = 403
+                return page
             return view(*args, **kwargs)
 
         return cast(F, wrapped)

@@ -29,6 +29,7 @@ from atemr.ui import sockets
 from atemr.ui.app import create_app
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.message_queue import check_reachable
+from atemr.ui.state import STATE_RATE_HZ
 from atemr.ui.users import HASH_METHOD
 
 log = logging.getLogger(__name__)
@@ -170,7 +171,7 @@ class BoundedWSGIServer(ThreadedWSGIServer):
 
 
 #: How often the robot should tick the server (state pushes per second).
-PUSH_RATE_HZ = 10.0
+PUSH_RATE_HZ = STATE_RATE_HZ  # the rate the state contract promises the pages
 
 
 class DashboardServer:

@@ -19,11 +19,12 @@ from PIL import Image
 from atemr.errors import ConfigError
 from atemr.msgs import LaserScan, Pose2D
 from atemr.ui.gateway import MapImage
-from atemr.ui.state import PoseJson, SystemJson
+from atemr.ui.state import NavigationJson, PoseJson, SystemJson
 
 if TYPE_CHECKING:
     from atemr.io.can.protocol import PrimaryStatus
     from atemr.io.system_monitor import SystemSample
+    from atemr.skills.nav.navigator import NavStatus
 
 #: Most points sent per scan or path (a phone draws 360 points at 10 Hz without effort).
 MAX_POINTS = 720
@@ -32,7 +33,7 @@ FREE_GREY, OCCUPIED_GREY, UNKNOWN_GREY = 254, 0, 205
 
 
 class GridLike(Protocol):
-    """What `render_map` needs of an occupancy grid (`atemr.io.sim.maps.OccupancyMap` has it)."""
+    """What `render_map` needs of an occupancy grid (`atemr.domain.maps.OccupancyMap` has it)."""
 
     @property
     def data(self) -> NDArray[np.int8]: ...
@@ -94,6 +95,15 @@ def status_levels(status: PrimaryStatus) -> tuple[dict[str, bool], dict[str, boo
     level1 = {name.lower(): ok for name, ok in status.agent_ok().items()}
     level2 = {name.lower(): ok for name, ok in status.hardware_ok().items()}
     return level1, level2
+
+
+def navigation_json(status: NavStatus) -> NavigationJson:
+    """Distance left along the path and the time to go, rounded; None for what the planner does not know."""
+
+    def known(value: float, digits: int) -> float | None:
+        return round(value, digits) if math.isfinite(value) and value >= 0.0 else None
+
+    return {"distance_left_m": known(status.distance_left_m, 2), "eta_s": known(status.eta_s, 1)}
 
 
 def system_json(sample: SystemSample | None) -> SystemJson | None:

@@ -45,6 +45,8 @@ log = logging.getLogger(__name__)
 OPERATORS = "operators"
 CAMERA = "camera"
 AGENT = "agent"
+#: The ``status`` of an acknowledgement refused for the user's role or permission, as HTTP says it.
+FORBIDDEN = 403
 #: How often the pushes check that every socket's session is still live (seconds).
 REVOKE_CHECK_S = 0.5
 
@@ -141,10 +143,10 @@ def _checked(event: str, role: Role, permission: Permission | None, handler: Han
         user = current_user()
         if user is None or not user.can(role):
             log.warning("socket event %r refused for %s", event, user.username if user else "anonymous")
-            return CommandResult.refused(f"'{event}' needs the {role} role").to_json()
+            return {**CommandResult.refused(f"'{event}' needs the {role} role").to_json(), "status": FORBIDDEN}
         if permission is not None and not may(permission):
             log.warning("socket event %r refused for %s: needs the permission %r", event, user.username, permission)
-            return CommandResult.refused(refusal(permission)).to_json()
+            return {**CommandResult.refused(refusal(permission)).to_json(), "status": FORBIDDEN}
         robot = gateway()
         if robot is None:
             return NO_ROBOT.to_json()

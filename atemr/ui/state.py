@@ -15,8 +15,16 @@ from __future__ import annotations
 import types
 from typing import Any, Literal, TypedDict, Union, get_args, get_origin, get_type_hints, is_typeddict
 
+from atemr.domain.status import LocalizationState
+
+#: How often the robot sends its state; a page that hears nothing for two periods says the picture is old.
+STATE_RATE_HZ = 10.0
+
 AgentState = Literal["UNDEFINED", "STARTUP", "IDLE", "EXEC", "MAPPING", "SHUTDOWN", "ERROR"]
+AGENT_STATES: tuple[AgentState, ...] = get_args(AgentState)
 Mode = Literal["MANUAL", "AUTO"]
+#: Why a safety layer holds the robot stopped, the most urgent first (see `STOP_CAUSES`).
+StopCause = Literal["cliff", "obstacle", "heartbeat", "motor", "bus"]
 #: ``[[x_m, y_m], ...]`` in the map frame, decimated and rounded to millimetres (`atemr.ui.snapshot.points_json`).
 Points = list[list[float]]
 
@@ -58,6 +66,14 @@ class MissionJson(TypedDict):
     state: str | None
 
 
+class NavigationJson(TypedDict):
+    """How far the goal being driven to still is: along the planned path, and the time at the planned speed
+    (None while the planner does not know yet)."""
+
+    distance_left_m: float | None
+    eta_s: float | None
+
+
 class EventJson(TypedDict):
     """Something an operator should see (`atemr.robot.core.RobotEvent`): robot time, kind, text."""
 
@@ -88,15 +104,14 @@ class CandidateJson(TypedDict):
 
 
 class LocalizationJson(TypedDict):
-    """Localization as every consumer shows it (`atemr.trees.ports.LocalizationStatus`): the one confidence
-    number (0 to 1), the limit it must reach, whether it does (localized), the localizer's state (localized,
-    lost, searching, ambiguous, failed, pose set, uninitialized, no map), and while global localization is
-    ambiguous, the places it cannot tell apart, best first."""
+    """Localization as every consumer shows it (`atemr.domain.status.LocalizationStatus`): the one confidence
+    number (0 to 1), the limit it must reach, whether it does (localized), what the localizer is doing, and
+    while global localization is ambiguous, the places it cannot tell apart, best first."""
 
     confidence: float
     limit: float
     localized: bool
-    state: str
+    state: LocalizationState
     candidates: list[CandidateJson]
 
 
@@ -115,6 +130,7 @@ class RobotState(TypedDict):
     map_version: int
     #: None when the robot does not know where it is.
     pose: PoseJson | None
+    #: How sure the robot is of that pose: the number AUTO, goals and missions wait for.
     localization: LocalizationJson
     #: Valid lidar returns in the map frame (empty when not localized).
     scan: Points
@@ -122,9 +138,13 @@ class RobotState(TypedDict):
     local_path: Points
     #: The goal being driven to (EXEC only), or None.
     goal: PoseJson | None
+    #: Progress towards that goal, or None when there is none.
+    navigation: NavigationJson | None
     wheel_speeds: WheelSpeeds
     #: Low-level brakes applied (emergency or cliff stop).
     emergency: bool
+    #: Why the robot is held stopped (the page says it in plain words with what to do), None when nothing holds it.
+    stop_cause: StopCause | None
     #: Agent bits of CAN 0x153 byte 0 (heartbeat, hardware, auto, connectivity, localization); True is OK.
     level1: dict[str, bool]
     #: Hardware bits of 0x153 byte 1 (left_motor, right_motor, imu, lidar, camera, webserver, ir_front, ir_rear).
@@ -147,6 +167,12 @@ class RobotState(TypedDict):
     #: The latest events, oldest first.
     events: list[EventJson]
     autonomy: AutonomyJson
+
+
+def top_state(state: str) -> AgentState:
+    """The agent's top-level state as the pages show it (``IDLE.MANUAL`` → ``IDLE``); UNDEFINED if unknown."""
+    top = state.split(".", maxsplit=1)[0]
+    return next((s for s in AGENT_STATES if s == top), "UNDEFINED")
 
 
 #: Every key of the snapshot, for checks that a state is whole.

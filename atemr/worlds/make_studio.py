@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from atemr.io.sim.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap, save_map
+from atemr.domain.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+from atemr.io.sim.maps import save_map
 from atemr.msgs import Pose2D
 from atemr.yamlsafe import load_yaml
 

@@ -70,6 +70,8 @@ class KinematicGateway:
         self.mapping = False
         self.limits = (0.5, 1.0)
         self.awareness = False
+        self.stop_cause: str | None = None
+        self.events: list[dict[str, Any]] = [{"t": 0.5, "kind": "info", "text": "agent started"}]
         self.active_map = "room"
         self.maps = ["other", "room"]
         grid = Image.new("L", (120, 80), 254)
@@ -93,6 +95,7 @@ class KinematicGateway:
                 dist = math.hypot(dx, dy)
                 if dist < 0.25:
                     self.goal, self.agent = None, "IDLE"
+                    self.events.append({"t": round(now, 2), "kind": "goal", "text": "Goal reached."})
                     twist = Twist()
                 else:
                     step = min(dist, self.limits[0] * dt)
@@ -119,6 +122,10 @@ class KinematicGateway:
                                  "candidates": []},
                 "scan": scan, "global_path": [[p.x_m, p.y_m], [goal.x_m, goal.y_m]] if goal else [],
                 "local_path": [], "goal": goal and {"x_m": goal.x_m, "y_m": goal.y_m, "yaw_rad": goal.yaw_rad},
+                "navigation": goal and {"distance_left_m": round(math.hypot(goal.x_m - p.x_m, goal.y_m - p.y_m), 2),
+                                        "eta_s": round(math.hypot(goal.x_m - p.x_m, goal.y_m - p.y_m)
+                                                       / self.limits[0], 1)},
+                "stop_cause": self.stop_cause,
                 "wheel_speeds": {"left_radps": self.applied.linear_mps / 0.1,
                                  "right_radps": self.applied.linear_mps / 0.1},
                 "emergency": False,
@@ -131,7 +138,7 @@ class KinematicGateway:
                 "limits": {"linear_mps": self.limits[0], "angular_radps": self.limits[1]},
                 "awareness": self.awareness, "wifi_ssid": "lab", "mapping": self.mapping, "recording": False,
                 "mission": None, "missions": ["patrol", "visit_kitchen"], "maps": list(self.maps),
-                "events": [{"t": 0.5, "kind": "info", "text": "agent started"}],
+                "events": [dict(e) for e in self.events[-20:]],
                 "autonomy": {"level": "full", "levels": ["off", "low", "high", "full"], "timeout_s": 30.0,
                              "pending": None, "now": self.clock.now()},
             }
@@ -278,6 +285,16 @@ class Site:
         self.scheduler.stop()
         self.thread.join(timeout=5)
         self.scheduler.shutdown()
+
+    def pause(self) -> None:
+        """The robot stops sending its state (its process ended) while the dashboard stays up."""
+        self.scheduler.stop()
+        self.thread.join(timeout=5)
+
+    def resume(self) -> None:
+        """A robot comes up again and sends its state."""
+        self.thread = threading.Thread(target=self.scheduler.run, name="e2e-scheduler", daemon=True)
+        self.thread.start()
 
 
 class BootThenRealTime(SimClock):

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from atemr.io.recording.agent_trace import record_entry
+from atemr.io.recording.mcap_writer import RecordingWriter
 from atemr.io.trace_file import TraceWriter
 
 pytestmark = pytest.mark.e2e
@@ -107,8 +109,14 @@ RECORDS = [
 ]
 
 
-def write_trace(folder: Path, name: str = "mission.atrace") -> Path:
+def write_trace(folder: Path, name: str = "mission.mcap") -> Path:
+    """The records as the robot records them (MCAP), or as an older ``.atrace`` trace."""
     folder.mkdir(parents=True, exist_ok=True)
+    if name.endswith(".mcap"):
+        with RecordingWriter(folder / name) as mcap:
+            for record in RECORDS:
+                mcap.write(*record_entry(record))
+        return folder / name
     with TraceWriter(folder / name) as writer:
         for record in RECORDS:
             writer.write(record)
@@ -130,7 +138,7 @@ def test_a_trace_replays_seek_step_play_search_and_collapse(ready_site, page, sh
     write_trace(ready_site.data_dir / "traces")
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{ready_site.url}/agent")
-    wait_for(page, "document.getElementById('trace-select').value === 'mission.atrace'")
+    wait_for(page, "document.getElementById('trace-select').value === 'mission.mcap'")
     page.click("#trace-open")
     wait_for(page, "document.getElementById('replay-time').textContent === '10.0'")
     assert page.inner_text("#agent-current") == "IDLE.AUTO" and page.inner_text("#replay-end") == "13.5"
@@ -190,7 +198,7 @@ def test_a_trace_is_uploaded_and_opened(ready_site, page, helpers, tmp_path):
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
     page.set_input_files("#trace-file", str(bad))
     page.click("#trace-upload")
-    wait_for(page, "document.getElementById('replay-warning').textContent.includes('not an ATEMR trace')")
+    wait_for(page, "document.getElementById('replay-warning').textContent.includes('neither an MCAP recording')")
     page.set_input_files("#trace-file", str(path))
     page.click("#trace-upload")
     wait_for(page, "document.getElementById('agent-source').textContent === 'REPLAY from_robot_2.atrace'")

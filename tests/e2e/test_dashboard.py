@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import io
 import math
+import os
 import re
 from pathlib import Path
 from typing import Any
 
+import av
 import pytest
 from PIL import Image
 
@@ -158,16 +160,10 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map.image !== null")
-    page.click("#map-ctl")  # SEND CMD
-    page.click("#map-cmd")  # refused in MANUAL
-    assert "switch to AUTO first" in page.inner_text("#command-result")
     # AUTO is refused until every level-1 status is OK (the IR sensors come up after the secondary core boots)
     wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)")
-    page.click("#mode-toggle")
-    wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
-    assert robot_site.agent_state == "IDLE.AUTO"
-    page.click("#map-cmd")
-    assert page.inner_text("#map-cmd") == "SEND GOAL"
+    page.click("#go-here")  # GO HERE: the next press on the map is the goal, a drag its heading
+    assert "Tap where the robot should go" in page.inner_text("#map-hint")
     start = robot_site.sim.pose
     gx, gy = start.x_m + 1.0, start.y_m + 0.5
     x, y = screen_point(page, gx, gy)
@@ -175,12 +171,18 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
     page.mouse.down()
     page.mouse.move(x + 40, y, steps=4)  # dragged to the right: heading along +x
     page.mouse.up()
+    assert page.is_visible("#goal-confirm") and robot_site.agent_state == "IDLE.MANUAL"  # nothing sent yet
+    page.click("#goal-go")  # CONFIRM: switches to AUTO, then sends the goal
+    wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
     wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
+    wait_for(page, "document.getElementById('goal-progress').textContent.startsWith('On the way: ')")
     wait_for(page, "ATEMR.state.goal !== null && ATEMR.state.global_path.length > 2")
     goal = page.evaluate("ATEMR.state.goal")
     assert abs(goal["x_m"] - gx) < 0.1 and abs(goal["y_m"] - gy) < 0.1 and abs(goal["yaw_rad"]) < 0.3
     page.screenshot(path=str(shots / "control-auto-goal.png"), full_page=True)
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=20000)
+    wait_for(page, "document.getElementById('goal-progress').textContent === 'Arrived.'")
+    assert "Goal reached." in page.inner_text("#alerts")
     assert robot_site.sim.pose.distance_to(start) > 0.8  # it drove there
     assert math.hypot(robot_site.sim.pose.x_m - gx, robot_site.sim.pose.y_m - gy) < 0.3
 
@@ -210,7 +212,7 @@ def test_mapping_begin_end_and_save_on_the_robot(robot_site, page, shots, helper
     assert (robot_site.data_dir / "maps" / "kitchen.yaml").is_file()
     assert robot_site.robot.parts.maps.active_name == "kitchen"
     page.select_option("#map-select", "studio")
-    wait_for(page, "document.getElementById('command-result').textContent === 'map_select: ok'")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Map: done'")
     wait_for(page, "ATEMR.state.active_map === 'studio'")
 
 
@@ -308,7 +310,7 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
     page.mouse.down()
     page.mouse.move(x, y - 40, steps=3)  # dragged up: heading along +y
     page.mouse.up()
-    wait_for(page, "document.getElementById('command-result').textContent === 'sim_kidnap: ok'")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Kidnap: done'")
     for _ in range(40):  # applied at the next physics tick, on the robot's thread
         pose = robot_site.sim.pose
         if pose != start:
@@ -317,14 +319,14 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
     assert math.hypot(pose.x_m - target[0], pose.y_m - target[1]) < 0.1
     assert abs(pose.yaw_rad - math.pi / 2) < 0.3
     page.screenshot(path=str(shots / "control-kidnap.png"), full_page=True)
-    # Localization was not told: FIND POSE has the robot find itself, and the map shows it where it now is.
+    # Localization was not told: FIND POSITION has the robot find itself, and the map shows it where it now is.
     page.click("#localize-global")
-    wait_for(page, "document.getElementById('command-result').textContent === 'localize_globally: ok'")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Find position: done'")
     wait_for(page, f"ATEMR.state.pose !== null && Math.hypot(ATEMR.state.pose.x_m - {pose.x_m}, "
                    f"ATEMR.state.pose.y_m - {pose.y_m}) < 0.15", timeout=20_000)
 
 
-def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
+def test_media_captured_and_recorded_then_played_previewed_downloaded_and_deleted(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
@@ -332,11 +334,46 @@ def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
     images = robot_site.data_dir / "media" / "images"
     for _ in range(2):
         page.click("#capture")
-        wait_for(page, "document.getElementById('command-result').textContent === 'capture_image: ok'")
+        wait_for(page, "document.getElementById('command-result').textContent === 'Capture: done'")
         page.evaluate("document.getElementById('command-result').textContent = ''")
     files = sorted(images.glob("*.jpg"))
     assert len(files) == 2
+    page.click("#record")
+    wait_for(page, "ATEMR.state.recording === true")
+    page.wait_for_timeout(1500)
+    page.click("#record")
+    wait_for(page, "ATEMR.state.recording === false")
+    videos = list((robot_site.data_dir / "media" / "videos").iterdir())
+    assert [v.suffix for v in videos] == [".mp4"], videos
+    for i in range(10):  # older images: the page shows ten, MORE the rest
+        older = images / f"older-{i}.jpg"
+        Image.new("RGB", (640, 480), (20 * i, 90, 90)).save(older, format="JPEG")
+        os.utime(older, (1000 + i, 1000 + i))
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
     page.goto(f"{robot_site.url}/media")
+    # the video the recorder wrote plays in Chromium's own <video>: metadata and a first frame decoded
+    video = f'#videos li[data-name="{videos[0].name}"] video'
+    page.evaluate(f"(() => {{ const v = document.querySelector('{video}'); v.preload = 'auto'; v.load(); }})()")
+    wait_for(page, f"document.querySelector('{video}').readyState >= 2", timeout=15_000)
+    duration, width, error = page.evaluate(f"(() => {{ const v = document.querySelector('{video}'); "
+                                           "return [v.duration, v.videoWidth, v.error && v.error.message]; })()")
+    assert error is None and duration > 0 and width == 640
+    with av.open(str(videos[0])) as container:  # as long as the robot's clock says it recorded (a loaded
+        assert abs(duration - container.duration / 1e6) < 0.2  # machine runs the robot slower than real time)
+    # thumbnails made by the server (images load as they come into view): the images' and the video's poster
+    loaded = "(i => i.complete && i.naturalWidth === 320)"
+    wait_for(page, f"[...document.querySelectorAll('#images img')].slice(0, 2).every({loaded})")
+    poster = page.evaluate(f"document.querySelector('{video}').poster")
+    assert page.request.get(poster).headers["content-type"] == "image/jpeg"
+    page.click("#images button.more")
+    wait_for(page, "document.querySelectorAll('#images li[data-name]').length === 12 "
+                   "&& document.querySelector('#images button.more') === null")
+    page.locator('#images li[data-name="older-0.jpg"] img').scroll_into_view_if_needed()
+    wait_for(page, f"{loaded}(document.querySelector('#images li[data-name=\"older-0.jpg\"] img'))")
+    assert page.get_attribute('#images li[data-name="older-0.jpg"] form', "data-confirm") == \
+        "Delete older-0.jpg? This cannot be undone."
     page.screenshot(path=str(shots / "media.png"), full_page=True)
     first = files[0].name
     with page.expect_download() as info:
@@ -347,9 +384,25 @@ def test_capture_then_download_and_delete_it(robot_site, page, shots, helpers):
     assert data == files[0].read_bytes()
     with Image.open(io.BytesIO(data)) as image:
         assert image.size == (640, 480)
+    # deleting one asks first: dismissed, nothing goes; accepted, it goes
+    questions: list[str] = []
+
+    def answer(dialog: Any, accept: bool) -> None:
+        questions.append(dialog.message)
+        if accept:
+            dialog.accept()
+        else:
+            dialog.dismiss()
+
+    page.once("dialog", lambda d: answer(d, False))
+    page.click(f'li[data-name="{first}"] button.delete-one')
+    page.wait_for_timeout(300)
+    assert questions == [f"Delete {first}? This cannot be undone."] and files[0].exists()
+    page.once("dialog", lambda d: answer(d, True))
     page.click(f'li[data-name="{first}"] button.delete-one')
     page.wait_for_selector(f"text=Deleted {first}")
     assert not files[0].exists() and files[1].exists()
+    assert not errors, errors
 
 
 def test_phone_sized_screen(ready_site, browser, shots, helpers):
@@ -409,7 +462,7 @@ def test_several_robots_on_one_dashboard_are_told_apart(ready_site, page, shots,
         page.select_option("#robot", "KAY")
         wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
         page.click("#capture")
-        wait_for(page, "document.getElementById('command-result').textContent === 'capture_image: ok'")
+        wait_for(page, "document.getElementById('command-result').textContent === 'Capture: done'")
     finally:
         stop.set()
         publisher.join(timeout=5)
@@ -432,7 +485,8 @@ def test_a_gated_transition_is_confirmed_from_the_page(robot_site, page, shots, 
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
     page.click("#mapping-toggle")
     wait_for(page, "!document.getElementById('autonomy-request').hidden")
-    assert "begin_mapping: IDLE.MANUAL → MAPPING" in page.inner_text("#autonomy-what")
+    assert page.inner_text("#autonomy-what") == "may it start mapping?"
+    assert "begin_mapping: IDLE.MANUAL → MAPPING" in page.get_attribute("#autonomy-what", "title")
     assert robot_site.agent_state == "IDLE.MANUAL", "it waits for the operator"
     wait_for(page, "ATEMR.state.events.some((e) => e.kind === 'autonomy' && e.text.includes('waits for the operator'))")
     page.screenshot(path=str(shots / "autonomy-request.png"), full_page=True)
@@ -487,7 +541,7 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
     wait_for(page, "ATEMR.state.active_map === 'flat-copy'")
     wait_for(page, "document.getElementById('localization').textContent.startsWith('NOT LOCALIZED')")
     assert "uninitialized" in page.inner_text("#localization-detail")
-    assert "set the pose or FIND POSE" in page.inner_text("#localization-detail")
+    assert "set the pose or FIND POSITION" in page.inner_text("#localization-detail")
     wait_for(page, "[...document.querySelectorAll('#events li')].some((li) => li.textContent.includes("
                    "'not localized until a pose is set'))")
     page.click("#mode-toggle")

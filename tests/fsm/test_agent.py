@@ -11,16 +11,15 @@ from pathlib import Path
 import pytest
 
 from atemr.clock import SimClock
+from atemr.domain.status import ComponentHealth, PowerState, StateCode
 from atemr.errors import HardwareError
 from atemr.fsm.agent import Agent
 from atemr.fsm.machine import replay
 from atemr.fsm.spec import AgentSpec
-from atemr.io.can import PowerState, StateCode
 from atemr.msgs import Pose2D, Twist
 from atemr.scheduler import Scheduler
 from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
 from atemr.trees.missions import parse_mission
-from atemr.trees.ports import ComponentHealth
 from atemr.yamlsafe import load_yaml
 
 AGENT_YAML = Path(__file__).resolve().parents[2] / "trees" / "agent.yaml"

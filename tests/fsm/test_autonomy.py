@@ -230,7 +230,7 @@ def test_safety_transitions_never_wait_and_supersede_a_pending_request(agent_spe
         rig.link.power_off = True
         rig.scheduler.run(duration=0.2)
     elif trigger == "fault":
-        from atemr.trees.ports import ComponentHealth
+        from atemr.domain.status import ComponentHealth
 
         rig.port.components["left_motor"] = ComponentHealth(False, "over-temperature")
         rig.scheduler.run(duration=0.2)
@@ -257,7 +257,7 @@ def test_a_level_given_to_a_safety_transition_in_code_is_ignored(agent_spec: Age
 def test_the_export_shows_the_levels(agent_spec: AgentSpec) -> None:
     import json
 
-    from atemr.trees.export import drawing_of, to_ascii, to_json
+    from atemr.fsm.export import drawing_of, to_ascii, to_json
 
     ascii_text = to_ascii(drawing_of(agent_spec))
     assert "IDLE.AUTO --start_mission [mission_runnable, autonomy high]--> EXEC" in ascii_text

@@ -8,12 +8,13 @@ from pathlib import Path
 
 import can
 
+from atemr.domain.status import PowerRequest, PowerState, StateCode
 from atemr.fsm.agent import Agent
 from atemr.fsm.spec import AgentSpec
-from atemr.io.can import Heartbeat, Power, PowerRequest, PowerState, PrimaryStatus, StateCode
+from atemr.io.can import Heartbeat, Power, PrimaryStatus
+from atemr.robot.port import SecondaryLinkPort
 from atemr.trees.fakes import RecordingPort
 from atemr.trees.missions import load_mission
-from atemr.trees.secondary import SecondaryLinkPort
 from secondary_core.harness import LinkBench
 
 LOOK_AROUND = Path(__file__).resolve().parents[2] / "trees" / "missions" / "look-around.yaml"

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from atemr.domain.status import ComponentHealth
 from atemr.fsm.guards import GuardInput, callbacks, guards
 from atemr.fsm.machine import Lifecycle
 from atemr.fsm.spec import AgentSpec
@@ -17,7 +18,6 @@ from atemr.trees.behaviours import behaviours
 from atemr.trees.context import AgentContext
 from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
 from atemr.trees.missions import parse_mission
-from atemr.trees.ports import ComponentHealth
 from atemr.yamlsafe import load_yaml
 
 TESTED_GUARDS = {"goal_valid", "auto_mode", "mission_runnable", "level1_ok", "map_name_valid"}
@@ -96,8 +96,8 @@ def test_auto_and_missions_need_the_confidence_above_its_limit(agent_spec: Agent
     """Issue 21: "localized" is the confidence number at or above its limit, and the guards say so with it."""
     lost = RecordingPort(is_localized=False)
     answer = check("level1_ok", lost)
-    assert answer == ("level-1 status not OK (not localized (confidence 0%, needs 70%; lost): set the robot's pose "
-                      "on the map or FIND POSE)")
+    assert answer == ("level-1 status not OK (not localized (confidence 0%, needs 70%; lost): set the robot's "
+                      "position on the map (SET POSITION) or press FIND POSITION)")
     wait = parse_mission(load_yaml("w", text="mission:\n  name: w\n  steps: [{wait: {duration_s: 1}}]\n"), "w")
     assert "mission 'w' refused: not localized" in str(check("mission_runnable", lost, mission=wait))
     assert check("level1_ok", RecordingPort(is_localized=True)) is None

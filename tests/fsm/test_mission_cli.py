@@ -113,7 +113,7 @@ def flat_run(tmp_path_factory: pytest.TempPathFactory) -> FlatRun:
     try:
         with contextlib.redirect_stdout(out):
             code = main(["--log-level", "ERROR", "mission", "run", str(MAP_THE_FLAT), "--headless", "--seed", "0",
-                         "--json", "--data-dir", str(data)])
+                         "--json", "--data-dir", str(data), "--trace", str(data / "tour.mcap")])
     finally:
         for handler in list(root.handlers):
             if handler not in handlers:
@@ -125,6 +125,7 @@ def flat_run(tmp_path_factory: pytest.TempPathFactory) -> FlatRun:
     return FlatRun(code, json.loads(out.getvalue()), data, precision, recall)
 
 
+@pytest.mark.slow  # the tour is a few simulated minutes of the whole robot
 def test_the_whole_flat_is_mapped_on_a_tour(flat_run: FlatRun) -> None:
     """The shipped map-the-flat mission (SLAM on, a living-room round along a route, then every other room,
     save) on the whole robot: completes, saves a map that becomes active, and has seen (almost) the whole flat."""
@@ -155,11 +156,30 @@ def test_the_whole_flat_is_mapped_on_a_tour(flat_run: FlatRun) -> None:
     assert flat_run.recall >= 0.75, flat_run.recall  # most surfaces seen are mapped; precision: the next test
 
 
+@pytest.mark.slow
 def test_the_whole_flat_map_matches_the_ground_truth(flat_run: FlatRun) -> None:
     """Issue 8's bar: ≥ 90 % of the saved map's occupied cells within one cell of the world's map. The tour starts
     localized on the studio map, so the new map is registered to its frame (a third of a degree of start heading
     left in the frame costs about 15 points here: tests/skills/test_slam.py)."""
     assert flat_run.precision >= 0.90, flat_run.precision
+
+
+def test_replaying_the_recorded_tour_rebuilds_a_map_that_scores_as_the_live_one(
+        flat_run: FlatRun, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 23: ``atemr replay run.mcap --slam`` on the tour's recording (scans, wheel odometry, IMU) gives a map
+    that agrees with the world's map as the live SLAM map does, within one point."""
+    recording = flat_run.data_dir / "tour.mcap"
+    assert flat_run.result["trace_files"] == [str(recording)]
+    code = main(["--log-level", "ERROR", "replay", str(recording), "--slam", "--save-map", "studio-replayed",
+                 "--json", "--data-dir", str(flat_run.data_dir)])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0 and report["saved_as"] == "studio-replayed" and report["map"]["sessions"] == 1
+    replayed = load_map(flat_run.data_dir / "maps" / "studio-replayed.yaml")
+    truth = load_map(ROOT / "atemr" / "worlds" / "studio" / "studio.yaml")
+    precision, recall = map_agreement(replayed, truth)
+    assert abs(precision - flat_run.precision) <= 0.01, (precision, flat_run.precision)
+    assert abs(recall - flat_run.recall) <= 0.01, (recall, flat_run.recall)
+    assert MapStore(flat_run.data_dir).active_name() == "studio-mapped", "a replayed map is stored, not activated"
 
 
 def test_a_failed_mapping_mission_says_why_and_drops_its_map(capsys: pytest.CaptureFixture[str],

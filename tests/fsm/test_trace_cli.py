@@ -68,11 +68,11 @@ def test_show_refuses_what_is_not_a_trace(tmp_path: Path, capsys: pytest.Capture
     path = tmp_path / "notes.txt"
     path.write_text("hello")
     assert main(["trace", "show", str(path)]) == 2
-    assert "not an ATEMR trace" in capsys.readouterr().err
+    assert "neither an MCAP recording nor an ATEMR trace" in capsys.readouterr().err
 
 
 def test_a_headless_mission_run_writes_a_trace(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    trace = tmp_path / "goal.atrace"
+    trace = tmp_path / "goal.mcap"
     code = main(["--log-level", "ERROR", "mission", "run", "--headless", "--goal", "1.5,1.0,0", "--json",
                  "--data-dir", str(tmp_path / "data"), "--trace", str(trace)])
     result = json.loads(capsys.readouterr().out)

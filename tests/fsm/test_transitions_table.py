@@ -10,12 +10,12 @@ from typing import Any
 
 import pytest
 
+from atemr.domain.status import StateCode, state_code
 from atemr.fsm.autonomy import LEVELS as AUTONOMY_LEVELS
 from atemr.fsm.autonomy import AutonomyGate
-from atemr.fsm.codes import state_code
 from atemr.fsm.machine import Lifecycle
 from atemr.fsm.spec import AgentSpec
-from atemr.io.can import PrimaryStatus, StateCode
+from atemr.io.can import PrimaryStatus
 from atemr.registry import Registry
 from atemr.trees.context import AgentContext
 from atemr.trees.fakes import RecordingPort

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError
 from atemr.io.map_store import DEFAULT_MAP, MapStore, clean_name
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import Pose2D
 
 

@@ -10,23 +10,19 @@ from concurrent.futures import ThreadPoolExecutor
 import can
 import pytest
 
+from atemr.domain.status import AgentBits, HardwareBits, PowerRequest, PowerState, StateCode
 from atemr.errors import HardwareError, ProtocolError
 from atemr.io.can import (
     PASSWORD,
     SSID,
-    AgentBits,
     CanId,
-    HardwareBits,
     Heartbeat,
     IpAddress,
     IpRequest,
     IrFront,
     IrRear,
     Power,
-    PowerRequest,
-    PowerState,
     PrimaryStatus,
-    StateCode,
     encode_text,
 )
 from atemr.io.network import AppliedNetwork, RecordingNetworkBackend

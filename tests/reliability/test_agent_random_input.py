@@ -32,17 +32,16 @@ from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 
+from atemr.domain.status import ComponentHealth, StateCode, state_code, top_level
 from atemr.fsm.agent import Agent
-from atemr.fsm.codes import state_code, top_level
 from atemr.fsm.machine import TransitionRecord
 from atemr.fsm.spec import load_agent
-from atemr.io.can import StateCode
 from atemr.msgs import Pose2D, Twist
+from atemr.robot.port import SecondaryLinkPort
 from atemr.trees.context import clear_blackboard
 from atemr.trees.fakes import RecordingPort, StraightLineNavigation
 from atemr.trees.missions import load_mission, mission_from_goals
-from atemr.trees.ports import ComponentHealth, VelocitySource
-from atemr.trees.secondary import SecondaryLinkPort
+from atemr.trees.ports import VelocitySource
 from secondary_core.harness import LinkBench
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import html
 import io
 import re
 import threading
@@ -31,10 +32,11 @@ from PIL import Image, ImageFile
 
 from atemr.clock import SimClock, WallClock
 from atemr.config import Config, UiConfig, load_config
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError, brief
 from atemr.io.can.bus import unique_channel
 from atemr.io.map_store import MapStore
-from atemr.io.sim.maps import DEFAULT_MAX_MAP_CELLS, OccupancyMap, load_map
+from atemr.io.sim.maps import DEFAULT_MAX_MAP_CELLS, load_map
 from atemr.robot import Robot, build_robot
 from atemr.robot import gateway as gateway_module
 from atemr.robot.gateway import RobotGatewayImpl
@@ -122,9 +124,14 @@ def upload(client: FlaskClient, yaml_text: str, image: bytes, *, yaml_name: str 
     return client.post("/mapping/upload", data=data, content_type="multipart/form-data")
 
 
-def flashes(client: FlaskClient) -> list[str]:
+def refusals(client: FlaskClient, response: Any) -> list[str]:
+    """What the upload's answer says beside its form, plus any flash left in the session (there must be none:
+    a refusal shown in place never rides in the cookie)."""
     with client.session_transaction() as session:
-        return [text for _, text in session.get("_flashes", [])]
+        assert not session.get("_flashes"), session.get("_flashes")
+    found = re.findall(r'<p class="error inline-error" id="map-upload-error" role="alert">(.*?)</p>',
+                       response.get_data(as_text=True), re.S)
+    return [html.unescape(text) for text in found]
 
 
 def stored(app: Flask) -> list[str]:
@@ -138,7 +145,7 @@ def test_a_7000_by_7000_png_upload_is_refused_from_its_header_without_decoding(a
     spy = DecodeSpy(monkeypatch)
     response = upload(carol, MAP_YAML.format(image="bomb.png"), bomb, yaml_name="bomb.yaml", image_name="bomb.png")
     assert response.status_code == 400
-    [message] = flashes(carol)
+    [message] = refusals(carol, response)
     assert "7000 x 7000 = 49,000,000 cells" in message, message  # names the size ...
     assert "more than the limit of 4,000,000 (ui.max_map_cells)" in message  # ... and the cap
     assert spy.loads == [] and spy.opens == 0  # refused from the PNG header: Pillow never even opened it
@@ -225,7 +232,7 @@ def test_the_nested_alias_map_yaml_is_refused_while_parsing(tmp_path):
 def test_the_alias_bomb_upload_gets_a_short_refusal(app, carol):
     response = upload(carol, alias_bomb(), png_bytes(20, 10), image_name="room.png")
     assert response.status_code == 400
-    [message] = flashes(carol)
+    [message] = refusals(carol, response)
     assert "aliases expand to more than" in message
     assert len(message) < 300 and message.count("lol") == 0
     assert stored(app) == []
@@ -273,7 +280,7 @@ def test_upload_flashes_are_bounded_whatever_the_upload(app, carol, case):
         yaml_text = MAP_YAML.format(image=image_name)
     response = upload(carol, yaml_text, small_pgm(), yaml_name=yaml_name, image_name=image_name)
     assert response.status_code == 400
-    [message] = flashes(carol)
+    [message] = refusals(carol, response)
     assert message.startswith("Map upload refused: ") and len(message) <= MAX_FLASH_CHARS
     assert len(carol.get_cookie("atemr_session").value) < 4000  # a browser keeps cookies up to 4 KB
     assert stored(app) == []
@@ -367,6 +374,7 @@ def test_a_slow_load_answers_still_loading_refuses_a_second_and_reports_when_rea
     assert any(e["text"] == "active map: rooms" for e in robot.recent_events(10))
 
 
+@pytest.mark.exclusive  # the real-time robot's own overrun accounting
 def test_selecting_a_large_map_does_not_stall_the_control_loop(tmp_path):
     """The whole simulated robot on the wall clock (so a tick that blocks shows as an overrun of every
     component due meanwhile) selects a 1900 x 1900 map through the gateway, as the dashboard does.

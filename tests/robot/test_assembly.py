@@ -110,21 +110,21 @@ def test_an_invalid_goal_goes_to_error_with_the_reason_and_back_to_idle(robot):
     assert "outside the map" in error.reason
 
 
-def test_every_run_records_a_trace_rotated_by_size(tmp_path):
+def test_every_run_records_to_mcap_rotated_by_size(tmp_path):
     from atemr.fsm.trace_timeline import TraceTimeline
-    from atemr.io.trace_file import read_trace
+    from atemr.io.recording.agent_trace import read_agent_trace
 
     config = load_config(environ={}, overrides={
         "data_dir": str(tmp_path), "can.channel": unique_channel("robot"), "ui.enabled": False,
-        "secondary.portal_serve": False, "trace.max_file_mb": 0.004, "trace.max_files": 3})
+        "secondary.portal_serve": False, "trace.max_file_mb": 0.06, "trace.max_files": 3})
     robot = build_robot(config, realtime=False, clock=SimClock())
     with robot:
         robot.run(duration=6.0)
-    parts = sorted((tmp_path / "traces").glob("run-*.atrace"))
-    assert len(parts) == 3  # rotated at 4 kB, the oldest parts deleted
-    assert all(p.stat().st_size <= 0.004 * 1024 * 1024 for p in parts)
+    parts = sorted((tmp_path / "traces").glob("run-*.mcap"))
+    assert len(robot.parts.trace.parts) > 3 and len(parts) == 3  # rotated at 60 kB, the oldest parts deleted
+    assert all(p.stat().st_size <= 0.06 * 1024 * 1024 for p in parts)
     newest = robot.parts.trace.parts[-1]
-    timeline = TraceTimeline(read_trace(newest).records)
+    timeline = TraceTimeline(read_agent_trace(newest).records)
     assert timeline.head["meta"] == {"world": "studio", "seed": 0, "map": "studio", "simulation": True}
     end = timeline.frame(1e9)
     assert end["state"] == "IDLE.MANUAL" and end["tree"]["name"] == "manual" and end["pose"] is not None

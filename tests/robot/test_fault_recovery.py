@@ -10,13 +10,14 @@ import pytest
 
 from atemr.clock import SimClock
 from atemr.config import load_config
+from atemr.domain.status import ComponentHealth
 from atemr.io.can.bus import unique_channel
 from atemr.io.motors.rmd_codec import MotorErrorFlags
 from atemr.msgs import Twist
 from atemr.robot import build_robot
 from atemr.robot.core import Robot
 from atemr.robot.health import HealthBoard
-from atemr.trees.ports import ComponentHealth, RobotPort
+from atemr.trees.ports import RobotPort
 
 
 def test_health_board_runs_every_recovery_and_joins_the_reasons() -> None:

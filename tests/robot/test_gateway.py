@@ -9,17 +9,18 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import av
 import numpy as np
 import pytest
 from PIL import Image
 
 from atemr.clock import SimClock
 from atemr.config import load_config
+from atemr.domain.status import ComponentHealth
 from atemr.io.can.bus import unique_channel
 from atemr.msgs import Pose2D, Twist
 from atemr.robot import Robot, build_robot
 from atemr.robot.gateway import RobotGatewayImpl
-from atemr.trees.ports import ComponentHealth
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.state import state_problems
 
@@ -106,7 +107,8 @@ def test_joystick_drives_the_robot_and_the_pose_follows(booted):
 def test_modes_goals_and_missions_are_accepted_or_refused_as_the_agent_decides(booted):
     robot, gateway = booted
     assert gateway.set_goal(Pose2D(2.0, 2.0, 0.0)).reason == "switch to AUTO first"
-    assert "not valid in state IDLE.MANUAL" in gateway.cancel_goal().reason
+    assert gateway.cancel_goal().reason == ("There is nothing to cancel: the robot is not driving to a goal or "
+                                            "running a mission.")  # plain words; the agent's stay on its page
     assert gateway.set_mode("MANUAL").ok  # already there: nothing to do
     assert not gateway.set_mode("TURBO").ok  # type: ignore[arg-type]
     assert gateway.start_mission("look-around").reason == "switch to AUTO first"
@@ -129,9 +131,12 @@ def test_modes_goals_and_missions_are_accepted_or_refused_as_the_agent_decides(b
     assert agent_state(robot) == "EXEC"
     mission = gateway.state()["mission"]
     assert mission["name"] == "look-around" and mission["state"] == "running" and 0 < mission["progress"] < 1
+    assert "busy with a goal or a mission" in gateway.begin_mapping().reason
     assert gateway.stop_mission().ok
     run(robot, 0.3)
     assert agent_state(robot) == "IDLE.AUTO"
+    assert gateway.state()["events"][-1]["kind"] == "mission"
+    assert gateway.state()["events"][-1]["text"].startswith("Mission 'look-around' cancelled")
     assert gateway.set_mode("MANUAL").ok
     run(robot, 0.3)
     assert agent_state(robot) == "IDLE.MANUAL"
@@ -171,7 +176,7 @@ def test_auto_goals_and_missions_wait_for_a_pose_after_a_map_switch(booted):
     assert state["pose"] is None and not state["level1"]["localization"]  # 0x153 bit 4, as the secondary core hears
     assert any(e["kind"] == "localization map_changed" and "not localized" in e["text"] for e in state["events"])
     mission = gateway.start_mission("look-around")
-    assert not mission.ok and "not localized" in mission.reason and "FIND POSE" in mission.reason
+    assert not mission.ok and "not localized" in mission.reason and "FIND POSITION" in mission.reason
     goal = gateway.set_goal(Pose2D(4.0, 2.0, 0.0))
     assert not goal.ok and "not localized" in goal.reason
     assert gateway.set_mode("MANUAL").ok
@@ -246,12 +251,15 @@ def test_camera_jpeg_capture_and_video(booted):
     assert gateway.state()["recording"] is True
     run(robot, 1.0)
     assert gateway.record_video(False).ok
-    videos = list((robot.config.data_dir / "media" / "videos").glob("*.mjpeg"))
-    assert len(videos) == 1
-    frames = videos[0].read_bytes().split(b"\xff\xd9\xff\xd8")  # end of one JPEG, start of the next
+    videos = list((robot.config.data_dir / "media" / "videos").iterdir())
+    assert [v.suffix for v in videos] == [".mp4"]  # finished: no .part left
+    with av.open(str(videos[0])) as container:
+        stream = container.streams.video[0]
+        assert stream.codec_context.name == "h264"
+        pictures = [frame.to_image() for frame in container.decode(stream)]
     camera_hz = robot.parts.sim.params.camera_hz
-    assert abs(len(frames) - camera_hz) <= 1
-    assert Image.open(io.BytesIO(videos[0].read_bytes())).size == (640, 480)  # the first frame decodes
+    assert abs(len(pictures) - camera_hz) <= 1
+    assert pictures[0].size == (640, 480)
     assert gateway.state()["recording"] is False
 
 
@@ -353,13 +361,45 @@ def test_auto_goal_shows_the_paths_and_is_reached(booted):
     path = np.asarray(state["global_path"])
     assert len(path) > 2 and np.hypot(*(path[-1] - [goal.x_m, goal.y_m])) < 0.2
     assert len(state["local_path"]) > 0
+    progress = state["navigation"]
+    assert progress is not None and 0.3 < (progress["distance_left_m"] or 0) < 1.6 and (progress["eta_s"] or 0) > 0
     for _ in range(30):
         run(robot, 1.0)
         if agent_state(robot) != "EXEC":
             break
     assert agent_state(robot) == "IDLE.AUTO"
     assert robot.parts.sim.pose.distance_to(goal) < 0.3
-    assert gateway.state()["goal"] is None and gateway.state()["global_path"] == []
+    after = gateway.state()
+    assert after["goal"] is None and after["global_path"] == [] and after["navigation"] is None
+    assert after["events"][-1] == {"t": after["events"][-1]["t"], "kind": "goal", "text": "Goal reached."}
+
+
+def test_the_state_says_why_the_robot_is_held_stopped(booted):
+    robot, gateway = booted
+    assert gateway.state()["stop_cause"] is None
+    inputs = robot.parts.inputs
+    inputs.set_safety_stop("CAN bus fault", True)
+    assert gateway.state()["stop_cause"] == "bus"
+    inputs.set_safety_stop("heartbeat lost", True)
+    assert gateway.state()["stop_cause"] == "heartbeat"  # the more urgent of the two
+    inputs.set_safety_stop("heartbeat lost", False)
+    inputs.set_safety_stop("CAN bus fault", False)
+    sim = robot.parts.sim
+    grid = sim.world.map
+    walls = np.argwhere(grid.data == 100)
+    # drive straight at the nearest wall until the stop zone brakes the base
+    here = np.asarray([sim.pose.x_m, sim.pose.y_m])
+    cells = np.asarray([grid.cell_to_world(r, c) for r, c in walls[:: max(1, len(walls) // 400)]])
+    nearest = cells[np.argmin(np.hypot(*(cells - here).T))]
+    heading = math.atan2(nearest[1] - here[1], nearest[0] - here[0])
+    assert gateway.sim_kidnap(Pose2D(float(here[0]), float(here[1]), heading)).ok
+    run(robot, 0.2)
+    for _ in range(80):
+        assert gateway.joystick(Twist(0.3, 0.0)).ok
+        run(robot, 0.1)
+        if gateway.state()["stop_cause"] == "obstacle":
+            break
+    assert gateway.state()["stop_cause"] == "obstacle" and gateway.state()["emergency"] is True
 
 
 def test_autonomy_level_confirm_and_reload_through_the_gateway(booted):

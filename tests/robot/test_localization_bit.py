@@ -14,7 +14,8 @@ import pytest
 
 from atemr.clock import SimClock
 from atemr.config import load_config
-from atemr.io.can import AgentBits, PrimaryStatus
+from atemr.domain.status import AgentBits
+from atemr.io.can import PrimaryStatus
 from atemr.io.can.bus import unique_channel
 from atemr.msgs import Pose2D
 from atemr.robot import build_robot

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import Counter
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from atemr.io.devices.rplidar import RplidarDriver
 from atemr.io.devices.rplidar_emulator import RplidarEmulator
 from atemr.io.devices.wt901 import Wt901Driver
 from atemr.io.devices.wt901_emulator import Wt901Emulator
+from atemr.io.recording.mcap_reader import RecordingReader
 from atemr.msgs import Pose2D
 from atemr.robot import build_robot
 from atemr.robot.core import Robot
@@ -54,7 +56,7 @@ def real_robot(tmp_path: Path) -> Iterator[tuple[Robot, RplidarEmulator, Wt901Em
     with RplidarEmulator(directory=tmp_path) as lidar, Wt901Emulator(directory=tmp_path) as imu:
         config = load_config(None, environ={}, overrides={
             "simulation": False, "data_dir": tmp_path / "data", "ui.enabled": False, "control.enabled": False,
-            "trace.enabled": False, "can.channel": unique_channel("real"), "sim.world": "studio",
+            "trace.enabled": True, "can.channel": unique_channel("real"), "sim.world": "studio",
             "devices.lidar.driver": "rplidar", "devices.lidar.port": lidar.port,
             "devices.imu.driver": "wt901", "devices.imu.port": imu.port, "devices.imu.bias_s": 0.5,
             "devices.camera.driver": "opencv", "devices.camera.source": str(video),
@@ -80,6 +82,7 @@ def run_until(robot: Robot, done: Callable[[], bool], timeout_s: float, what: st
         robot.run(duration=0.1)
 
 
+@pytest.mark.exclusive  # a real-time robot: blind stop within 2 s of the wall clock
 def test_the_real_path_drives_to_a_goal_and_stops_blind(real_robot: tuple[Robot, RplidarEmulator,
                                                                           Wt901Emulator]) -> None:
     robot, lidar, _ = real_robot
@@ -133,3 +136,15 @@ def test_the_real_path_drives_to_a_goal_and_stops_blind(real_robot: tuple[Robot,
     lidar.replug()
     run_until(robot, lambda: agent.state.startswith("IDLE"), 10, "recovered")
     assert robot.devices.lidar.health(robot.clock.now()).ok
+
+    # The run was recorded from the real drivers (a writer thread on the wall clock), as a simulated run is.
+    writer = robot.parts.trace
+    assert writer is not None and writer.threaded, writer
+    assert writer.error is None, writer.error
+    writer.flush()
+    reader = RecordingReader(writer.parts[0])
+    counts = Counter(m.topic for m in reader.messages())
+    for topic in ("/scan", "/imu", "/wheel_odom", "/odom", "/pose", "/tf", "/map", "/plan", "/can/frames",
+                  "/camera/image/compressed", "/health", "/agent/transitions"):
+        assert counts[topic] > 0, (topic, counts)
+    assert counts["/scan"] > 50 and counts["/imu"] > counts["/scan"]

@@ -13,8 +13,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import OccupancyMap, load_map, save_map
+from atemr.io.sim.maps import load_map, save_map
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.geometry import as_array, as_pose, compose, relative
 from atemr.skills.slam import OccupancyGridSlam, SlamParams, map_agreement

@@ -12,15 +12,14 @@ from typing import Any
 import py_trees
 import pytest
 
+from atemr.domain.status import ComponentHealth, PowerState, StateCode
 from atemr.errors import AtemrError, ConfigError, HardwareError
-from atemr.io.can import PowerState, StateCode
 from atemr.msgs import Pose2D, Twist
 from atemr.trees.behaviours import Leaf, behaviours, parse_params
 from atemr.trees.context import AgentContext
 from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
 from atemr.trees.leaves.checks import ClassifyError
 from atemr.trees.nodes import ClockTimeout
-from atemr.trees.ports import ComponentHealth
 from atemr.typed import Source
 
 Status = py_trees.common.Status

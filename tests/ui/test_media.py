@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import zipfile
 from pathlib import Path
 
@@ -127,6 +128,14 @@ def test_the_dashboard_and_the_robot_share_one_map_store(alice, app, ui):
     assert store.load("room").data.shape == (10, 20)
 
 
+def inline_error(response) -> str:
+    """The refusal shown beside the upload form of the page the upload answered with."""
+    match = re.search(r'<p class="error inline-error" id="map-upload-error" role="alert">(.*?)</p>',
+                      response.get_data(as_text=True), re.S)
+    assert match, "no error beside the upload form"
+    return match.group(1)
+
+
 def upload(client, ui, yaml_bytes=MAP_YAML, image=None, yaml_name="room.yaml", image_name="room.pgm"):
     data = {"yaml": (io.BytesIO(yaml_bytes), yaml_name),
             "image": (io.BytesIO(pgm_bytes() if image is None else image), image_name)}
@@ -140,15 +149,16 @@ def test_map_upload_validated_then_stored(alice, app, gateway, ui):
     assert sorted(p.name for p in maps.iterdir()) == ["room.pgm", "room.yaml"]
     assert gateway.maps_changed_count == 1
     # uploading the same name again does not overwrite
-    assert upload(alice, ui).status_code == 409
-    assert "a map named &#39;room&#39; exists already" in alice.get("/mapping").get_data(as_text=True)
+    again = upload(alice, ui)
+    assert again.status_code == 409  # refused on the page itself, beside the upload form
+    assert "a map named &#39;room&#39; exists already" in inline_error(again)
 
 
 def test_map_upload_refused_by_the_map_reader_stores_nothing(alice, app, gateway, ui):
     response = upload(alice, ui, yaml_bytes=MAP_YAML.replace(b"free_thresh: 0.196", b"free_thresh: 0.9"))
     assert response.status_code == 400
     assert not [p for p in (data_dir(app) / "maps").iterdir()]  # nor a staging directory left behind
-    page = alice.get("/mapping").get_data(as_text=True)
+    page = inline_error(response)
     assert "free_thresh: must be below occupied_thresh" in page
     assert gateway.maps_changed_count == 0
 
@@ -157,7 +167,7 @@ def test_a_built_in_map_cannot_be_replaced_by_an_upload(alice, app, ui):
     yaml_bytes = MAP_YAML.replace(b"room.pgm", b"studio.pgm")
     response = upload(alice, ui, yaml_bytes=yaml_bytes, yaml_name="studio.yaml", image_name="studio.pgm")
     assert response.status_code == 400
-    assert "built-in map" in alice.get("/mapping").get_data(as_text=True)
+    assert "built-in map" in inline_error(response)
     assert not list((data_dir(app) / "maps").iterdir())
 
 
@@ -170,8 +180,9 @@ def test_map_upload_size_limit_of_the_map_store(tmp_path, ui):
     app.extensions["atemr.users"].set_password("admin", ui.ADMIN_PW)
     client = app.test_client()
     ui.login(client, "admin", ui.ADMIN_PW)
-    assert upload(client, ui).status_code == 400
-    assert "larger than the limit of 100" in client.get("/mapping").get_data(as_text=True)
+    response = upload(client, ui)
+    assert response.status_code == 400
+    assert "larger than the limit of 100" in inline_error(response)
     assert store.names() == ["studio"]
 
 
@@ -188,7 +199,7 @@ def test_bad_map_uploads_are_refused_and_store_nothing(alice, app, gateway, ui, 
     response = upload(alice, ui, **kwargs)
     assert response.status_code == 400
     assert gateway.maps_changed_count == 0
-    assert message in alice.get("/mapping").get_data(as_text=True).replace("&#39;", "'")
+    assert message in inline_error(response).replace("&#39;", "'")
     assert not list((data_dir(app) / "maps").iterdir())  # nothing stored, no staging directory left
 
 
@@ -222,3 +233,134 @@ def test_without_a_robot_uploads_are_checked_by_the_package_map_reader(tmp_path,
     assert upload(client, ui, yaml_bytes=bad, yaml_name="bad.yaml", image_name="bad.pgm").status_code == 400
     assert sorted(p.name for p in (app.config["ATEMR_CONFIG"].data_dir / "maps").iterdir()) == \
         ["room.pgm", "room.yaml"]
+
+
+# -- playable videos, thumbnails, delete that asks first ----------------------------------------------------
+def write_video(path: Path, value: int = 120, fmt=None) -> None:
+    """A real two-frame video (MP4/H.264 unless told) of one grey level."""
+    import numpy as np
+
+    from atemr.io.video_file import MP4_H264, VideoWriter
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    writer = VideoWriter(path, fmt or MP4_H264, 10.0)
+    for i in range(2):
+        writer.write(np.full((240, 320, 3), value, dtype=np.uint8), i * 0.1)
+    writer.close()
+
+
+def write_jpeg(path: Path, size: tuple[int, int], color: tuple[int, int, int]) -> bytes:
+    buf = io.BytesIO()
+    Image.new("RGB", size, color).save(buf, format="JPEG")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(buf.getvalue())
+    return buf.getvalue()
+
+
+def test_videos_download_with_their_type_and_mp4_plays_in_place(alice, app):
+    videos = data_dir(app) / "media/videos"
+    write_video(videos / "video-1.mp4")
+    old = write_jpeg(videos / "video-0.mjpeg", (64, 48), (0, 0, 255)) * 3  # the recorder's old format
+    (videos / "video-0.mjpeg").write_bytes(old)
+    response = alice.get("/media/videos/video-1.mp4")
+    response.close()
+    assert response.mimetype == "video/mp4" and "attachment" in response.headers["Content-Disposition"]
+    response = alice.get("/media/videos/video-0.mjpeg")
+    data = response.data
+    response.close()
+    assert response.mimetype == "video/x-motion-jpeg" and "attachment" in response.headers["Content-Disposition"]
+    assert data == old
+    # in place: inline, with byte ranges (a <video> seeks with them)
+    response = alice.get("/media/videos/video-1.mp4/view", headers={"Range": "bytes=0-99"})
+    data = response.data
+    response.close()
+    assert response.status_code == 206 and response.mimetype == "video/mp4" and len(data) == 100
+    assert response.headers["Content-Disposition"].startswith("inline")
+    assert response.headers["Content-Range"].startswith("bytes 0-99/")
+    for refused in ("/media/videos/video-0.mjpeg/view", "/media/maps/studio.yaml/view"):  # no browser shows them
+        response = alice.get(refused)
+        response.close()
+        assert response.status_code == 404
+    html = alice.get("/media").get_data(as_text=True)
+    assert '<video class="thumb"' in html and 'src="/media/videos/video-1.mp4/view"' in html
+    assert 'poster="/media/videos/video-1.mp4/thumbnail.jpg"' in html
+    assert "plays in VLC or ffplay, not in a browser" in html  # said of the .mjpeg only
+    assert html.count("plays in VLC or ffplay") == 1
+
+
+def thumbnail(client, kind: str, name: str) -> Image.Image:
+    response = client.get(f"/media/{kind}/{name}/thumbnail.jpg")
+    data = response.data
+    response.close()
+    assert response.status_code == 200 and response.mimetype == "image/jpeg", response.status_code
+    return Image.open(io.BytesIO(data))
+
+
+def test_thumbnails_of_images_and_videos_are_small_made_once_and_cached(alice, app, monkeypatch):
+    from atemr.ui.media import thumbnails
+
+    write_jpeg(data_dir(app) / "media/images/big.jpg", (1600, 1200), (200, 30, 30))
+    write_video(data_dir(app) / "media/videos/clip.mp4", value=90)
+    write_jpeg(data_dir(app) / "media/videos/old.mjpeg", (640, 480), (30, 200, 30))
+    made: list[str] = []
+    preview = thumbnails.preview
+    monkeypatch.setattr(thumbnails, "preview", lambda source: made.append(source.name) or preview(source))
+    image = thumbnail(alice, "images", "big.jpg")
+    assert image.size == (320, 240) and image.getpixel((5, 5))[0] > 180
+    video = thumbnail(alice, "videos", "clip.mp4")
+    assert video.size == (320, 240) and abs(video.getpixel((5, 5))[0] - 90) < 8
+    assert thumbnail(alice, "videos", "old.mjpeg").getpixel((5, 5))[1] > 180
+    thumbnail(alice, "images", "big.jpg")
+    assert made == ["big.jpg", "clip.mp4", "old.mjpeg"]  # the second request is served from the cache
+    cache = data_dir(app) / "cache/thumbnails"
+    assert len(list(cache.glob("*.jpg"))) == 3
+    # a file replaced under the same name gets a new thumbnail, and the old one goes
+    write_jpeg(data_dir(app) / "media/images/big.jpg", (400, 300), (30, 30, 200))
+    os.utime(data_dir(app) / "media/images/big.jpg", (5000, 5000))
+    assert thumbnail(alice, "images", "big.jpg").getpixel((5, 5))[2] > 180
+    assert len(list(cache.glob("*.jpg"))) == 3
+
+
+def test_a_file_that_cannot_be_previewed_gets_a_no_preview_tile(alice, app, monkeypatch, caplog):
+    from atemr.ui.media import thumbnails
+
+    (data_dir(app) / "media/videos").mkdir(parents=True)
+    (data_dir(app) / "media/videos/broken.mp4").write_bytes(b"\x00" * 100)
+    tile = thumbnail(alice, "videos", "broken.mp4")
+    assert tile.size == (320, 240) and tile.getpixel((5, 5)) == pytest.approx((60, 60, 60), abs=4)
+    assert "no thumbnail for videos broken.mp4: cannot read broken.mp4" in caplog.text
+    # an image too large to decode on the robot is judged from its header
+    write_jpeg(data_dir(app) / "media/images/huge.jpg", (64, 48), (250, 250, 250))
+    monkeypatch.setattr(thumbnails, "MAX_PREVIEW_PIXELS", 64 * 48 - 1)
+    assert thumbnail(alice, "images", "huge.jpg").getpixel((5, 5)) == pytest.approx((60, 60, 60), abs=4)
+    assert "huge.jpg is 64×48, too large to preview" in caplog.text
+    assert alice.get("/media/maps/studio.yaml/thumbnail.jpg").status_code == 404
+    assert alice.get("/media/videos/missing.mp4/thumbnail.jpg").status_code == 404
+
+
+def test_the_thumbnail_cache_is_bounded_and_forgets_deleted_media(alice, app, ui):
+    store = app.extensions["atemr.media"]
+    store.thumbnails.max_files = 3
+    for i in range(5):
+        write_jpeg(data_dir(app) / f"media/images/capture-{i}.jpg", (64, 48), (i * 40, 0, 0))
+        os.utime(data_dir(app) / f"media/images/capture-{i}.jpg", (1000 + i, 1000 + i))
+        thumbnail(alice, "images", f"capture-{i}.jpg")
+    cache = data_dir(app) / "cache/thumbnails"
+    assert len(list(cache.glob("*.jpg"))) == 3
+    ui.post(alice, "/media/images/capture-4.jpg/delete")
+    assert len(list(cache.glob("*.jpg"))) == 2
+
+
+def test_deleting_one_file_asks_first_on_the_page_and_in_more(alice, app):
+    fill(data_dir(app), "media/images", 12)
+    html = alice.get("/media").get_data(as_text=True)
+    assert 'data-confirm="Delete capture-11.jpg? This cannot be undone."' in html
+    assert html.count("data-confirm=\"Delete capture-") == 10
+    more = alice.get("/media/images/more?offset=10")
+    assert more.headers["X-Total-Count"] == "12"
+    fragment = more.get_data(as_text=True)
+    assert fragment.count("<li data-name=") == 2
+    assert 'data-confirm="Delete capture-00.jpg? This cannot be undone."' in fragment
+    assert 'src="/media/images/capture-00.jpg/thumbnail.jpg"' in fragment
+    assert alice.get("/media/images/more?offset=x").status_code == 400
+    assert alice.get("/media/secrets/more").status_code == 404

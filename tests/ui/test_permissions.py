@@ -31,11 +31,14 @@ def images(app):
     return app.config["ATEMR_CONFIG"].data_dir / "media" / "images"
 
 
-def ask(app, client, ui, permission):
-    """Do ``permission``'s action as ``client``; returns the page text or the socket acknowledgement."""
+def ask(app, client, ui, permission, status=None):
+    """Do ``permission``'s action as ``client``; returns the page text or the socket acknowledgement. A form
+    answers ``status`` when given (403: refused on the page itself)."""
     kind, where, data, _call = ACTIONS[permission]
     if kind == "form":
-        return ui.post(client, where, data, follow_redirects=True).get_data(as_text=True)
+        response = ui.post(client, where, data, follow_redirects=True)
+        assert status is None or response.status_code == status, (where, response.status_code)
+        return response.get_data(as_text=True)
     ws = app.extensions["socketio"].test_client(app, flask_test_client=client)
     try:
         return ws.emit(where, data, callback=True)
@@ -53,18 +56,18 @@ def with_images(app):
 @pytest.mark.parametrize("permission", PERMISSIONS)
 def test_by_default_a_user_is_refused_with_the_reason_and_nothing_changes(with_images, alice, gateway, ui,
                                                                            permission):
-    answer = ask(with_images, alice, ui, permission)
+    answer = ask(with_images, alice, ui, permission, status=403)
     reason = answer if isinstance(answer, str) else answer["reason"]
     assert "needs the admin role" in reason and f"ui.user_permissions: {permission}" in reason
     if not isinstance(answer, str):
-        assert answer["ok"] is False
+        assert answer["ok"] is False and answer["status"] == 403
     assert gateway.calls == []
     assert (images(with_images) / "capture-00.jpg").exists()
 
 
 @pytest.mark.parametrize("permission", PERMISSIONS)
 def test_an_admin_may_do_each_action(with_images, admin, gateway, ui, permission):
-    answer = ask(with_images, admin, ui, permission)
+    answer = ask(with_images, admin, ui, permission, status=200)
     call = ACTIONS[permission][3]
     if call is None:
         assert not (images(with_images) / "capture-00.jpg").exists()

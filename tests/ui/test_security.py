@@ -11,7 +11,7 @@ from atemr.ui.security import LoginRateLimiter, is_local_address
 
 #: The only endpoints an anonymous visitor may reach.
 PUBLIC = {"static", "auth.login", "auth.logout", "auth.register", "auth.no_access", "auth.first_start", "index",
-          "control.static", "mapping.static", "agent.static"}
+          "control.static", "mapping.static", "agent.static", "favicon"}
 
 
 def _url_for_rule(rule) -> str:

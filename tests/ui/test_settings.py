@@ -125,3 +125,23 @@ def test_without_a_robot_settings_are_refused_clearly(tmp_path, ui):
     response = ui.post(client, "/settings/limits", {"linear_mps": "0.8", "angular_radps": "1.2"},
                        follow_redirects=True)
     assert b"no robot is connected" in response.data
+
+
+def test_a_refused_form_shows_its_error_in_place_and_keeps_what_was_typed(admin, gateway, ui):
+    bad = ui.post(admin, "/settings/limits", {"linear_mps": "fast", "angular_radps": "1.5"})
+    page = bad.get_data(as_text=True)
+    assert bad.status_code == 400 and 'id="limits-error"' in page and "expected a number" in page
+    assert 'value="fast"' in page and 'value="1.5"' in page  # what was typed, not the robot's values
+    wifi = ui.post(admin, "/settings/wifi", {"ssid": "Casa Ñandú", "password": "short"})
+    page = wifi.get_data(as_text=True)
+    assert wifi.status_code == 400 and 'id="wifi-error"' in page
+    assert 'value="Casa Ñandú"' in page and "short" not in page.split('id="wifi-form"')[1].split("</form>")[0]
+    gateway.refuse["set_awareness"] = "the robot is mapping"
+    refused = ui.post(admin, "/settings/awareness", {"awareness": "on"})
+    assert refused.status_code == 409 and "Awareness on: refused: the robot is mapping" in refused.get_data(
+        as_text=True)
+    user = ui.post(admin, "/settings/users/add", {"username": "carer one", "password": "pass-word-1", "role": "user"})
+    page = user.get_data(as_text=True)
+    assert user.status_code == 400 and 'id="add-user-error"' in page
+    assert 'value="carer one"' in page and '<option value="user" selected>' in page and "pass-word-1" not in page
+    assert gateway.names() == ["set_awareness"]

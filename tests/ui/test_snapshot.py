@@ -71,7 +71,8 @@ def test_scan_points_never_emit_invalid_points(ranges):
 
 
 def test_status_levels():
-    from atemr.io.can.protocol import AgentBits, HardwareBits, PrimaryStatus, StateCode
+    from atemr.domain.status import AgentBits, HardwareBits, StateCode
+    from atemr.io.can.protocol import PrimaryStatus
 
     status = PrimaryStatus(AgentBits.HEARTBEAT | AgentBits.AUTO, HardwareBits.LIDAR, StateCode.IDLE)
     level1, level2 = status_levels(status)

@@ -92,7 +92,7 @@ def test_every_event_rechecks_the_role(app, alice, gateway, event, data, call):
     ws = sio(app, alice)
     app.extensions["atemr.users"].set_role("alice", "none")  # revoked behind the socket's back
     ack = ws.emit(event, data, callback=True)
-    assert ack["ok"] is False and "needs the user role" in ack["reason"]
+    assert ack["ok"] is False and ack["status"] == 403 and "needs the user role" in ack["reason"]
     assert gateway.calls == []
 
 

@@ -9,6 +9,8 @@ from pathlib import Path
 import pytest
 from flask import Flask
 
+from atemr.io.recording.agent_trace import record_entry
+from atemr.io.recording.mcap_writer import RecordingWriter
 from atemr.io.trace_file import TraceWriter, encode_record
 
 TREE = {"k": "tree", "t": 0.0, "slot": "tree", "id": 1,
@@ -46,6 +48,28 @@ def recorded(app: Flask) -> Path:
 
 def trace_bytes(records: list[dict] = RECORDS) -> bytes:
     return b"ATEMR-TRACE 1\n" + b"".join(encode_record(r) for r in records)
+
+
+def mcap_bytes(path: Path, records: list[dict] = RECORDS) -> bytes:
+    with RecordingWriter(path) as writer:
+        for r in records:
+            writer.write(*record_entry(r))
+    return path.read_bytes()
+
+
+def test_an_mcap_recording_is_listed_and_replays(app, alice, ui, tmp_path) -> None:
+    """MCAP is what the robot records; its agent topics replay as the .atrace records did."""
+    mcap_bytes(traces_dir(app) / "run-2.mcap")
+    assert [t["name"] for t in alice.get("/api/traces").get_json()["traces"]] == ["run-2.mcap"]
+    got = alice.get("/api/traces/run-2.mcap").get_json()
+    assert (got["start_t"], got["end_t"], got["records"]) == (0.0, 1.5, len(RECORDS))
+    assert alice.get("/api/traces/run-2.mcap/frame?t=2").get_json()["state"] == "IDLE.AUTO"
+    response = upload(alice, ui, "robot 3.mcap", mcap_bytes(tmp_path / "up.mcap"))
+    assert response.status_code == 201 and response.get_json()["records"] == len(RECORDS)
+    frame = alice.get("/api/traces/robot_3.mcap/frame?t=0.6").get_json()
+    assert frame["state"] == "IDLE.MANUAL" and frame["pose"]["x_m"] == 1.0
+    cut = upload(alice, ui, "cut.mcap", mcap_bytes(tmp_path / "cut.mcap")[:40])
+    assert cut.status_code == 400 and "no 'head' record" in cut.get_json()["reason"]
 
 
 def test_the_traces_are_listed(app, alice, recorded) -> None:
@@ -96,7 +120,8 @@ def test_a_damaged_trace_replays_up_to_the_damage(app, alice, recorded) -> None:
 def test_a_file_that_is_no_trace_is_422(app, alice) -> None:
     (traces_dir(app) / "junk.atrace").write_text("hello")
     response = alice.get("/api/traces/junk.atrace")
-    assert response.status_code == 422 and "not an ATEMR trace" in response.get_json()["reason"]
+    assert response.status_code == 422
+    assert "neither an MCAP recording nor an ATEMR trace" in response.get_json()["reason"]
 
 
 @pytest.mark.parametrize("path", ["/api/traces", "/api/traces/run-1.atrace", "/api/traces/run-1.atrace/frame?t=1"])
@@ -129,9 +154,9 @@ def test_an_uploaded_trace_is_read_then_stored_and_replays(app, alice, ui) -> No
 
 
 @pytest.mark.parametrize(("name", "data", "why"), [
-    ("run.txt", trace_bytes(), "ending in .atrace"),
+    ("run.txt", trace_bytes(), "ending in .mcap or .atrace"),
     ("../../etc.atrace", b"hello", "not a valid trace"),
-    ("x.atrace", b"hello\n", "not an ATEMR trace"),
+    ("x.atrace", b"hello\n", "neither an MCAP recording nor an ATEMR trace"),
     ("x.atrace", trace_bytes(RECORDS[1:]), "no 'head' record"),
 ])
 def test_bad_uploads_are_refused_and_nothing_is_stored(app, alice, ui, name, data, why) -> None:

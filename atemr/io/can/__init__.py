@@ -3,15 +3,16 @@ bus factory, supervisor, fault-injection bus and bus recording.
 
 The protocol names are re-exported here so other parts import them from one place::
 
-    from atemr.io.can import PrimaryStatus, StateCode, decode
+    from atemr.io.can import PrimaryStatus, decode
+
+The values the messages carry (`StateCode`, `AgentBits`, `HardwareBits`, `PowerState`, `PowerRequest`) are
+domain types: import them from `atemr.domain.status`.
 """
 
 from atemr.io.can.protocol import (
     ID_NAMES,
     MESSAGE_TYPES,
-    AgentBits,
     CanId,
-    HardwareBits,
     Heartbeat,
     IpAddress,
     IpRequest,
@@ -19,10 +20,7 @@ from atemr.io.can.protocol import (
     IrRear,
     Message,
     Power,
-    PowerRequest,
-    PowerState,
     PrimaryStatus,
-    StateCode,
     WifiPasswordSegment,
     WifiSsidSegment,
     decode,
@@ -41,8 +39,8 @@ from atemr.io.can.segmented import (
 )
 
 __all__ = [
-    "ID_NAMES", "MESSAGE_TYPES", "PASSWORD", "SSID", "TEXT_FIELDS", "AgentBits", "CanId", "HardwareBits", "Heartbeat",
-    "IpAddress", "IpRequest", "IrFront", "IrRear", "Message", "Power", "PowerRequest", "PowerState", "PrimaryStatus",
-    "SegmentedReceiver", "SegmentedSender", "StateCode", "TextField", "WifiPasswordSegment", "WifiSsidSegment",
+    "ID_NAMES", "MESSAGE_TYPES", "PASSWORD", "SSID", "TEXT_FIELDS", "CanId", "Heartbeat",
+    "IpAddress", "IpRequest", "IrFront", "IrRear", "Message", "Power", "PrimaryStatus",
+    "SegmentedReceiver", "SegmentedSender", "TextField", "WifiPasswordSegment", "WifiSsidSegment",
     "decode", "encode_text", "id_name", "is_protocol_id", "segment_text",
 ]

@@ -1,12 +1,13 @@
 """One end of the inter-core protocol on a polled python-can bus: the part both cores share.
 
 The primary's `atemr.io.secondary_link.SecondaryLink` and the emulated board
-`secondary_core.board.SecondaryCore` talk to each other over the same codec, the same way: each owns a bus,
-reads it with ``recv(timeout=0)`` from its own ``tick`` (no thread, so a simulation is deterministic), counts
-what came and went, and must survive a bus that fails. `PolledCanEndpoint` holds that once, as template
-methods in the manner of python-can's ``BusABC`` (``send``/``_recv_internal``): the base drains and decodes,
-a subclass says what a message means (`PolledCanEndpoint._on_message`) and, if it cares, what to do with a
-frame outside the protocol or one that does not decode. Written twice, the two copies had started to drift.
+`atemr.io.secondary_emulator.board.SecondaryCore` talk to each other over the same codec, the same way: each
+owns a bus, reads it with ``recv(timeout=0)`` from its own ``tick`` (no thread, so a simulation is
+deterministic), counts what came and went, and must survive a bus that fails. `PolledCanEndpoint` holds that
+once, as template methods in the manner of python-can's ``BusABC`` (``send``/``_recv_internal``): the base
+drains and decodes, a subclass says what a message means (`PolledCanEndpoint._on_message`) and, if it cares,
+what to do with a frame outside the protocol or one that does not decode. Written twice, the two copies had
+started to drift.
 
 The motors' side (`atemr.io.motors.driver.RmdDriver`, `atemr.io.motors.emulator.RmdMotorEmulator`) is not
 an endpoint of this kind: it speaks the RMD protocol, not this one, and a failing bus is a fault there (it

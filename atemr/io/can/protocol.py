@@ -6,7 +6,9 @@ Every message is a small frozen value object with ``encode() -> can.Message`` an
 problem, so a corrupted frame never reaches the agent as a plausible value.
 
 Values are validated when a message is built, so an invalid message cannot be encoded either. Floats
-are rounded to float32 on construction so that ``decode(m.encode()) == m`` holds exactly.
+are rounded to float32 on construction so that ``decode(m.encode()) == m`` holds exactly. The values the
+bytes carry (state codes, status bits, the power handshake) are domain types, `atemr.domain.status`: the
+agent speaks them without importing this codec.
 """
 
 from __future__ import annotations
@@ -16,11 +18,12 @@ import math
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from enum import IntEnum, IntFlag
+from enum import IntEnum
 from typing import Any, ClassVar, Self
 
 import can
 
+from atemr.domain.status import AgentBits, HardwareBits, PowerRequest, PowerState, StateCode
 from atemr.errors import ProtocolError
 from atemr.io.can.trusted import trusted_constructor
 
@@ -49,58 +52,6 @@ ID_NAMES: dict[int, str] = {
     CanId.IP_ADDRESS: "IP address",
     CanId.HEARTBEAT: "heartbeat",
 }
-
-
-class StateCode(IntEnum):
-    """The agent's lifecycle state, byte 2 of 0x153 (ERROR is this project's extension)."""
-
-    UNDEFINED = 0x00
-    STARTUP = 0x01
-    IDLE = 0x02
-    EXEC = 0x03
-    MAPPING = 0x04
-    SHUTDOWN = 0x05
-    ERROR = 0x06
-
-
-class AgentBits(IntFlag):
-    """Byte 0 of 0x153: primary-core sub-module statuses; a set bit means OK (AUTO: auto mode)."""
-
-    NONE = 0
-    HEARTBEAT = 1 << 0
-    HARDWARE = 1 << 1
-    AUTO = 1 << 2
-    CONNECTIVITY = 1 << 3
-    LOCALIZATION = 1 << 4
-
-
-class HardwareBits(IntFlag):
-    """Byte 1 of 0x153: hardware statuses; a set bit means OK."""
-
-    NONE = 0
-    LEFT_MOTOR = 1 << 0
-    RIGHT_MOTOR = 1 << 1
-    IMU = 1 << 2
-    LIDAR = 1 << 3
-    CAMERA = 1 << 4
-    WEBSERVER = 1 << 5
-    IR_FRONT = 1 << 6
-    IR_REAR = 1 << 7
-
-
-class PowerState(IntEnum):
-    """Byte 0 of 0x150, written by the primary core."""
-
-    INITIALISING = 0
-    RUNNING = 1
-    POWER_OFF_ACK = 2
-
-
-class PowerRequest(IntEnum):
-    """Byte 1 of 0x150, written by the secondary core."""
-
-    NORMAL = 0
-    POWER_OFF = 1
 
 
 _AGENT_USED = int(AgentBits.HEARTBEAT | AgentBits.HARDWARE | AgentBits.AUTO | AgentBits.CONNECTIVITY

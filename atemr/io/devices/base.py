@@ -30,7 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Generic, Protocol, TypeVar, runtime_checkable
 
-from atemr.trees.ports import ComponentHealth
+from atemr.domain.status import ComponentHealth
 
 log = logging.getLogger(__name__)
 

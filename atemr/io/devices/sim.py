@@ -10,9 +10,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Generic, TypeVar
 
+from atemr.domain.status import ComponentHealth
 from atemr.io.devices.base import DeviceInfo, fresh
 from atemr.io.sim.simulation import PeriodicSource
-from atemr.trees.ports import ComponentHealth
 
 R = TypeVar("R")
 

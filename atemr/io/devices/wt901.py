@@ -29,11 +29,11 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import serial
 
+from atemr.domain.status import ComponentHealth
 from atemr.io.devices import wt901_protocol as wit
 from atemr.io.devices.base import DeviceInfo, ThreadedDevice, serial_port_hint
 from atemr.io.devices.config import ImuDeviceConfig
 from atemr.msgs import ImuSample
-from atemr.trees.ports import ComponentHealth
 
 log = logging.getLogger(__name__)
 

@@ -23,6 +23,7 @@ import can
 
 from atemr.clock import due
 from atemr.config import MotorsConfig
+from atemr.domain.status import ComponentHealth
 from atemr.errors import BusError, HardwareError, ProtocolError
 from atemr.io.can.protocol import is_protocol_id
 from atemr.io.devices.base import DeviceInfo, Subscribers, fresh
@@ -30,7 +31,6 @@ from atemr.io.motors.rmd_codec import MotorErrorFlags, RmdCommand, RmdRequest, S
 from atemr.io.motors.rmd_protocol import AnyReply, RmdProtocol, rmd_protocol
 from atemr.io.motors.rmd_v4 import V4Status1Reply, V4Status2Reply
 from atemr.msgs import WheelSpeeds
-from atemr.trees.ports import ComponentHealth
 
 log = logging.getLogger(__name__)
 

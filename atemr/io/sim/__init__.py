@@ -2,7 +2,8 @@
 
 Modules, one job each:
 
-* `maps` — ROS map_server maps (YAML + PGM/PNG) to `OccupancyMap` and back (`load_map`, `save_map`);
+* `maps` — ROS map_server maps (YAML + PGM/PNG) to `atemr.domain.maps.OccupancyMap` and back (`load_map`,
+  `save_map`);
 * `world` — world files: map + furniture, drop zones, moving obstacles, start pose (`load_world`);
 * `scene` — what is really there, cell by cell: walls, furniture, dropped obstacles, drop depths;
 * `raycast` — exact vectorised grid traversal (`GridCaster`) and ray-circle intersection;
@@ -11,5 +12,5 @@ Modules, one job each:
 * `lidar`, `imu`, `cliff`, `camera` — the sensors;
 * `simulation` — `build_simulation(world, seed)` → `Simulation`, whose components a `Scheduler` ticks.
 
-Nothing is imported here, so ``from atemr.io.sim.maps import OccupancyMap`` stays light.
+Nothing is imported here, so ``from atemr.io.sim.maps import load_map`` stays light.
 """

@@ -1,8 +1,9 @@
 """Occupancy-grid maps in the ROS map_server format: ``name.yaml`` + an image (PGM, PNG, ...).
 
 This is the one reader and writer of maps in the package: the simulator loads its worlds with it,
-navigation and localization use the `OccupancyMap` it returns, and the map store saves with `save_map`
-so maps made here open in ROS tools and maps made by other robots load here unchanged.
+navigation and localization use the `OccupancyMap` it returns (the type itself is `atemr.domain.maps`, so
+skills need not import this module), and the map store saves with `save_map` so maps made here open in ROS
+tools and maps made by other robots load here unchanged.
 
 The YAML keys are those of map_server: ``image`` (relative to the YAML), ``resolution`` (m/cell),
 ``origin`` ([x, y, yaw] of the lower-left pixel), ``occupied_thresh``, ``free_thresh``, ``negate`` and the
@@ -21,7 +22,6 @@ from __future__ import annotations
 import difflib
 import math
 import warnings
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
@@ -30,14 +30,12 @@ import yaml
 from numpy.typing import NDArray
 from PIL import Image, UnidentifiedImageError
 
+from atemr.domain.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from atemr.errors import ConfigError, brief, brief_text
 from atemr.msgs import Pose2D
 from atemr.yamlsafe import load_yaml, mark_of
 
 MapMode = Literal["trinary", "scale", "raw"]
-OCCUPIED = 100
-FREE = 0
-UNKNOWN = -1
 #: Largest map ever accepted, in cells (a 100 m x 100 m map at 2 cm is 25 M cells): the ceiling of
 #: ``ui.max_map_cells`` and the limit of maps read without one (worlds, `load_map` by default).
 MAX_CELLS = 50_000_000
@@ -51,106 +49,6 @@ warnings.filterwarnings("error", category=Image.DecompressionBombWarning)
 
 _REQUIRED = ("image", "resolution", "origin", "occupied_thresh", "free_thresh", "negate")
 _KNOWN = (*_REQUIRED, "mode")
-
-
-@dataclass(frozen=True, eq=False)
-class OccupancyMap:
-    """An occupancy grid with its place in the world.
-
-    ``data[row, col]`` holds ROS OccupancyGrid values (100 occupied, 0 free, -1 unknown, 1..99 a
-    probability in ``scale`` mode). Row 0 is the *bottom* of the map (lowest y), as in ROS, so cell
-    ``(row, col)`` covers ``x in origin.x + [col, col+1) * resolution`` (before the origin's yaw).
-    """
-
-    data: NDArray[np.int8]
-    resolution_m: float
-    origin: Pose2D = field(default_factory=Pose2D)
-    occupied_thresh: float = 0.65
-    free_thresh: float = 0.25
-    name: str = "map"
-
-    def __post_init__(self) -> None:
-        if self.data.ndim != 2 or self.data.size == 0:
-            raise ConfigError(f"map '{self.name}': grid must be a non-empty 2-D array, got shape {self.data.shape}")
-        if not (math.isfinite(self.resolution_m) and self.resolution_m > 0):
-            raise ConfigError(f"map '{self.name}': resolution must be > 0 m, got {self.resolution_m}")
-        self.data.setflags(write=False)
-
-    # -- shape ---------------------------------------------------------------------------------
-    @property
-    def height(self) -> int:
-        """Rows (cells along y)."""
-        return int(self.data.shape[0])
-
-    @property
-    def width(self) -> int:
-        """Columns (cells along x)."""
-        return int(self.data.shape[1])
-
-    @property
-    def size_m(self) -> tuple[float, float]:
-        """Width and height in metres."""
-        return self.width * self.resolution_m, self.height * self.resolution_m
-
-    # -- masks ---------------------------------------------------------------------------------
-    @property
-    def occupied(self) -> NDArray[np.bool_]:
-        """Cells at least as likely occupied as ``occupied_thresh`` (all 100s in a trinary map)."""
-        return self.data >= min(OCCUPIED, round(self.occupied_thresh * 100))
-
-    @property
-    def free(self) -> NDArray[np.bool_]:
-        """Cells known to be free."""
-        return (self.data >= 0) & (self.data <= round(self.free_thresh * 100))
-
-    @property
-    def unknown(self) -> NDArray[np.bool_]:
-        return self.data < 0
-
-    # -- transforms ----------------------------------------------------------------------------
-    def world_to_grid(self, x_m: Any, y_m: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """World coordinates → continuous grid coordinates (gx along columns, gy along rows), in cells."""
-        dx = np.asarray(x_m, dtype=np.float64) - self.origin.x_m
-        dy = np.asarray(y_m, dtype=np.float64) - self.origin.y_m
-        if self.origin.yaw_rad:
-            c, s = math.cos(self.origin.yaw_rad), math.sin(self.origin.yaw_rad)
-            dx, dy = c * dx + s * dy, -s * dx + c * dy
-        return dx / self.resolution_m, dy / self.resolution_m
-
-    def world_to_cell(self, x_m: Any, y_m: Any) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-        """World coordinates → (row, col) indices; may be outside the grid (see `contains`)."""
-        gx, gy = self.world_to_grid(x_m, y_m)
-        return np.floor(gy).astype(np.intp), np.floor(gx).astype(np.intp)
-
-    def cell_to_world(self, row: Any, col: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(row, col) → world coordinates of the cell centre."""
-        gx = (np.asarray(col, dtype=np.float64) + 0.5) * self.resolution_m
-        gy = (np.asarray(row, dtype=np.float64) + 0.5) * self.resolution_m
-        if self.origin.yaw_rad:
-            c, s = math.cos(self.origin.yaw_rad), math.sin(self.origin.yaw_rad)
-            gx, gy = c * gx - s * gy, s * gx + c * gy
-        return gx + self.origin.x_m, gy + self.origin.y_m
-
-    def contains(self, row: Any, col: Any) -> NDArray[np.bool_]:
-        """Whether (row, col) indices lie inside the grid."""
-        r, c = np.asarray(row), np.asarray(col)
-        return (r >= 0) & (r < self.height) & (c >= 0) & (c < self.width)
-
-    def value_at(self, x_m: float, y_m: float) -> int:
-        """The cell value at a world point; unknown (-1) outside the grid."""
-        row, col = self.world_to_cell(x_m, y_m)
-        if not self.contains(row, col):
-            return UNKNOWN
-        return int(self.data[int(row), int(col)])
-
-    def replace(self, data: NDArray[np.int8]) -> OccupancyMap:
-        """The same map (resolution, origin, thresholds) with another grid of the same shape."""
-        if data.shape != self.data.shape:
-            raise ConfigError(f"map '{self.name}': new grid shape {data.shape} differs from {self.data.shape}")
-        return OccupancyMap(
-            np.array(data, dtype=np.int8), self.resolution_m, self.origin, self.occupied_thresh, self.free_thresh,
-            self.name,
-        )
 
 
 # -- loading ---------------------------------------------------------------------------------

@@ -7,7 +7,7 @@ across either family is the hit, so the distance is exact (to float precision) f
 step size to tune. Work is done in chunks of crossings, dropping the rays that have already hit, so a
 room where most beams stop within a few metres costs far less than the full 8 m.
 
-All distances are in metres; the grid frame is the map's (see `atemr.io.sim.maps.OccupancyMap`).
+All distances are in metres; the grid frame is the map's (see `atemr.domain.maps.OccupancyMap`).
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ class GridCaster:
         #: Distance from each cell's centre to the nearest blocked cell's centre, in cells (inf: none).
         self.clearance_cells = edt[1:-1, 1:-1]
 
-    def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray, max_range_m: float) -> GridHits:
+    def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray, max_range_m: float) -> GridHits:  # noqa: PLR0915  the simulator's hot ray walk: its per-ray arrays stay in one frame
         """One ray per angle from ``origin_xy`` (grid frame, metres from the lower-left corner), up to
         ``max_range_m``; cells outside the grid are empty."""
         res = self.resolution_m

@@ -53,6 +53,13 @@ class Scene:
         self.drop_depth_m = depth
         self.drop_mask = depth > 0
         self.drop_mask_padded = np.pad(self.drop_mask, 1)
+        #: The world-frame box (x0, y0, x1, y1) that holds every drop cell with a cell to spare, or None: the
+        #: camera looks cells up for the floor points inside it only.
+        self.drop_bounds_m: tuple[float, float, float, float] | None = None
+        if self.drop_mask.any():
+            xs, ys, pad = self._cell_x[self.drop_mask], self._cell_y[self.drop_mask], self.resolution_m
+            self.drop_bounds_m = (float(xs.min()) - pad, float(ys.min()) - pad, float(xs.max()) + pad,
+                                  float(ys.max()) + pad)
         self._rebuild()
         self._footprints: dict[float, tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
 

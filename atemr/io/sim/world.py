@@ -35,8 +35,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import OccupancyMap, is_map_document, load_map, read_yaml
+from atemr.io.sim.maps import is_map_document, load_map, read_yaml
 from atemr.msgs import Pose2D
 from atemr.yamlsafe import key_mark_of, mark_of
 
@@ -232,7 +233,7 @@ def load_world(name_or_path: str | Path, *, robot_radius_m: float = 0.25) -> Wor
     return _parse_world(doc, path)
 
 
-def _parse_world(doc: Any, path: Path) -> World:
+def _parse_world(doc: Any, path: Path) -> World:  # noqa: PLR0912, PLR0915  one block per section of the world file, in file order
     file = str(path)
     d = _Doc(file)
     if not isinstance(doc, dict):

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from atemr.errors import AtemrError, ConfigError
-from atemr.skills.fuzzy.compiled import FIRING_EPSILON, CompiledEngine, integrate, weighted_kind
+from atemr.skills.fuzzy.compiled import FIRING_EPSILON, CompiledEngine, compile_engine, integrate, weighted_kind
 from atemr.skills.fuzzy.defuzzifiers import Centroid, Defuzzifier, IntegralDefuzzifier, WeightedDefuzzifier
 from atemr.skills.fuzzy.discrete_centroid import DiscreteCentroid
 from atemr.skills.fuzzy.norms import HEDGES, SNORMS, TNORMS, Norm, maximum
@@ -121,7 +121,7 @@ class Engine:
             if isinstance(d, IntegralDefuzzifier):
                 x = d.samples(out.minimum, out.maximum)
                 self._grids[out.name] = (x, {t.name: t.membership(x) for t in out.terms})
-        object.__setattr__(self, "_plan", CompiledEngine(self, self._grids))
+        object.__setattr__(self, "_plan", compile_engine(self, self._grids))
 
     @property
     def input_names(self) -> tuple[str, ...]:
@@ -316,7 +316,20 @@ class Engine:
 
 
 def validate_engine(engine: Engine) -> None:
-    """Cross-checks that need the whole engine; raises `ConfigError` with the offending part's path."""
+    """Cross-checks that need the whole engine; raises `ConfigError` with the offending part's path. The checks
+    run in the order of the file (variables, type, rule blocks, outputs), so the first error named is the first
+    a reader meets."""
+    _check_variables(engine)
+    if engine.type is not None and engine.type not in ENGINE_TYPES:
+        raise ConfigError(f"type must be one of {', '.join(ENGINE_TYPES)}, got '{engine.type}'", path="type")
+    used = _check_rule_blocks(engine)
+    for out in engine.outputs:
+        _check_output(out, used[out.name], len(engine.inputs))
+    _check_type(engine)
+
+
+def _check_variables(engine: Engine) -> None:
+    """Unique variable names, at least one output, a range below its maximum, unique term names."""
     names = [v.name for v in engine.inputs] + [v.name for v in engine.outputs]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
@@ -332,8 +345,11 @@ def validate_engine(engine: Engine) -> None:
         tnames = [t.name for t in var.terms]
         if len(set(tnames)) != len(tnames):
             raise ConfigError("term name used twice", path=f"{kind}.{var.name}.terms")
-    if engine.type is not None and engine.type not in ENGINE_TYPES:
-        raise ConfigError(f"type must be one of {', '.join(ENGINE_TYPES)}, got '{engine.type}'", path="type")
+
+
+def _check_rule_blocks(engine: Engine) -> dict[str, set[str]]:
+    """Known operators, General activation, an operator for each connective a rule uses and an implication
+    where an integral output concludes; returns the terms the rules conclude on, by output."""
     used: dict[str, set[str]] = {o.name: set() for o in engine.outputs}
     for bi, block in enumerate(engine.rule_blocks):
         where = f"rule_blocks[{bi}]"
@@ -356,31 +372,35 @@ def validate_engine(engine: Engine) -> None:
                     raise ConfigError(
                         f"output '{out.name}' has integral defuzzifier {out.defuzzifier.kind}, so the rule block "
                         "needs an implication operator", path=f"{where}.implication")
-    for out in engine.outputs:
-        where = f"outputs.{out.name}"
-        if out.aggregation is not None and out.aggregation not in SNORMS:
-            raise ConfigError(SNORMS.unknown_message(out.aggregation), path=f"{where}.aggregation")
-        if isinstance(out.defuzzifier, DiscreteCentroid) and out.aggregation not in (None, "Maximum"):
-            raise ConfigError("DiscreteCentroid aggregates with Maximum (like scikit-fuzzy)",
-                              path=f"{where}.aggregation")
-        if isinstance(out.defuzzifier, WeightedDefuzzifier):
-            kind = weighted_kind(out)
-            for t in out.terms:
-                if t.name not in used[out.name]:
-                    continue
-                if kind == "Tsukamoto" and not t.MONOTONIC:
-                    raise ConfigError(f"Tsukamoto output term '{t.name}' ({t.kind}) is not monotonic",
-                                      path=f"{where}.terms.{t.name}")
-                if kind == "TakagiSugeno" and not isinstance(t, Constant | Linear):
-                    raise ConfigError(f"Takagi-Sugeno output term '{t.name}' must be Constant or Linear, "
-                                      f"not {t.kind}", path=f"{where}.terms.{t.name}")
-                if isinstance(t, Linear) and len(t.params) not in (len(engine.inputs), len(engine.inputs) + 1):
-                    raise ConfigError(f"Linear term '{t.name}' needs {len(engine.inputs)} or "
-                                      f"{len(engine.inputs) + 1} coefficients, got {len(t.params)}",
-                                      path=f"{where}.terms.{t.name}")
-        elif any(isinstance(t, Linear) for t in out.terms):
+    return used
+
+
+def _check_output(out: OutputVariable, used: set[str], n_inputs: int) -> None:
+    """A known aggregation (Maximum for DiscreteCentroid), and terms the defuzzifier can use: of the terms the
+    rules conclude on (``used``), monotonic ones for Tsukamoto, Constant or Linear ones (with one coefficient per
+    input, and a constant) for Takagi-Sugeno; Linear terms only with a weighted defuzzifier."""
+    where = f"outputs.{out.name}"
+    if out.aggregation is not None and out.aggregation not in SNORMS:
+        raise ConfigError(SNORMS.unknown_message(out.aggregation), path=f"{where}.aggregation")
+    if isinstance(out.defuzzifier, DiscreteCentroid) and out.aggregation not in (None, "Maximum"):
+        raise ConfigError("DiscreteCentroid aggregates with Maximum (like scikit-fuzzy)", path=f"{where}.aggregation")
+    if not isinstance(out.defuzzifier, WeightedDefuzzifier):
+        if any(isinstance(t, Linear) for t in out.terms):
             raise ConfigError("Linear terms need a weighted defuzzifier", path=f"{where}.defuzzifier")
-    _check_type(engine)
+        return
+    kind = weighted_kind(out)
+    for t in out.terms:
+        if t.name not in used:
+            continue
+        if kind == "Tsukamoto" and not t.MONOTONIC:
+            raise ConfigError(f"Tsukamoto output term '{t.name}' ({t.kind}) is not monotonic",
+                              path=f"{where}.terms.{t.name}")
+        if kind == "TakagiSugeno" and not isinstance(t, Constant | Linear):
+            raise ConfigError(f"Takagi-Sugeno output term '{t.name}' must be Constant or Linear, "
+                              f"not {t.kind}", path=f"{where}.terms.{t.name}")
+        if isinstance(t, Linear) and len(t.params) not in (n_inputs, n_inputs + 1):
+            raise ConfigError(f"Linear term '{t.name}' needs {n_inputs} or {n_inputs + 1} coefficients, "
+                              f"got {len(t.params)}", path=f"{where}.terms.{t.name}")
 
 
 def _check_type(engine: Engine) -> None:

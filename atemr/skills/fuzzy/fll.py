@@ -128,17 +128,7 @@ def _check_supported(section: _Section, file: str) -> None:
 def engine_from_fll(source: str | Path, text: str | None = None) -> Engine:
     """Read a `.fll` file (or ``text``, named ``source`` in errors) into a validated `Engine`."""
     file = str(source)
-    if text is None:
-        try:
-            path = Path(source)
-            if path.stat().st_size > MAX_BYTES:
-                raise ConfigError(f"file is larger than {MAX_BYTES} bytes", file=file)
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ConfigError("file not found", file=file) from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"cannot read: {exc}", file=file) from None
-    sections = _split_sections(text, file)
+    sections = _split_sections(_read(source) if text is None else text, file)
     if not sections or sections[0].kind != "Engine":
         raise ConfigError("a .fll file starts with 'Engine: name'", file=file, line=sections[0].line if sections else 1)
     inputs: list[InputVariable] = []
@@ -149,23 +139,54 @@ def engine_from_fll(source: str | Path, text: str | None = None) -> Engine:
             lo, hi = _range(s, file)
             inputs.append(InputVariable(s.name, lo, hi, _terms(s, file), _bool(s, "lock-range", False, file)))
         elif s.kind == "OutputVariable":
-            lo, hi = _range(s, file)
-            dtext, dline = s.props.get("defuzzifier", ("", s.line))
-            words = dtext.split()
-            try:
-                if not words or words[0] == "none":
-                    raise ConfigError(f"output '{s.name}' needs a defuzzifier")
-                defuzzifier: Defuzzifier = build_defuzzifier(words[0], words[1] if len(words) > 1 else None)
-            except ConfigError as exc:
-                raise ConfigError(exc.reason, file=file, line=dline) from None
-            dtext, dline = s.props.get("default", ("nan", s.line))
-            default = _number(dtext, file, dline, "default") if dtext else math.nan
-            outputs.append(OutputVariable(s.name, lo, hi, _terms(s, file), defuzzifier, _operator(s, "aggregation"),
-                                          default, _bool(s, "lock-range", False, file)))
+            outputs.append(_output_variable(s, file))
+    # the line of each section and rule, to point engine validation errors (by path) at the file
+    lines: dict[str, int] = {}
+    blocks = _rule_blocks(sections, inputs, outputs, file, lines)
+    try:
+        return Engine(sections[0].name, tuple(inputs), tuple(outputs), tuple(blocks),
+                      sections[0].props.get("description", ("", 0))[0])
+    except ConfigError as exc:
+        where = _line_for(exc.path or "", lines)
+        raise ConfigError(exc.reason, file=file, line=where, path=exc.path) from None
+
+
+def _read(source: str | Path) -> str:
+    file = str(source)
+    try:
+        path = Path(source)
+        if path.stat().st_size > MAX_BYTES:
+            raise ConfigError(f"file is larger than {MAX_BYTES} bytes", file=file)
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError("file not found", file=file) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read: {exc}", file=file) from None
+
+
+def _output_variable(s: _Section, file: str) -> OutputVariable:
+    lo, hi = _range(s, file)
+    dtext, dline = s.props.get("defuzzifier", ("", s.line))
+    words = dtext.split()
+    try:
+        if not words or words[0] == "none":
+            raise ConfigError(f"output '{s.name}' needs a defuzzifier")
+        defuzzifier: Defuzzifier = build_defuzzifier(words[0], words[1] if len(words) > 1 else None)
+    except ConfigError as exc:
+        raise ConfigError(exc.reason, file=file, line=dline) from None
+    dtext, dline = s.props.get("default", ("nan", s.line))
+    default = _number(dtext, file, dline, "default") if dtext else math.nan
+    return OutputVariable(s.name, lo, hi, _terms(s, file), defuzzifier, _operator(s, "aggregation"), default,
+                          _bool(s, "lock-range", False, file))
+
+
+def _rule_blocks(sections: list[_Section], inputs: list[InputVariable], outputs: list[OutputVariable], file: str,
+                 lines: dict[str, int]) -> list[RuleBlock]:
+    """The enabled rule blocks, their rules parsed against the variables' terms; records in ``lines`` the line of
+    every section, block and rule (keys as `_line_for` looks them up)."""
     in_terms = {v.name: [t.name for t in v.terms] for v in inputs}
     out_terms = {v.name: [t.name for t in v.terms] for v in outputs}
     blocks: list[RuleBlock] = []
-    lines: dict[str, int] = {}
     block_lines: list[int] = []
     for s in sections:
         if s.kind != "RuleBlock" or not _bool(s, "enabled", True, file):
@@ -183,12 +204,7 @@ def engine_from_fll(source: str | Path, text: str | None = None) -> Engine:
                                 s.props.get("activation", ("General", 0))[0] or "General"))
     lines.update({s.kind + ":" + s.name: s.line for s in sections})
     lines.update({f"rule_blocks:{i}": line for i, line in enumerate(block_lines)})
-    try:
-        return Engine(sections[0].name, tuple(inputs), tuple(outputs), tuple(blocks),
-                      sections[0].props.get("description", ("", 0))[0])
-    except ConfigError as exc:
-        where = _line_for(exc.path or "", lines)
-        raise ConfigError(exc.reason, file=file, line=where, path=exc.path) from None
+    return blocks
 
 
 def _line_for(path: str, lines: dict[str, int]) -> int | None:

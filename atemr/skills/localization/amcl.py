@@ -36,8 +36,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import logsumexp
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError, NavigationError
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import Pose2D
 from atemr.skills.diff_drive import wrap_angle
 from atemr.skills.localization.geometry import FloatArray, as_array, compose, is_finite_pose, relative

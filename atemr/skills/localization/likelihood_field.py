@@ -22,8 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import OccupancyMap
 from atemr.skills.localization.geometry import FloatArray
 
 

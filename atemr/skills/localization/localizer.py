@@ -34,8 +34,9 @@ from typing import Literal
 
 import numpy as np
 
+from atemr.domain.maps import OccupancyMap
+from atemr.domain.status import LocalizationState
 from atemr.errors import NavigationError
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.amcl import Amcl, AmclParams, PoseEstimate
 from atemr.skills.localization.covariance_monitor import (
@@ -76,6 +77,13 @@ class Phase(Enum):
     AMBIGUOUS = "ambiguous"
     FAILED = "failed"
     TRACKING = "tracking"
+
+
+#: What each phase but tracking shows as the localization state (tracking shows localized or lost).
+_PHASE_STATES: dict[Phase, LocalizationState] = {
+    Phase.UNINITIALIZED: "uninitialized", Phase.POSE_SET: "pose set", Phase.SEARCHING: "searching",
+    Phase.AMBIGUOUS: "ambiguous", Phase.FAILED: "failed",
+}
 
 
 @dataclass(frozen=True)
@@ -180,11 +188,11 @@ class Localizer:
         return self.confidence >= self.params.monitor.min_confidence
 
     @property
-    def state(self) -> str:
+    def state(self) -> LocalizationState:
         """``localized``, ``lost`` (tracking below the limit), or the phase's name."""
         if self.phase is Phase.TRACKING:
             return "localized" if self.localized else "lost"
-        return self.phase.value
+        return _PHASE_STATES[self.phase]
 
     @property
     def candidates(self) -> tuple[Hypothesis, ...]:

@@ -10,10 +10,11 @@ until the next tick). Each tick handles the newest scan:
    relocalization).
 
 Tick it at the lidar rate (10 Hz). Outputs: `odom_pose`, `estimate` (map pose + covariance, None while
-not localized), `confidence` and `localized` (confidence at or above the limit: 0x153 bit 4, the dashboard,
-the agent's guards), `candidates` (while global localization is ambiguous), `map_to_odom`, and
-`drain_events` for the agent and the dashboard. Selecting another map drops the pose (an event says so).
-No I/O and no clock of its own: every time comes from the inputs or the scheduler's ``now``.
+not localized), `confidence` and `localized` (confidence at or above the limit), `status` (the confidence, its
+limit and the state, as 0x153 bit 4, the dashboard and the agent's guards read them), `candidates` (while
+global localization is ambiguous), `map_to_odom`, and `drain_events` for the agent and the dashboard.
+Selecting another map drops the pose (an event says so). No I/O and no clock of its own: every time comes
+from the inputs or the scheduler's ``now``.
 """
 
 from __future__ import annotations
@@ -24,9 +25,10 @@ from collections import deque
 
 import numpy as np
 
+from atemr.domain.maps import OccupancyMap
+from atemr.domain.status import LocalizationState, LocalizationStatus
 from atemr.errors import NavigationError, ProtocolError
-from atemr.io.sim.maps import OccupancyMap
-from atemr.msgs import ImuSample, LaserScan, Pose2D, WheelSpeeds
+from atemr.msgs import ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.skills.diff_drive import DiffDrive
 from atemr.skills.localization.amcl import PoseEstimate
 from atemr.skills.localization.geometry import as_array, as_pose, compose, relative
@@ -87,7 +89,7 @@ class LocalizationPipeline:
             self._events.extend(self.localizer.events)
             self._events.append(LocalizationEvent(self.odometry.t, "map_changed",
                                                   f"map {grid.name} selected: not localized until a pose is set "
-                                                  "or found (FIND POSE)"))
+                                                  "or found (FIND POSITION)"))
         self.localizer = localizer
 
     def _need(self) -> Localizer:
@@ -111,7 +113,11 @@ class LocalizationPipeline:
 
     def on_wheels(self, now: float, wheels: WheelSpeeds) -> None:
         """Measured wheel speeds at ``now``."""
-        if self.odometry.update_wheels(now, self.drive.measured(wheels)):
+        self.on_wheel_twist(now, self.drive.measured(wheels))
+
+    def on_wheel_twist(self, now: float, twist: Twist) -> None:
+        """The base twist the wheels measured at ``now`` (a recording keeps this: `atemr.robot.replay`)."""
+        if self.odometry.update_wheels(now, twist):
             self._remember()
 
     def on_imu(self, sample: ImuSample) -> None:
@@ -181,9 +187,15 @@ class LocalizationPipeline:
         return self.localizer_params.monitor.min_confidence
 
     @property
-    def state(self) -> str:
+    def state(self) -> LocalizationState:
         """``no map``, or the localizer's state (localized, lost, searching, ambiguous, failed, ...)."""
         return "no map" if self.localizer is None else self.localizer.state
+
+    @property
+    def status(self) -> LocalizationStatus:
+        """The one confidence number (rounded as every consumer shows it), its limit and the state: what the
+        agent's guards, 0x153 bit 4, the dashboard and the command line all read."""
+        return LocalizationStatus(round(self.confidence, 4), self.min_confidence, self.state)
 
     @property
     def candidates(self) -> tuple[Hypothesis, ...]:

@@ -28,8 +28,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import NavigationError
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D
 
 FREE_SPACE = 0

@@ -201,21 +201,10 @@ class GlobalPlanner:
         # (Dijkstra's bound is on the path cost itself: 1.75 times the octile distance to begin with.)
         straight = float(octile_m(np.array(s[0]), np.array(s[1]), g, cm.resolution_m)) * p.neutral_cost
         limit = (0.75 if p.algorithm == "astar" else 1.75) * straight + 10 * cm.resolution_m
-        expanded = 0
-        reached_before = -1
-        while True:
-            dist, pred = dijkstra(graph, indices=s_flat, return_predecessors=True, limit=limit)
-            d_goal = float(dist[g_flat])
-            reached = int(np.count_nonzero(np.isfinite(dist) & (dist < _BLOCKED / 10)))
-            expanded += reached
-            if math.isfinite(d_goal):
-                if d_goal >= _BLOCKED / 10:
-                    return None
-                break
-            if reached == reached_before or not math.isfinite(limit):
-                return None
-            reached_before = reached
-            limit = limit * 2 if limit < 1e6 else math.inf
+        found = _bounded_search(graph, s_flat, g_flat, limit)
+        if found is None:
+            return None
+        d_goal, pred, expanded = found
         flat = _walk_back(pred, s_flat, g_flat)
         pr, pc = np.divmod(flat, cols)
         x, y = cm.map.cell_to_world(pr, pc)
@@ -303,6 +292,26 @@ class GlobalPlanner:
         passable[r0:r1, c0:c1] |= window == INSCRIBED
         window[window == INSCRIBED] = MAX_NON_OBSTACLE
         return cost, passable
+
+
+def _bounded_search(graph: csr_matrix, s_flat: int, g_flat: int, limit: float
+                    ) -> tuple[float, NDArray[np.int32], int] | None:
+    """Dijkstra from ``s_flat`` with its cost bound ``limit`` doubled until the goal is reached: the (reduced)
+    cost to the goal, the predecessors and how many cells were reached in all; None when the goal stays out
+    of reach (only through lethal cells, or nothing more is reached)."""
+    expanded = 0
+    reached_before = -1
+    while True:
+        dist, pred = dijkstra(graph, indices=s_flat, return_predecessors=True, limit=limit)
+        d_goal = float(dist[g_flat])
+        reached = int(np.count_nonzero(np.isfinite(dist) & (dist < _BLOCKED / 10)))
+        expanded += reached
+        if math.isfinite(d_goal):
+            return None if d_goal >= _BLOCKED / 10 else (d_goal, pred, expanded)
+        if reached == reached_before or not math.isfinite(limit):
+            return None
+        reached_before = reached
+        limit = limit * 2 if limit < 1e6 else math.inf
 
 
 def _walk_back(pred: NDArray[np.int32], start: int, goal: int) -> NDArray[np.intp]:

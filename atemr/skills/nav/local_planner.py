@@ -234,7 +234,6 @@ class LocalPlanner:
         r_in = cm.params.inscribed_radius_m
         here = np.array([pose.x_m, pose.y_m])
         i_near, s = path_progress(path, pose.x_m, pose.y_m)
-        total = float(s[-1])
         d_goal = math.hypot(goal_xy[0] - pose.x_m, goal_xy[1] - pose.y_m)
         # Carrot: lookahead along the path from the nearest point (the goal at the end).
         i_carrot = int(np.searchsorted(s, s[i_near] + p.lookahead_m))
@@ -257,6 +256,25 @@ class LocalPlanner:
         vs, ws = self.targets(velocity, v_cap, reverse=escaping)
         vs = np.maximum(vs, -rear_cap)
         xs, ys, th = self._rollout(pose, velocity, vs, ws, p.sim_time_s)
+        valid = self._valid(pose, xs, ys, th, vs=vs, clearance_here=clearance_here)
+        score = self._score(xs, ys, th, path=path, s=s, i_near=i_near, carrot=carrot)
+        score = np.where(valid, score, np.inf)
+        n_valid = int(valid.sum())
+        if n_valid == 0:
+            return LocalPlan(Twist(0.0, 0.0), np.repeat(here[None, :], 2, axis=0), False, len(vs), 0)
+        best = int(np.argmin(score))
+        traj = np.vstack([here, np.column_stack([xs[best], ys[best]])])
+        twist = self.first_command(velocity, float(vs[best]), float(ws[best]), dt)
+        twist = Twist(min(max(twist.linear_mps, -rear_cap), front_cap), twist.angular_radps)
+        # A stop chosen because every move is ruled out is a blocked robot, not progress.
+        moving = abs(twist.linear_mps) > 1e-3 or abs(twist.angular_radps) > 1e-3 or abs(vs[best]) > 1e-3
+        return LocalPlan(twist, traj, moving, len(vs), n_valid)
+
+    def _valid(self, pose: Pose2D, xs: FloatArray, ys: FloatArray, th: FloatArray, *, vs: FloatArray,
+               clearance_here: float) -> NDArray[np.bool_]:
+        """Which rollouts (from ``pose``, at linear speeds ``vs``) are safe to take."""
+        p, cm = self.params, self.costmap
+        r_in = cm.params.inscribed_radius_m
         clear = cm.distance_at(xs, ys)
         # Valid: never inside the inscribed radius; from inside it (pushed against something, or something
         # came close), never closer than now and ending farther away: the way out, never a creep inwards.
@@ -282,6 +300,14 @@ class LocalPlanner:
                                               np.array([pose.yaw_rad]), direction=np.array([1.0]),
                                               radius_m=p.stop_cone_m)[0])
         valid &= cone >= min(1.0, cone_here)
+        return valid
+
+    def _score(self, xs: FloatArray, ys: FloatArray, th: FloatArray, *, path: FloatArray, s: FloatArray,
+               i_near: int, carrot: FloatArray) -> FloatArray:
+        """The cost of each rollout (lower is better): off the path, distance still to go along it, obstacle
+        cost on the way, heading off the carrot at the end."""
+        p, cm = self.params, self.costmap
+        total = float(s[-1])
         obstacle = np.minimum(cm.cost_at(xs, ys).max(axis=1), MAX_NON_OBSTACLE) / MAX_NON_OBSTACLE
         # Path terms against the part of the path ahead (a window of a few metres).
         j1 = int(np.searchsorted(s, s[i_near] + p.lookahead_m + p.max_linear_mps * p.sim_time_s + 0.5))
@@ -295,19 +321,8 @@ class LocalPlanner:
         heading = np.abs(wrap(np.arctan2(carrot[1] - ey, carrot[0] - ex) - th[:, -1])) / math.pi
         near_end = np.hypot(carrot[0] - ex, carrot[1] - ey) < 0.05
         heading = np.where(near_end, 0.0, heading)
-        score = (p.path_weight * path_dist + p.goal_weight * to_go + p.obstacle_weight * obstacle
-                 + p.heading_weight * heading)
-        score = np.where(valid, score, np.inf)
-        n_valid = int(valid.sum())
-        if n_valid == 0:
-            return LocalPlan(Twist(0.0, 0.0), np.repeat(here[None, :], 2, axis=0), False, len(vs), 0)
-        best = int(np.argmin(score))
-        traj = np.vstack([here, np.column_stack([xs[best], ys[best]])])
-        twist = self.first_command(velocity, float(vs[best]), float(ws[best]), dt)
-        twist = Twist(min(max(twist.linear_mps, -rear_cap), front_cap), twist.angular_radps)
-        # A stop chosen because every move is ruled out is a blocked robot, not progress.
-        moving = abs(twist.linear_mps) > 1e-3 or abs(twist.angular_radps) > 1e-3 or abs(vs[best]) > 1e-3
-        return LocalPlan(twist, traj, moving, len(vs), n_valid)
+        return (p.path_weight * path_dist + p.goal_weight * to_go + p.obstacle_weight * obstacle
+                + p.heading_weight * heading)
 
     def evade(self, pose: Pose2D, velocity: Twist, dt_s: float | None = None) -> Twist:
         """While waiting: if something is inside the inscribed radius (a person walked up), the move in the

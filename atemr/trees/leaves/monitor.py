@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 import py_trees
 
 from atemr.clock import due
+from atemr.domain.status import AgentBits, HardwareBits, state_code
 from atemr.errors import HardwareError
-from atemr.fsm.codes import state_code
-from atemr.io.can import AgentBits, HardwareBits, PrimaryStatus
+from atemr.io.can import PrimaryStatus
 from atemr.trees.behaviours import Leaf, behaviours
 from atemr.trees.context import MONITOR_NS
 from atemr.trees.ports import HARDWARE_COMPONENTS

@@ -17,6 +17,13 @@ from atemr.trees.ports import NavigationPort
 
 Status = py_trees.common.Status
 
+#: Navigation's goal step; a goal can be executed only once a behaviour of this name is registered.
+GO_TO_POSE = "GoToPose"
+#: Navigation's route step (`FollowPath`).
+FOLLOW_PATH = "FollowPath"
+#: The steps that drive the base through navigation (a mission with one needs navigation on the robot).
+DRIVES = (GO_TO_POSE, FOLLOW_PATH)
+
 
 class NavigationGoal(Leaf):
     """What `GoToPose` and `FollowPath` share: hand navigation a goal in ``initialise`` (``start``; a refusal
@@ -71,7 +78,7 @@ class NavigationGoal(Leaf):
         self.ctx.port.command_velocity("navigation", ZERO_TWIST, self.ctx.now)
 
 
-@behaviours.register("GoToPose")
+@behaviours.register(GO_TO_POSE)
 class GoToPose(NavigationGoal):
     """Drive to ``(x_m, y_m, yaw_rad)`` in the map frame by navigation's own plan (see `NavigationGoal`)."""
 
@@ -110,7 +117,7 @@ class FollowPathParams:
         return Pose2D(x, y, yaw)
 
 
-@behaviours.register("FollowPath")
+@behaviours.register(FOLLOW_PATH)
 class FollowPath(NavigationGoal):
     """Drive along a route: through ``points`` in order to the last one (Nav2's FollowPath; navigation
     follows the route, not its own shortest way, and fails rather than take another way); see

@@ -7,7 +7,7 @@ from typing import Literal
 
 import py_trees
 
-from atemr.io.can import PowerState
+from atemr.domain.status import PowerState
 from atemr.trees.behaviours import Leaf, behaviours
 
 Status = py_trees.common.Status

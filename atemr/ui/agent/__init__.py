@@ -1,6 +1,7 @@
 """The Agent view (beyond the thesis): the lifecycle machine and the current state's behaviour tree drawn
 live with each node's status and tick count, the blackboard (every key, its value, who wrote it and when),
-the last transitions with their reasons and the mission progress; and the replay of a recorded trace.
+the last transitions with their reasons and the mission progress; and the replay of a recording
+(MCAP, or an older ``.atrace`` trace).
 
 Live data comes over Socket.IO (``agent_view`` subscription, ``agent`` pushes). Replay is a small JSON API
 over the traces in ``data_dir/traces`` (the Media store's ``traces`` kind: names checked with
@@ -22,7 +23,7 @@ from werkzeug.wrappers import Response
 
 from atemr.errors import ConfigError
 from atemr.fsm.trace_timeline import TraceTimeline
-from atemr.io.trace_file import read_trace
+from atemr.io.recording.agent_trace import read_agent_trace
 from atemr.ui.media.files import MediaError, MediaStore
 from atemr.ui.security import role_required
 
@@ -50,7 +51,7 @@ class TimelineCache:
             if key in self._items:
                 self._items.move_to_end(key)
                 return self._items[key]
-        contents = read_trace(path)
+        contents = read_agent_trace(path)
         timeline = TraceTimeline(contents.records, name=path.name, warnings=contents.warnings)
         with self._lock:
             self._items[key] = timeline
@@ -118,10 +119,11 @@ def frame(name: str) -> Any:
 @bp.route("/api/traces", methods=["POST"])
 @role_required("user")
 def upload() -> tuple[Response, int]:
-    """A ``.atrace`` file (form field ``file``), read before it is stored; the CSRF token is required."""
+    """A recording (``.mcap``, or an older ``.atrace``; form field ``file``), read before it is stored; the CSRF
+    token is required."""
     file = request.files.get("file")
     if file is None or not file.filename:
-        return jsonify({"ok": False, "reason": "choose a .atrace file to upload"}), 400
+        return jsonify({"ok": False, "reason": "choose a .mcap recording to upload"}), 400
     try:
         name, contents = _store().upload_trace(file.filename, file.read())
     except MediaError as exc:

@@ -1,8 +1,9 @@
 """The Mapping page (begin/end mapping, save/discard dialog, live map, map list and select) and the map
 upload, which goes through the robot's map store (validated before anything is stored).
 
-A refused upload's reason is flashed cut to `MAX_FLASH_CHARS`: flashes live in the session cookie until the
-page shows them, so what an upload may put there is bounded whatever the upload was."""
+A refused upload answers with the page itself, the reason beside the upload form, cut to `MAX_FLASH_CHARS`
+like the flash a successful upload leaves in the session cookie: what an upload may put on the page or in
+the cookie is bounded whatever the upload was."""
 
 from __future__ import annotations
 
@@ -33,8 +34,17 @@ def _store() -> MediaStore:
 @bp.route("/mapping")
 @role_required("user")
 def page() -> str:
+    return _render()
+
+
+def _render(upload_error: str | None = None) -> str:
     maps, _ = _store().newest("maps", 0, 1000)
-    return render_template("mapping/mapping.html", maps=maps)
+    return render_template("mapping/mapping.html", maps=maps, upload_error=upload_error)
+
+
+def _refused(message: str, status: int) -> tuple[str, int]:
+    """The Mapping page with the upload's refusal beside the upload form (a file input cannot be refilled)."""
+    return _render(brief_text(message, MAX_FLASH_CHARS)), status
 
 
 @bp.route("/mapping/upload", methods=["POST"])
@@ -45,16 +55,13 @@ def upload() -> Any:
     yaml_file = request.files.get("yaml")
     image_file = request.files.get("image")
     if yaml_file is None or image_file is None or not yaml_file.filename or not image_file.filename:
-        flash("Upload both the map's .yaml and the image it names.", "error")
-        return redirect(url_for("mapping.page")), 400
+        return _refused("Upload both the map's .yaml and the image it names.", 400)
     try:
         name = _store().upload_map(yaml_file.filename, yaml_file.read(), image_file.filename, image_file.read())
     except MapExistsError as exc:
-        flash(brief_text(f"Map upload refused: {exc}", MAX_FLASH_CHARS), "error")
-        return redirect(url_for("mapping.page")), 409
+        return _refused(f"Map upload refused: {exc}", 409)
     except MediaError as exc:
-        flash(brief_text(f"Map upload refused: {exc}", MAX_FLASH_CHARS), "error")
-        return redirect(url_for("mapping.page")), 400
+        return _refused(f"Map upload refused: {exc}", 400)
     robot = _gateway()
     if robot is not None:
         robot.maps_changed()

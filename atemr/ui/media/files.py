@@ -1,7 +1,9 @@
 """The files the dashboard lists, serves and deletes: captured images, recorded videos, maps and agent traces.
 
-Layout under ``data_dir``: ``media/images/``, ``media/videos/`` and ``traces/`` (the recorder's ``.atrace``
-files, which the Agent page replays; uploads are read before they are stored); maps belong to the robot's
+Layout under ``data_dir``: ``media/images/``, ``media/videos/`` (MP4 since the recorder writes it; older
+``.mjpeg`` files are still listed and downloaded), ``traces/`` (the recorder's ``.mcap`` recordings, and older
+``.atrace`` traces, which the Agent page replays; uploads are read before they are stored) and
+``cache/thumbnails/`` (previews of images and videos, `atemr.ui.media.thumbnails`); maps belong to the robot's
 `atemr.io.map_store.MapStore` (``maps/``, ROS map_server pairs, plus read-only built-ins), and every map
 listing, download, upload and delete goes through it, so the dashboard and the robot have one set of
 rules (built-ins protected, uploaded images only, size limit). Names coming from a browser go through
@@ -23,7 +25,9 @@ from werkzeug.utils import secure_filename
 
 from atemr.errors import AtemrError, ConfigError
 from atemr.io.map_store import MapStore, clean_name
-from atemr.io.trace_file import SUFFIX, TraceContents, decode_trace
+from atemr.io.recording.agent_trace import RECORDING_SUFFIXES, decode_agent_trace
+from atemr.io.trace_file import TraceContents
+from atemr.ui.media.thumbnails import Thumbnails
 from atemr.yamlsafe import load_yaml
 
 Kind = Literal["images", "videos", "maps", "traces"]
@@ -33,8 +37,20 @@ EXTENSIONS: dict[Kind, frozenset[str]] = {
     "images": frozenset({".jpg", ".jpeg", ".png"}),
     "videos": frozenset({".mp4", ".webm", ".avi", ".mjpeg", ".mkv"}),
     "maps": frozenset({".yaml", ".yml"}),
-    "traces": frozenset({SUFFIX}),
+    "traces": frozenset(RECORDING_SUFFIXES),
 }
+#: What each listed file is served as. A Motion-JPEG video (``.mjpeg``, what the recorder wrote before it
+#: wrote MP4) has no registered type; VLC and ffplay open it, browsers do not.
+MIME_TYPES: dict[str, str] = {
+    ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".png": "image/png",
+    ".mp4": "video/mp4", ".webm": "video/webm", ".mkv": "video/x-matroska", ".avi": "video/x-msvideo",
+    ".mjpeg": "video/x-motion-jpeg",
+    **dict.fromkeys(RECORDING_SUFFIXES, "application/octet-stream"),
+}
+#: Files a browser shows in place (an ``<img>`` or a ``<video>``); the rest are downloaded.
+VIEWABLE = frozenset({".jpg", ".jpeg", ".png", ".mp4", ".webm"})
+#: Kinds that have thumbnails.
+THUMBNAIL_KINDS = frozenset({"images", "videos"})
 MAP_IMAGE_EXTENSIONS = frozenset({".pgm", ".png", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"})
 PAGE_SIZE = 10
 #: Longest file name asked for (a name the file system cannot hold is simply not there).
@@ -65,9 +81,23 @@ class MediaFile:
     modified: float
     builtin: bool = False
 
+    @property
+    def viewable(self) -> bool:
+        """Shown in place by a browser (an image, or a video a ``<video>`` plays)."""
+        return self.kind in THUMBNAIL_KINDS and Path(self.name).suffix.lower() in VIEWABLE
+
+    @property
+    def has_thumbnail(self) -> bool:
+        return self.kind in THUMBNAIL_KINDS
+
     def to_json(self) -> dict[str, object]:
         return {"kind": self.kind, "name": self.name, "size_bytes": self.size_bytes, "modified": self.modified,
-                "builtin": self.builtin}
+                "builtin": self.builtin, "viewable": self.viewable, "thumbnail": self.has_thumbnail}
+
+
+def mimetype(name: str) -> str:
+    """What a listed file is served as (by its suffix)."""
+    return MIME_TYPES.get(Path(name).suffix.lower(), "application/octet-stream")
 
 
 def check_kind(kind: str) -> Kind:
@@ -82,6 +112,7 @@ class MediaStore:
     def __init__(self, data_dir: Path, maps: MapStore | None = None) -> None:
         self.data_dir = Path(data_dir)
         self.maps = maps or MapStore(self.data_dir)
+        self.thumbnails = Thumbnails(self.data_dir / "cache" / "thumbnails")
         self.dirs: dict[Kind, Path] = {
             "images": self.data_dir / "media" / "images",
             "videos": self.data_dir / "media" / "videos",
@@ -113,6 +144,23 @@ class MediaStore:
         if not found:
             raise MediaError(f"no such {kind[:-1]}: {_shown(name)}")
         return path
+
+    def viewable(self, kind: str, name: str) -> Path:
+        """An image or video that a browser shows in place (`VIEWABLE`); `MediaError` for any other file."""
+        path = self.path(kind, name)
+        if kind not in THUMBNAIL_KINDS or path.suffix.lower() not in VIEWABLE:
+            raise MediaError(f"{_shown(name)} is not shown in a browser; download it")
+        return path
+
+    def thumbnail(self, kind: str, name: str) -> Path:
+        """The thumbnail JPEG of an image or a video (made now on first request: see `Thumbnails`)."""
+        if check_kind(kind) not in THUMBNAIL_KINDS:
+            raise MediaError(f"{kind} have no thumbnails")
+        source = self.path(kind, name)
+        try:
+            return self.thumbnails.get(kind, name, source)
+        except FileNotFoundError:  # deleted meanwhile
+            raise MediaError(f"no such {kind[:-1]}: {_shown(name)}") from None
 
     def newest(self, kind: str, offset: int = 0, limit: int = PAGE_SIZE) -> tuple[list[MediaFile], int]:
         """The files of ``kind``, newest first, ``limit`` of them from ``offset``; and the total count."""
@@ -193,6 +241,8 @@ class MediaStore:
                 raise MediaError(exc.reason) from None
             return [t.name for t in targets]
         path.unlink(missing_ok=True)
+        if kind in THUMBNAIL_KINDS:
+            self.thumbnails.forget(kind, name)
         return [path.name]
 
     def delete_all(self, kind: str) -> int:
@@ -239,26 +289,29 @@ class MediaStore:
         from another robot, or one copied off this one); returns its stored name (through ``secure_filename``)
         and what was read.
 
-        Refused with `MediaError` (nothing stored): a name that is not a ``.atrace`` file name, a file
+        Refused with `MediaError` (nothing stored): a name that is not a ``.mcap`` (or older ``.atrace``) file
+        name, a file
         that is not a trace or has no agent ``head`` record, a name already taken. A trace damaged after
         some good records is stored; its warnings say where the damage is.
         """
         from atemr.fsm.trace_timeline import TraceTimeline
 
         safe = secure_filename(name or "")
-        if not _plain_name(safe) or Path(safe).suffix.lower() != SUFFIX:
-            raise MediaError(f"a trace upload is a file name of at most {MAX_NAME_BYTES} bytes ending in {SUFFIX}, "
+        suffix = Path(safe).suffix.lower()
+        if not _plain_name(safe) or suffix not in RECORDING_SUFFIXES:
+            raise MediaError(f"a trace upload is a file name of at most {MAX_NAME_BYTES} bytes ending in "
+                             f"{' or '.join(RECORDING_SUFFIXES)}, "
                              f"got {_shown(name or '')}")
         folder = self.dir("traces")
         try:
-            contents = decode_trace(data, Path(safe))
+            contents = decode_agent_trace(data, Path(safe))
             TraceTimeline(contents.records, name=safe)
         except ConfigError as exc:
             raise MediaError(f"not a valid trace: {exc}") from None
         target = folder / safe
         if target.exists():
             raise MediaError(f"a trace named '{safe}' exists already; delete it first or rename the upload")
-        tmp = folder / f".upload-{secrets.token_hex(8)}{SUFFIX}.part"
+        tmp = folder / f".upload-{secrets.token_hex(8)}{suffix}.part"
         try:
             tmp.write_bytes(data)
             tmp.replace(target)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from typing import Any, cast
 
-from flask import Blueprint, current_app, flash, redirect, render_template, request, url_for
+from flask import Blueprint, current_app, flash, make_response, redirect, render_template, request, url_for
 from werkzeug.wrappers import Response
 
 from atemr.ui import sockets
@@ -38,21 +38,39 @@ def _back() -> Response:
     return redirect(url_for("settings.page"))
 
 
-def _report(what: str, result: CommandResult) -> bool:
-    flash(f"{what}: {'done' if result.ok else 'refused: ' + result.reason}", "ok" if result.ok else "error")
-    return result.ok
+#: Form fields never sent back into the page after an error (what was typed there is a secret).
+SECRET_FIELDS = frozenset({"password", "current", "new", "confirm", "csrf_token"})
+
+
+def _page(status: int = 200, *, form: str | None = None, error: str | None = None) -> Response:
+    """The Settings page; after a refused form, with the reason beside that form (``form``: its id stem) and
+    what was typed kept in it (passwords excepted), answered with ``status``."""
+    robot = _gateway()
+    state: RobotState | dict[str, Any] = robot.state() if robot else {}  # no robot: every field shows "—"
+    user = current_user()
+    users = user_store().list() if user is not None and user.can("admin") else []
+    granted = user_permissions()
+    typed = {k: v for k, v in request.form.items() if k not in SECRET_FIELDS} if form else {}
+    html = render_template("settings/settings.html", state=state, users=users, roles=ROLES,
+                           connected=robot is not None, role_labels=ROLE_LABELS, permissions=PERMISSIONS,
+                           permission_labels=PERMISSION_LABELS,
+                           role_may=lambda role, permission: role_may(role, permission, granted),
+                           errors={form: error} if form and error else {}, typed=typed, typed_form=form)
+    return make_response(html, status)
+
+
+def _report(form: str, what: str, result: CommandResult) -> Response:
+    """Done: back to the page with the news; refused by the robot: the reason beside the form (409)."""
+    if not result.ok:
+        return _page(409, form=form, error=f"{what}: refused: {result.reason}")
+    flash(f"{what}: done", "ok")
+    return _back()
 
 
 @bp.route("")
 @role_required("user")
-def page() -> str:
-    robot = _gateway()
-    state: RobotState | dict[str, Any] = robot.state() if robot else {}  # no robot: every field shows "—"
-    users = user_store().list() if current_user() and current_user().can("admin") else []  # type: ignore[union-attr]
-    granted = user_permissions()
-    return render_template("settings/settings.html", state=state, users=users, roles=ROLES, connected=robot is not None,
-                           role_labels=ROLE_LABELS, permissions=PERMISSIONS, permission_labels=PERMISSION_LABELS,
-                           role_may=lambda role, permission: role_may(role, permission, granted))
+def page() -> Response:
+    return _page()
 
 
 def _form_number(key: str, hi: float) -> float:
@@ -74,11 +92,9 @@ def limits() -> Response:
         linear = _form_number("linear_mps", MAX_LINEAR_MPS)
         angular = _form_number("angular_radps", MAX_ANGULAR_RADPS)
     except UserError as exc:
-        flash(f"Speed limits: {exc}", "error")
-        return _back()
+        return _page(400, form="limits", error=f"Speed limits: {exc}")
     robot = _gateway()
-    _report("Speed limits", robot.set_limits(linear, angular) if robot else NO_ROBOT)
-    return _back()
+    return _report("limits", "Speed limits", robot.set_limits(linear, angular) if robot else NO_ROBOT)
 
 
 @bp.route("/awareness", methods=["POST"])
@@ -86,8 +102,7 @@ def limits() -> Response:
 def awareness() -> Response:
     robot = _gateway()
     on = request.form.get("awareness") == "on"
-    _report(f"Awareness {'on' if on else 'off'}", robot.set_awareness(on) if robot else NO_ROBOT)
-    return _back()
+    return _report("awareness", f"Awareness {'on' if on else 'off'}", robot.set_awareness(on) if robot else NO_ROBOT)
 
 
 @bp.route("/wifi", methods=["POST"])
@@ -97,11 +112,9 @@ def wifi() -> Response:
     ssid = request.form.get("ssid", "")
     password = request.form.get("password", "")
     if not 1 <= len(ssid.encode()) <= 32 or not 8 <= len(password.encode()) <= 63:
-        flash("WiFi: the SSID has 1-32 bytes and the password 8-63 bytes.", "error")
-        return _back()
+        return _page(400, form="wifi", error="WiFi: the SSID has 1-32 bytes and the password 8-63 bytes.")
     robot = _gateway()
-    _report("WiFi", robot.set_wifi(ssid, password) if robot else NO_ROBOT)
-    return _back()
+    return _report("wifi", "WiFi", robot.set_wifi(ssid, password) if robot else NO_ROBOT)
 
 
 @bp.route("/password", methods=["POST"])
@@ -112,16 +125,13 @@ def password() -> Response:
     assert user is not None
     store = user_store()
     if store.verify(user.username, request.form.get("current", "")) is None:
-        flash("Password: the current password is wrong.", "error")
-        return _back()
+        return _page(400, form="password", error="Password: the current password is wrong.")
     if request.form.get("new", "") != request.form.get("confirm", ""):
-        flash("Password: the two new passwords differ.", "error")
-        return _back()
+        return _page(400, form="password", error="Password: the two new passwords differ.")
     try:
         store.set_password(user.username, request.form.get("new", ""))  # ends every session of the user
     except UserError as exc:
-        flash(f"Password: {exc}", "error")
-        return _back()
+        return _page(400, form="password", error=f"Password: {exc}")
     sockets.disconnect_user(current_app._get_current_object(), user.username)  # type: ignore[attr-defined]
     login_user(user)  # this browser goes on in a fresh session; every other one is logged out
     flash("Password changed. Every other session of yours is logged out.", "ok")
@@ -138,8 +148,7 @@ def add_user() -> Response:
         user_store().create(request.form.get("username", "").strip(), request.form.get("password", ""),
                             role)
     except UserError as exc:
-        flash(f"Add user: {exc}", "error")
-        return _back()
+        return _page(400, form="add-user", error=f"Add user: {exc}")
     flash(f"User {request.form.get('username', '').strip()} added.", "ok")
     return _back()
 

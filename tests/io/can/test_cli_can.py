@@ -11,7 +11,8 @@ import pytest
 from atemr.cli.can import monitor_bus
 from atemr.cli.main import main
 from atemr.clock import SimClock
-from atemr.io.can import Heartbeat, Power, PowerState
+from atemr.domain.status import PowerState
+from atemr.io.can import Heartbeat, Power
 from atemr.io.motors.rmd_codec import RmdCommand, RmdRequest
 
 

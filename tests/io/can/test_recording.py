@@ -8,8 +8,9 @@ from pathlib import Path
 import can
 import pytest
 
+from atemr.domain.status import StateCode
 from atemr.errors import ConfigError
-from atemr.io.can import Heartbeat, PrimaryStatus, StateCode
+from atemr.io.can import Heartbeat, PrimaryStatus
 from atemr.io.can.recording import BusRecorder, check_log_path, describe, read_log
 from atemr.io.motors.rmd_codec import RmdCommand, RmdRequest, Status1Reply
 

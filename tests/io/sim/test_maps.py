@@ -8,8 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
+from atemr.domain.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import FREE, OCCUPIED, UNKNOWN, OccupancyMap, load_map, pixels_to_occupancy, save_map
+from atemr.io.sim.maps import load_map, pixels_to_occupancy, save_map
 from atemr.msgs import Pose2D
 
 STUDIO = Path(__file__).resolve().parents[3] / "atemr" / "worlds" / "studio" / "studio.yaml"

@@ -197,8 +197,10 @@ rule_blocks:
 def test_every_feature_the_plan_treats_specially() -> None:
     engine = engine_from_yaml("features.yaml", text=FEATURES)
     plan = engine._plan
-    assert plan.tree_rules and plan.hedged and plan.consequent_hedges and plan.folds and plan.others
-    assert plan.n_lin == 2 and plan.n_empty == 1 and plan.weights is not None
+    assert plan.antecedents.tree_rules and plan.fuzzification.hedged and plan.grouping.hedges
+    assert plan.grouping.folds and plan.defuzzification.others
+    assert plan.defuzzification.n_lin == 2 and plan.defuzzification.n_empty == 1
+    assert plan.antecedents.weights is not None
     for seed in range(4):
         assert_same(engine, rows(engine, 1500, seed))
 
@@ -225,7 +227,7 @@ rule_blocks:
 def test_membership_kernels_are_bit_identical_to_the_terms() -> None:
     rng = np.random.default_rng(11)
     engine = engine_from_yaml("features.yaml", text=FEATURES)
-    shapes = {s.kind: s for s in engine._plan.shapes}
+    shapes = {s.kind: s for s in engine._plan.fuzzification.shapes}
     assert {"Ramp", "Triangle", "Trapezoid", "other"} <= set(shapes)
     for kind, shape in shapes.items():
         x = rng.uniform(-12.0, 12.0, (400, len(engine.inputs)))
@@ -265,10 +267,10 @@ def test_stacked_shapes_match_random_terms(cls: type) -> None:
 
 def test_separable_larsen_centroid_equals_the_sampled_one(monkeypatch: pytest.MonkeyPatch) -> None:
     idle = load_builtin_engine("idle")
-    assert idle._plan.n_lin == 2  # both outputs take the matrix-product path
+    assert idle._plan.defuzzification.n_lin == 2  # both outputs take the matrix-product path
     monkeypatch.setattr("atemr.skills.fuzzy.compiled.is_separable", lambda m, names: False)
     sampled = load_builtin_engine("idle")  # compiled while no output looks separable
-    assert sampled._plan.n_lin == 0
+    assert sampled._plan.defuzzification.n_lin == 0
     x = rows(idle, 2000, 6)
     fast, slow = idle.process(x), sampled.process(x)
     for name in idle.output_names:
@@ -279,7 +281,7 @@ def test_chunked_rows_equal_one_chunk() -> None:
     for engine in (load_builtin_engine("idle"), engine_from_yaml("features.yaml", text=FEATURES)):
         x = rows(engine, 1000, 7)
         whole = engine.process(x)
-        engine._plan.chunk_rows = 97
+        object.__setattr__(engine, "_plan", dataclasses.replace(engine._plan, chunk_rows=97))
         chunked = engine.process(x)
         for name in engine.output_names:  # BLAS products inside some defuzzifiers may round by batch size
             np.testing.assert_allclose(chunked[name], whole[name], rtol=0, atol=ATOL)

@@ -9,7 +9,8 @@ from types import ModuleType
 
 import pytest
 
-from atemr.io.sim.maps import OccupancyMap, load_map
+from atemr.domain.maps import OccupancyMap
+from atemr.io.sim.maps import load_map
 
 ROOT = Path(__file__).resolve().parents[3]
 

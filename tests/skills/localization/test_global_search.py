@@ -142,7 +142,7 @@ def test_bad_parameters_name_the_key() -> None:
 
 
 def drive_straight(world_name: str, start: Pose2D, metres: float) -> tuple[Localizer, Pose2D, list[str]]:
-    """FIND POSE at ``start``, then the operator drives straight ahead (a scan every 4 cm, exact odometry)."""
+    """FIND POSITION at ``start``, then the operator drives straight ahead (a scan every 4 cm, exact odometry)."""
     world = load_world(world_name)
     scene, lidar = Scene(world), Lidar(LidarParams(), np.random.default_rng(0))
     localizer = Localizer(world.map, np.random.default_rng(0))

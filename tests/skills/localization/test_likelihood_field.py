@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.geometry import as_array
 from atemr.skills.localization.likelihood_field import FieldParams, LikelihoodField

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from atemr.io.sim.maps import OccupancyMap
+from atemr.domain.maps import OccupancyMap
 from atemr.msgs import Pose2D
 from atemr.skills.localization.geometry import compose, inverse, relative
 from atemr.skills.localization.icp import icp

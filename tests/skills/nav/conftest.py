@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from atemr.clock import SimClock
-from atemr.io.sim.maps import OccupancyMap
+from atemr.domain.maps import OccupancyMap
 from atemr.io.sim.simulation import Simulation
 from atemr.msgs import Pose2D
 from atemr.scheduler import Scheduler

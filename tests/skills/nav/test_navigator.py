@@ -1,5 +1,6 @@
 """The Navigator on small hand-made grids with a kinematic robot (the pose follows the command exactly)."""
 
+import itertools
 import math
 
 import numpy as np
@@ -8,7 +9,7 @@ import pytest
 from atemr.errors import NavigationError
 from atemr.io.sim.base import integrate_arc
 from atemr.msgs import Pose2D
-from atemr.skills.nav.navigator import Navigator, NavParams
+from atemr.skills.nav.navigator import Navigator, NavParams, Phase
 from atemr.skills.nav.recovery import DEFAULT_SEQUENCE
 
 RES = 0.05
@@ -125,6 +126,48 @@ def test_non_finite_pose_counts_as_not_localized(make_map):
     nav.start(Pose2D(4.0, 1.5, 0.0), 0.0)
     status = nav.update(0.0, Pose2D(float("nan"), 0.8, 0.0))
     assert status.state == "RUNNING" and status.twist.is_zero and status.phase == "waiting for localization"
+
+
+def phases_of(nav, pose, seconds, *, localized=lambda k: True, push=None):
+    """The phases the navigator goes through (each once per spell) and its last status; ``push(k, pose)`` may
+    move the robot before tick ``k``."""
+    phases, status = [], None
+    for k in range(round(seconds / DT)):
+        if push is not None:
+            pose = push(k, pose)
+        status = nav.update(k * DT, pose, None, localized(k))
+        phases.append(nav.phase)
+        if status.state != "RUNNING":
+            break
+        pose = integrate_arc(pose, status.twist.linear_mps, status.twist.angular_radps, DT)
+    return [phase for phase, _ in itertools.groupby(phases)], status
+
+
+def test_phases_of_a_goal_no_path_reaches(make_map):
+    nav = Navigator(two_rooms(make_map, blocked=True))
+    nav.start(Pose2D(4.0, 1.5, 0.0), 0.0)
+    phases, status = phases_of(nav, Pose2D(0.8, 1.5, 0.0), 120.0)
+    assert phases == [Phase.NO_PATH, Phase.RECOVERING] * len(DEFAULT_SEQUENCE) + [Phase.NO_PATH]
+    assert status.state == "FAILED"
+
+
+def test_lost_while_turning_turns_on_when_localized_again(make_map):
+    nav = Navigator(two_rooms(make_map))
+    nav.start(Pose2D(1.0, 1.5, math.pi / 2), 0.0)
+    phases, status = phases_of(nav, Pose2D(1.0, 1.5, 0.0), 10.0, localized=lambda k: not 3 <= k < 6)
+    assert phases == [Phase.TURNING, Phase.LOST, Phase.TURNING]
+    assert status.state == "SUCCEEDED"
+
+
+def test_pushed_off_the_goal_while_turning_drives_back(make_map):
+    nav = Navigator(two_rooms(make_map))
+    goal = Pose2D(1.0, 1.5, math.pi / 2)
+    nav.start(goal, 0.0)
+    phases, status = phases_of(nav, Pose2D(1.0, 1.5, 0.0), 30.0,
+                               push=lambda k, pose: Pose2D(1.6, 1.5, pose.yaw_rad) if k == 3 else pose)
+    assert phases[:3] == [Phase.TURNING, Phase.FOLLOWING, Phase.TURNING]
+    assert [e.kind for e in nav.events].count("position lost") == 1
+    assert status.state == "SUCCEEDED"
 
 
 def test_params_are_checked():

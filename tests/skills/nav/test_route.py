@@ -107,7 +107,7 @@ def test_a_blocked_route_is_waited_for_not_bypassed(make_map):
     # Someone stands across the top stretch, right ahead (the predicted layer stands in for the scan).
     wall = np.array([[x, y] for x in np.arange(0.05, 1.6, 0.05) for y in np.arange(3.0, 3.95, 0.05)])
     nav.costmap.set_predicted(wall)
-    nav._t_plan = -math.inf  # the next tick replans, as after a new scan
+    nav._run.t_plan = -math.inf  # the next tick replans, as after a new scan
     pose = Pose2D(0.6, 2.6, math.pi / 2)
     xy, statuses = drive(nav, pose, 2.0, t0=10.0)
     assert statuses[-1].phase == "no path: waiting", statuses[-1]

@@ -317,7 +317,7 @@
   $("trace-upload-form").addEventListener("submit", async (e) => {
     e.preventDefault();
     const file = $("trace-file").files[0];
-    if (!file) { $("replay-warning").textContent = "choose a .atrace file first"; return; }
+    if (!file) { $("replay-warning").textContent = "choose a .mcap recording first"; return; }
     const form = new FormData();
     form.append("file", file);
     const r = await fetch("/api/traces", { method: "POST", body: form, headers: { "X-CSRF-Token": A.csrf } });

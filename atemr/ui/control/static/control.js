@@ -1,5 +1,6 @@
-// The Control page: camera on/off, map command modes (initial pose / goal, AUTO only), capture, record,
-// cancel goal, missions, and the simulation panel (secondary-core screen and button, obstacle, kidnap).
+// The Control page: camera on/off, GO HERE (tap, drag for the heading, confirm; progress and arrival), SET
+// POSITION and FIND POSITION, capture, record, missions, and the simulation panel (secondary-core screen and
+// button, obstacle, kidnap).
 "use strict";
 
 (function () {
@@ -52,42 +53,82 @@
     if (transport === "socket" && camWanted !== camOn && !camPending && A.socket.status === "ONLINE") setCamera(camWanted);
   });
 
-  // -- map modes: MAP CTL (pan/zoom) / SEND CMD, and INITIAL POS. / SEND GOAL ---------------------------
-  const ctlBtn = $("map-ctl"), cmdBtn = $("map-cmd");
-  let sendGoal = false;
-  let simTool = null; // "obstacle" | "kidnap" | null
-  function applyModes() {
-    A.map.commandMode = ctlBtn.textContent === "SEND CMD" || simTool !== null;
+  const simTools = { obstacle: $("sim-obstacle"), kidnap: $("sim-kidnap") };
+  for (const k of Object.keys(simTools)) if (!simTools[k]) delete simTools[k];
+
+  // -- the map: pan and zoom, or a pose for GO HERE (then confirm) and SET POSITION -----------------------
+  // A plain drag pans the map. GO HERE and SET POSITION each make the next tap a position (drag: the way the
+  // robot faces); GO HERE then asks to confirm before the goal is sent, and switches to AUTO when needed.
+  const goBtn = $("go-here"), setBtn = $("set-position"), hint = $("map-hint");
+  const confirmBar = $("goal-confirm"), progress = $("goal-progress");
+  let tool = null; // "go" | "set" | "obstacle" | "kidnap" | null
+  let pending = null; // the goal waiting for CONFIRM
+  const HINTS = {
+    go: "Tap where the robot should go; drag from there to choose the way it faces.",
+    set: "Tap where the robot is now; drag from there to show the way it faces.",
+    obstacle: "Tap the map to drop an obstacle there.",
+    kidnap: "Drag on the map to carry the robot there without telling it.",
+  };
+  function useTool(next) {
+    tool = tool === next ? null : next;
+    A.map.commandMode = tool !== null;
+    goBtn.classList.toggle("on", tool === "go");
+    setBtn.classList.toggle("on", tool === "set");
+    hint.hidden = tool === null;
+    hint.textContent = tool ? HINTS[tool] : "";
+    for (const [n, b] of Object.entries(simTools)) b.classList.toggle("on", tool === n);
   }
-  ctlBtn.addEventListener("click", () => {
-    const toCmd = ctlBtn.textContent === "MAP CTL";
-    ctlBtn.textContent = toCmd ? "SEND CMD" : "MAP CTL";
-    ctlBtn.classList.toggle("on", !toCmd);
-    applyModes();
-  });
-  cmdBtn.addEventListener("click", () => {
-    if (!sendGoal && A.state.mode !== "AUTO") {
-      A.report("send goal", { ok: false, reason: "switch to AUTO first" });
-      return;
+  function askToConfirm(pose) {
+    pending = pose;
+    A.map.pending = pose;
+    A.map.draw();
+    $("goal-what").textContent = `Go to x ${pose.x_m.toFixed(2)} m, y ${pose.y_m.toFixed(2)} m?`;
+    confirmBar.hidden = false;
+  }
+  function dropPending() {
+    pending = null;
+    A.map.pending = null;
+    A.map.draw();
+    confirmBar.hidden = true;
+  }
+  goBtn.addEventListener("click", () => { dropPending(); useTool("go"); });
+  setBtn.addEventListener("click", () => { dropPending(); useTool("set"); });
+  $("goal-cancel").addEventListener("click", dropPending);
+  $("goal-go").addEventListener("click", async () => {
+    if (!pending) return;
+    const goal = pending;
+    if (A.state.mode !== "AUTO") {
+      const ack = await A.command("mode", { mode: "AUTO" });
+      if (!ack.ok) return;
+      await A.until((s) => s.mode === "AUTO", 3000);
     }
-    sendGoal = !sendGoal;
-    cmdBtn.textContent = sendGoal ? "SEND GOAL" : "INITIAL POS.";
-    cmdBtn.classList.toggle("on", !sendGoal);
-  });
-  A.onState((s) => {
-    if (sendGoal && s.mode !== "AUTO") { sendGoal = false; cmdBtn.textContent = "INITIAL POS."; cmdBtn.classList.add("on"); }
+    const ack = await A.command("goal", goal);
+    if (ack.ok) { dropPending(); progress.textContent = "Going there…"; }
   });
   A.map.onPose = (pose) => {
-    if (simTool === "obstacle") A.command("sim_obstacle", { x_m: pose.x_m, y_m: pose.y_m });
-    else if (simTool === "kidnap") A.command("sim_kidnap", pose);
-    else if (sendGoal) A.command("goal", pose);
-    else A.command("initial_pose", pose);
+    const used = tool;
+    if (used === "obstacle") A.command("sim_obstacle", { x_m: pose.x_m, y_m: pose.y_m });
+    else if (used === "kidnap") A.command("sim_kidnap", pose);
+    else if (used === "set") A.command("initial_pose", pose);
+    else if (used === "go") askToConfirm(pose);
+    if (used === "go" || used === "set") useTool(null); // one tap each: the map pans again
   };
+  A.onState((s) => {
+    const n = s.navigation;
+    if (s.agent_state === "EXEC" && s.goal && n) {
+      const left = n.distance_left_m === null ? "—" : `${n.distance_left_m.toFixed(1)} m`;
+      const eta = n.eta_s === null ? "" : `, about ${Math.max(1, Math.round(n.eta_s))} s`;
+      progress.textContent = `On the way: ${left} left${eta}.`;
+    }
+  });
+  A.onEvent((e) => {
+    if (e.kind !== "goal") return;
+    progress.textContent = e.text === "Goal reached." ? "Arrived." : e.text;
+  });
 
   $("capture").addEventListener("click", () => A.command("capture_image"));
   const rec = $("record");
   rec.addEventListener("click", () => A.command("record_video", { on: !A.state.recording }));
-  $("cancel-goal").addEventListener("click", () => A.command("cancel_goal"));
   $("localize-global").addEventListener("click", () => A.command("localize_globally"));
   A.onState((s) => {
     rec.classList.toggle("on", !!s.recording);
@@ -119,13 +160,6 @@
     for (const b of panel.querySelectorAll("button[data-hold]")) {
       b.addEventListener("click", () => A.command("sim_button", { hold_s: parseFloat(b.dataset.hold) }));
     }
-    const tools = { obstacle: $("sim-obstacle"), kidnap: $("sim-kidnap") };
-    for (const [name, btn] of Object.entries(tools)) {
-      btn.addEventListener("click", () => {
-        simTool = simTool === name ? null : name;
-        for (const [n, b] of Object.entries(tools)) b.classList.toggle("on", simTool === n);
-        applyModes();
-      });
-    }
+    for (const [name, btn] of Object.entries(simTools)) btn.addEventListener("click", () => useTool(name));
   }
 })();

@@ -15,6 +15,7 @@ class MapView {
     this.cx = 0; this.cy = 0;  // world point at the canvas centre
     this.commandMode = false;  // false: pan/zoom; true: press-drag gives a pose
     this.onPose = null;        // callback(pose) in command mode
+    this.pending = null;       // a goal waiting for the operator's confirmation, drawn dashed
     this.drag = null;
     this.pointers = new Map();
     this.fitted = false;
@@ -25,9 +26,10 @@ class MapView {
 
   resize() {
     const r = this.canvas.getBoundingClientRect();
-    if (r.width > 0 && r.height > 0) {
-      this.canvas.width = Math.round(r.width);
-      this.canvas.height = Math.round(r.height);
+    if (r.width > 0 && r.height > 0) { // crisp on phones and tablets: as many pixels as the screen has
+      const ratio = window.devicePixelRatio || 1;
+      this.canvas.width = Math.round(r.width * ratio);
+      this.canvas.height = Math.round(r.height * ratio);
     }
     this.draw();
   }
@@ -186,6 +188,7 @@ class MapView {
     if (s.goal) this.arrow(s.goal, "#d4a72c", 0.35);
     const candidates = (s.localization && s.localization.candidates) || [];
     for (const c of candidates) this.arrow(c, "#bf8700", 0.45);  // places an ambiguous search cannot tell apart
+    if (this.pending) this.arrow(this.pending, "#8250df", 0.5);
     if (s.pose) this.robot(s.pose);
     if (this.drag && this.drag.end && this.commandMode) {
       const [x, y] = this.drag.start;

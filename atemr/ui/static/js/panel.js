@@ -48,12 +48,12 @@
     const detail = $("localization-detail");
     const places = (loc.candidates || []).length;
     detail.textContent = loc.localized ? `limit ${pct(loc.limit)}`
-      : `${loc.state}${places ? `: ${places} places look alike (drawn on the map); move the robot or set its pose` : ""}; ` +
-        `needs ${pct(loc.limit)} — set the pose or FIND POSE`;
+      : `${loc.state}${places ? `: ${places} places look alike (drawn on the map); drive a little to tell them apart` : ""}; ` +
+        `needs ${pct(loc.limit)} — SET POSITION or FIND POSITION`;
   }
 
   $("level2-toggle").addEventListener("click", () => { $("level2").hidden = !$("level2").hidden; });
-  $("graph-toggle").addEventListener("click", () => { $("sysgraph").hidden = !$("sysgraph").hidden; });
+  $("graph-toggle").addEventListener("click", () => { $("sysgraph").hidden = !$("sysgraph").hidden; graph.draw(); });
 
 
   // -- the latest events, newest first -------------------------------------------------------------
@@ -107,8 +107,11 @@
   function send() {
     const c = current();
     show(c);
+    // No state from the robot: driving blind is off (a stop still goes out) until the state is back.
+    if (!A.live && (c.linear_mps !== 0 || c.angular_radps !== 0)) return;
     A.command("joystick", { linear_mps: c.linear_mps, angular_radps: c.angular_radps });
   }
+  function stopResending() { if (joy.timer) { clearInterval(joy.timer); joy.timer = null; } }
 
   // While held, resend every 100 ms: the robot drops joystick input older than 0.5 s.
   function update() {
@@ -127,7 +130,10 @@
   }
 
   pad.style.touchAction = "none";
-  pad.addEventListener("pointerdown", (e) => { pad.setPointerCapture(e.pointerId); joy.pointer = true; fromPointer(e); update(); });
+  pad.addEventListener("pointerdown", (e) => {
+    if (!A.live) return; // no state from the robot: driving blind is off
+    pad.setPointerCapture(e.pointerId); joy.pointer = true; fromPointer(e); update();
+  });
   pad.addEventListener("pointermove", (e) => { if (joy.pointer) { fromPointer(e); show(current()); } });
   const release = () => { joy.pointer = false; joy.x = joy.y = 0; update(); };
   pad.addEventListener("pointerup", release);
@@ -160,6 +166,23 @@
   }
   window.addEventListener("gamepadconnected", () => requestAnimationFrame(pollGamepad));
 
+  // -- STOP: the joystick released and any goal or mission cancelled, at once ---------------------------
+  const stopBtn = $("stop");
+  stopBtn.addEventListener("click", async () => {
+    joy.pointer = false; joy.keys.clear(); joy.x = joy.y = 0; stopResending();
+    show(current());
+    if (A.state.agent_state === "EXEC") await A.command("cancel_goal");
+    else await A.command("joystick", { linear_mps: 0, angular_radps: 0 });
+    A.alert("Stopped.", "ok");
+  });
+  const note = $("drive-note");
+  function driveNote(s) {
+    note.textContent = s.mode === "AUTO"
+      ? "AUTO: the robot drives itself; the joystick is off. Switch to MANUAL to drive."
+      : "";
+    pad.classList.toggle("off", s.mode === "AUTO");
+  }
+
   // -- 1 Hz CPU / memory / disk graph ----------------------------------------------------------------
   const graph = {
     canvas: $("sysgraph"),
@@ -175,26 +198,47 @@
     draw() {
       const c = this.canvas;
       if (!c || c.hidden) return;
+      // Crisp at any device pixel ratio: the backing store follows the displayed size times the ratio.
+      const ratio = window.devicePixelRatio || 1;
+      const w = c.clientWidth || 320, h = c.clientHeight || 120;
+      if (c.width !== Math.round(w * ratio) || c.height !== Math.round(h * ratio)) {
+        c.width = Math.round(w * ratio); c.height = Math.round(h * ratio);
+      }
       const ctx = c.getContext("2d");
-      ctx.clearRect(0, 0, c.width, c.height);
+      ctx.setTransform(ratio, 0, 0, ratio, 0, 0);
+      ctx.clearRect(0, 0, w, h);
+      const left = 34, right = 6, top = 18, bottom = 18; // room for the axes' labels
+      const pw = w - left - right, ph = h - top - bottom;
+      const y = (p) => top + ph * (1 - p / 100);
+      ctx.font = "10px sans-serif"; ctx.fillStyle = "#656d76"; ctx.textAlign = "right"; ctx.textBaseline = "middle";
       ctx.strokeStyle = "#d0d7de"; ctx.lineWidth = 1;
-      for (const p of [25, 50, 75]) { const y = c.height * (1 - p / 100); ctx.beginPath(); ctx.moveTo(0, y); ctx.lineTo(c.width, y); ctx.stroke(); }
+      for (const p of [0, 25, 50, 75, 100]) {
+        ctx.beginPath(); ctx.moveTo(left, y(p)); ctx.lineTo(left + pw, y(p)); ctx.stroke();
+        ctx.fillText(`${p}%`, left - 4, y(p));
+      }
+      ctx.textAlign = "center"; ctx.textBaseline = "top";
+      for (const ago of [120, 90, 60, 30, 0]) {
+        const x = left + pw * (1 - ago / 119);
+        ctx.fillText(ago ? `-${ago} s` : "now", Math.min(Math.max(x, left + 10), left + pw - 10), top + ph + 4);
+      }
       const series = [["cpu_percent", "#cf222e", "CPU"], ["memory_percent", "#1f6feb", "MEM"], ["disk_percent", "#2da44e", "DISK"]];
       const n = this.samples.length;
+      ctx.textAlign = "left"; ctx.textBaseline = "alphabetic";
       series.forEach(([key, color, label], i) => {
         ctx.strokeStyle = color; ctx.lineWidth = 2; ctx.beginPath();
         this.samples.forEach((s, j) => {
-          const x = c.width - (n - 1 - j) * (c.width / 119);
-          const y = c.height * (1 - (s[key] || 0) / 100);
-          if (j) ctx.lineTo(x, y); else ctx.moveTo(x, y);
+          const x = left + pw - (n - 1 - j) * (pw / 119);
+          if (j) ctx.lineTo(x, y(s[key] || 0)); else ctx.moveTo(x, y(s[key] || 0));
         });
         ctx.stroke();
         const last = n ? this.samples[n - 1][key] : null;
         ctx.fillStyle = color; ctx.font = "11px sans-serif";
-        ctx.fillText(`${label} ${A.fmt(last, 0)}%`, 4 + i * 80, 12);
+        ctx.fillText(`${label} ${A.fmt(last, 0)}%`, left + i * 78, 12);
       });
     },
   };
+
+  if (graph.canvas) new ResizeObserver(() => graph.draw()).observe(graph.canvas);
 
   // Registered last: `onState` calls back at once when a state has already arrived, and everything it
   // uses (graph, events) must be initialised by then.
@@ -214,5 +258,6 @@
     em.textContent = s.emergency ? "EMERGENCY" : "BRAKES OFF";
     graph.add(s.system);
     events(s.events);
+    driveNote(s);
   });
 })();

@@ -29,10 +29,21 @@
       if (event !== "joystick") this.report(event, ack);
       return ack;
     },
+    // What each command is called on the page (the event names stay on the Agent page and in the logs).
+    LABELS: {
+      mode: "Mode", goal: "Go here", initial_pose: "Set position", localize_globally: "Find position",
+      cancel_goal: "Stop", capture_image: "Capture", record_video: "Recording", mission_start: "Start mission",
+      mission_stop: "Stop mission", mapping_begin: "Begin map", mapping_end: "End map", map_save: "Save map",
+      map_discard: "Discard map", map_select: "Map", agent_reload: "Reload", autonomy_level: "Autonomy",
+      autonomy_confirm: "Confirm", autonomy_deny: "Deny", sim_button: "Power button", sim_obstacle: "Drop obstacle",
+      sim_kidnap: "Kidnap", camera: "Camera", agent_view: "Agent view",
+    },
     report(what, ack) {
+      const label = this.LABELS[what] || what;
+      if (!ack.ok && this.alert) this.alert(`${label}: ${ack.reason}`, "warning");
       const out = document.getElementById("command-result");
       if (!out) return;
-      out.textContent = ack.ok ? `${what}: ok` : `${what}: refused — ${ack.reason}`;
+      out.textContent = ack.ok ? `${label}: done` : `${label}: ${ack.reason}`;
       out.className = ack.ok ? "hint ok" : "hint error";
     },
     fmt(v, digits = 2) { return typeof v === "number" && isFinite(v) ? v.toFixed(digits) : "—"; },
@@ -61,8 +72,13 @@
   function showState(s) {
     agent.textContent = s.agent_state || "—";
     agent.dataset.state = s.agent_state || "";
-    if (s.emergency === true) { emergency.textContent = "EMERGENCY"; emergency.className = "ind error"; }
-    else if (s.emergency === false) { emergency.textContent = "NO EMERGENCY"; emergency.className = "ind online"; }
+    if (s.stop_cause) {
+      emergency.textContent = `STOPPED: ${String(s.stop_cause).toUpperCase()}`; emergency.className = "ind error";
+      emergency.title = ATEMR.stopText ? ATEMR.stopText(s.stop_cause) : "";
+    } else if (s.emergency === true) { emergency.textContent = "EMERGENCY"; emergency.className = "ind error"; }
+    else if (s.emergency === false) {
+      emergency.textContent = "NO EMERGENCY"; emergency.className = "ind online"; emergency.title = "emergency (brakes)";
+    }
     showAutonomy(s.autonomy);
   }
 
@@ -82,9 +98,13 @@
     request.hidden = !p;
     request.dataset.id = p ? String(p.id) : "";
     if (!p) return;
-    document.getElementById("autonomy-what").textContent = `${p.trigger}: ${p.source} → ${p.dest}`;
+    const what = { goal: "drive to the goal", start_mission: "start the mission", set_auto: "switch to AUTO",
+                   begin_mapping: "start mapping", cancel: "stop" }[p.trigger] || `go on (${p.trigger})`;
+    const ask = document.getElementById("autonomy-what");
+    ask.textContent = `may it ${what}?`;
+    ask.title = `${p.trigger}: ${p.source} → ${p.dest}, needs autonomy ${p.level}`; // the technical words, on hover
     document.getElementById("autonomy-why").textContent =
-      `needs autonomy ${p.level}, the robot is at ${a.level}${p.origin ? ` (from ${p.origin})` : ""}`;
+      `It asks first at this autonomy level (${a.level})${p.origin ? `; asked from ${p.origin}` : ""}.`;
     const now = a.now;
     document.getElementById("autonomy-left").textContent =
       typeof now === "number" ? Math.max(0, p.deadline - now).toFixed(0) : `${a.timeout_s}`;

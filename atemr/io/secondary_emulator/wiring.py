@@ -1,7 +1,7 @@
 """How the robot runs the emulated board: the components and their rates, from the configuration.
 
-`robot.py` (the lead's) calls `emulated_secondary` in simulation; on the real robot the ESP32 is on the
-bus instead and nothing here runs.
+`atemr.robot.assembly` calls `emulated_secondary` in simulation; on the real robot the ESP32 is on the bus
+instead and nothing here runs.
 """
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from collections.abc import Callable
 import can
 
 from atemr.config import Config, SecondaryConfig
+from atemr.io.secondary_emulator.board import BoardConfig, SecondaryCore
+from atemr.io.secondary_emulator.portal import PortalHost
 from atemr.msgs import CliffReadings
 from atemr.scheduler import Component
-from secondary_core.board import BoardConfig, SecondaryCore
-from secondary_core.portal import PortalHost
 
 #: Tick rates (Hz): the board polls its bus every 20 ms; the portal host only starts/stops a server.
 BOARD_RATE_HZ = 50.0

@@ -12,24 +12,14 @@ from typing import Any
 import can
 import pytest
 
+from atemr.domain.status import AgentBits, HardwareBits, PowerRequest, PowerState, StateCode
 from atemr.errors import ProtocolError
-from atemr.io.can import (
-    AgentBits,
-    CanId,
-    HardwareBits,
-    Heartbeat,
-    IrFront,
-    IrRear,
-    Power,
-    PowerRequest,
-    PowerState,
-    StateCode,
-)
+from atemr.io.can import CanId, Heartbeat, IrFront, IrRear, Power
 from atemr.io.motors.emulator import RmdMotorEmulator
 from atemr.io.motors.rmd_codec import RMD_BASE_ID, RmdCommand, RmdRequest, decode_request
+from atemr.io.secondary_emulator.board import BoardConfig
 from atemr.io.secondary_link import IR_OUT_OF_RANGE_CM
 from atemr.msgs import CliffReadings
-from secondary_core.board import BoardConfig
 from secondary_core.harness import LinkBench
 
 

@@ -7,13 +7,13 @@ import can
 from atemr.clock import SimClock
 from atemr.config import load_config
 from atemr.io.network import NmcliBackend, RecordingNetworkBackend
+from atemr.io.secondary_emulator.board import SecondaryCore
+from atemr.io.secondary_emulator.portal import PortalHost
+from atemr.io.secondary_emulator.wiring import emulated_secondary
 from atemr.io.secondary_link import InlineExecutor, build_secondary_link
 from atemr.msgs import CliffReadings
 from atemr.scheduler import Scheduler
-from secondary_core.board import SecondaryCore
 from secondary_core.harness import unique_channel
-from secondary_core.portal import PortalHost
-from secondary_core.wiring import emulated_secondary
 
 
 def test_emulated_secondary_and_link_from_config_run_together() -> None:

@@ -1,6 +1,6 @@
 """What each screen of the board shows (thesis 3.6.3, figures 3.51–3.54), built from the board's state.
 
-Pure functions: a `BoardView` (a snapshot of what the board knows) in, a `secondary_core.display.Screen`
+Pure functions: a `BoardView` (a snapshot of what the board knows) in, a `atemr.io.secondary_emulator.display.Screen`
 out, so every screen can be tested by comparing text.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from atemr.io.can import PrimaryStatus
-from secondary_core.display import Screen
+from atemr.io.secondary_emulator.display import Screen
 
 #: The screen shown in each board state (the thesis' names).
 SCREEN_NAMES = {

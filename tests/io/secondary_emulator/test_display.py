@@ -7,7 +7,16 @@ import io
 import pytest
 from PIL import Image
 
-from secondary_core.display import COLUMNS, HEIGHT, WIDTH, Screen, render_image, render_pixels, render_png, render_text
+from atemr.io.secondary_emulator.display import (
+    COLUMNS,
+    HEIGHT,
+    WIDTH,
+    Screen,
+    render_image,
+    render_pixels,
+    render_png,
+    render_text,
+)
 
 
 def png_size(data: bytes) -> tuple[int, int]:

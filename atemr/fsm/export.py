@@ -18,8 +18,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from atemr.domain.status import state_code
 from atemr.errors import AtemrError
-from atemr.fsm.codes import state_code
 from atemr.fsm.spec import AgentSpec, TransitionSpec
 from atemr.registry import Registry
 from atemr.trees.builder import NodeSpec

@@ -16,9 +16,9 @@ from atemr.clock import SimClock
 from atemr.io.can import CanId
 from atemr.io.can.faults import FaultInjectionBus, FaultPlan
 from atemr.io.network import AppliedNetwork
+from atemr.io.secondary_emulator.portal import PortalHost, create_portal_app
 from atemr.io.secondary_link import WifiResult
 from secondary_core.harness import LinkBench
-from secondary_core.portal import PortalHost, create_portal_app
 
 
 class DropNth:

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from secondary_core.button import Button, Gesture, classify
+from atemr.io.secondary_emulator.button import Button, Gesture, classify
 
 
 @pytest.mark.parametrize(("held", "gesture"), [(0.0, Gesture.SHORT), (0.99, Gesture.SHORT), (1.0, Gesture.HOLD_1S),

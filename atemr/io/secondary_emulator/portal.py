@@ -26,9 +26,9 @@ from werkzeug.wrappers import Response
 
 from atemr.errors import AtemrError
 from atemr.io.network import credential_problems
-from secondary_core.board import SecondaryCore
+from atemr.io.secondary_emulator.board import SecondaryCore
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("secondary_core.portal")  # the name it logged under before it moved here
 
 DEFAULT_PORT = 5001
 

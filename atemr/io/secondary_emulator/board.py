@@ -36,6 +36,7 @@ import can
 from transitions import Machine
 
 from atemr.clock import due
+from atemr.domain.status import PowerRequest, PowerState
 from atemr.errors import ProtocolError
 from atemr.io.can import (
     PASSWORD,
@@ -47,22 +48,20 @@ from atemr.io.can import (
     IrRear,
     Message,
     Power,
-    PowerRequest,
-    PowerState,
     PrimaryStatus,
     encode_text,
 )
 from atemr.io.can.endpoint import EndpointCounters, PolledCanEndpoint
 from atemr.io.motors.rmd_codec import RMD_BASE_ID, RmdCommand, RmdRequest
 from atemr.io.network import credential_problems
+from atemr.io.secondary_emulator.button import Button, ButtonEvent, Gesture
+from atemr.io.secondary_emulator.display import Screen, render_png, render_text
+from atemr.io.secondary_emulator.events import EventLog
+from atemr.io.secondary_emulator.screens import SCREEN_NAMES, BoardView, build_screen
 from atemr.io.secondary_link import ir_m_to_cm
 from atemr.msgs import CliffReadings
-from secondary_core.button import Button, ButtonEvent, Gesture
-from secondary_core.display import Screen, render_png, render_text
-from secondary_core.events import EventLog
-from secondary_core.screens import SCREEN_NAMES, BoardView, build_screen
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("secondary_core.board")  # the name it logged under before it moved here
 
 STATES = list(SCREEN_NAMES)
 

@@ -9,15 +9,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from atemr.clock import SimClock
+from atemr.domain.maps import OccupancyMap
 from atemr.fsm.agent import Agent
 from atemr.fsm.spec import AgentSpec
 from atemr.io.sim.base import integrate_arc
-from atemr.io.sim.maps import OccupancyMap
 from atemr.msgs import Pose2D, Twist
+from atemr.robot.navigator_port import NavigatorPort
 from atemr.scheduler import Scheduler
 from atemr.skills.nav.navigator import Navigator
 from atemr.trees.fakes import RecordingLink, RecordingPort
-from atemr.trees.navigator_port import NavigatorPort
 from atemr.trees.ports import VelocitySource
 
 DT = 0.1

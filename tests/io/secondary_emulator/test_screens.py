@@ -8,10 +8,11 @@ from collections.abc import Iterator
 import pytest
 from PIL import Image
 
-from atemr.io.can import AgentBits, HardwareBits, PrimaryStatus, StateCode
+from atemr.domain.status import AgentBits, HardwareBits, StateCode
+from atemr.io.can import PrimaryStatus
+from atemr.io.secondary_emulator.screens import SCREEN_NAMES, BoardView, build_screen
 from atemr.msgs import CliffReadings
 from secondary_core.harness import LinkBench
-from secondary_core.screens import SCREEN_NAMES, BoardView, build_screen
 
 
 def box(*rows: str) -> str:

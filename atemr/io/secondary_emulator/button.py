@@ -96,7 +96,7 @@ class Button:
         return 0.0 if self._pressed_at is None else max(0.0, now - self._pressed_at)
 
     # -- the board's tick ----------------------------------------------------------------------
-    def poll(self, now: float) -> list[ButtonEvent]:
+    def poll(self, now: float) -> list[ButtonEvent]:  # noqa: PLR0912  one branch per queued input kind (press, release, hold)
         """Apply queued input up to ``now`` and return what happened, in time order."""
         events: list[ButtonEvent] = []
         while True:

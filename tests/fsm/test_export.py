@@ -9,10 +9,10 @@ import pydot
 import pytest
 
 from atemr.cli.main import main
+from atemr.fsm import export
+from atemr.fsm.export import ExportError, drawing_of, exporters
 from atemr.fsm.spec import AgentSpec
-from atemr.trees import export
 from atemr.trees.behaviours import behaviours
-from atemr.trees.export import ExportError, drawing_of, exporters
 
 ROOT = Path(__file__).resolve().parents[2]
 AGENT = ROOT / "trees" / "agent.yaml"

@@ -1,4 +1,5 @@
-"""`NavigationPort` over the real `atemr.skills.nav.navigator.Navigator`.
+"""`NavigationPort` over the real `atemr.skills.nav.navigator.Navigator` (`atemr.robot.navigation` runs it on
+the robot).
 
 The navigator is a pure skill (data in, data out); this adapter feeds it what it needs each tick (the
 pose, the latest scan, whether localization is confident) from callables the robot wiring provides, and

@@ -1,0 +1,59 @@
+"""Messages to the bytes of their channel: CDR through `mcap-ros2-support`, JSON through the standard library.
+
+One `Codec` per recording or live server: it keeps the encoder each ROS 2 schema compiles to, so a topic's
+definition is parsed once. JSON has no NaN or infinity, so they become null: a record stays valid JSON for
+any reader (Foxglove included).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from typing import Any
+
+from mcap_ros2._dynamic import serialize_dynamic
+
+from atemr.io.recording.topics import Topic, topic
+
+Encoder = Callable[[Any], bytes]
+
+
+def finite(value: Any) -> Any:
+    """``value`` with every non-finite float replaced by None (recursively through dicts and lists)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite(v) for v in value]
+    return value
+
+
+def encode_json(message: Any) -> bytes:
+    return json.dumps(finite(message), separators=(",", ":"), ensure_ascii=False, allow_nan=False,
+                      default=str).encode("utf-8")
+
+
+class Codec:
+    """Encodes messages for the topics of `atemr.io.recording.topics`."""
+
+    def __init__(self) -> None:
+        self._encoders: dict[str, Encoder] = {}
+
+    def encoder(self, t: Topic) -> Encoder:
+        found = self._encoders.get(t.name)
+        if found is None:
+            if t.is_ros2:
+                found = serialize_dynamic(t.schema_name, t.schema_data.decode())[t.schema_name]
+            else:
+                found = encode_json
+            self._encoders[t.name] = found
+        return found
+
+    def encode(self, name: str, message: Any) -> bytes:
+        """The bytes of ``message`` on topic ``name``."""
+        return self.encoder(topic(name))(message)
+
+
+__all__ = ["Codec", "encode_json", "finite"]

@@ -1,0 +1,174 @@
+// Connection truth and alerts, on every page with a socket.
+//
+// Connection truth: the robot sends its state every period (<body data-state-period-ms>). When none came for
+// two periods, or the socket is down, the page says so in a banner with how long ago the last state came,
+// greys out what it shows live (camera, map, indicators) and turns the drive controls off (ATEMR.live is
+// false: the joystick sends nothing); when state comes back, it says that too.
+//
+// Alerts: what the carer must know, in plain words, as a toast that fades and in a list they can open
+// (ALERTS in the status bar): refusals and failures of their commands, goals reached or failed, missions
+// finished, why the robot is held stopped and what to do, localization lost or found, the robot offline.
+"use strict";
+
+(function () {
+  const A = window.ATEMR;
+  if (!A || !A.socket) return;
+  const $ = (id) => document.getElementById(id);
+  const PERIOD_MS = Number(document.body.dataset.statePeriodMs) || 100;
+  const STALE_MS = 2 * PERIOD_MS;
+  const FIRST_STATE_GRACE_MS = 3000; // a page just opened waits this long for its first state
+  const TOAST_MS = 8000;
+  const KEPT = 100;
+
+  // -- alerts ---------------------------------------------------------------------------------------
+  const toasts = $("alerts"), list = $("alert-items"), openBtn = $("alerts-open"), count = $("alerts-count");
+  const dialog = $("alert-list");
+  let unseen = 0;
+  A.alert = function (text, level = "info") {
+    const time = new Date().toLocaleTimeString();
+    const toast = document.createElement("div");
+    toast.className = `alert ${level}`;
+    toast.setAttribute("role", level === "error" ? "alert" : "status");
+    toast.textContent = text;
+    const close = document.createElement("button");
+    close.type = "button"; close.className = "alert-close"; close.textContent = "×";
+    close.setAttribute("aria-label", "dismiss");
+    close.addEventListener("click", () => toast.remove());
+    toast.appendChild(close);
+    toasts.prepend(toast);
+    while (toasts.children.length > 3) toasts.lastChild.remove();
+    if (level !== "error") setTimeout(() => toast.remove(), TOAST_MS);
+    const item = document.createElement("li");
+    item.className = `alert-item ${level}`;
+    item.textContent = `${time}  ${text}`;
+    list.prepend(item);
+    while (list.children.length > KEPT) list.lastChild.remove();
+    unseen += 1;
+    count.textContent = String(unseen);
+    openBtn.hidden = false;
+    openBtn.classList.toggle("error", level === "error" || openBtn.classList.contains("error"));
+    return toast;
+  };
+  openBtn.addEventListener("click", () => {
+    unseen = 0; count.textContent = "0"; openBtn.classList.remove("error");
+    dialog.showModal();
+  });
+
+  // -- the robot's events: each new one once, in plain words -----------------------------------------
+  const eventListeners = [];
+  A.onEvent = (f) => eventListeners.push(f);
+  const seen = new Set();
+  let primed = false; // the events already there when the page opened are history, not news
+  const LOCALIZATION = {
+    lost: ["The robot is no longer sure where it is. Set its position on the map (SET POSITION) or press FIND POSITION.", "warning"],
+    relocalized: ["The robot knows where it is again.", "ok"],
+    converged: ["The robot found where it is.", "ok"],
+  };
+  function plain(e) {
+    const kind = String(e.kind || "");
+    if (kind === "goal" || kind === "mission") {
+      return [e.text, /reached|finished/.test(e.text) ? "ok" : "warning"];
+    }
+    if (kind.startsWith("localization ")) {
+      const known = LOCALIZATION[kind.slice("localization ".length)];
+      return known || [`Localization: ${e.text}`, "info"];
+    }
+    if (kind === "refused") return [e.text, "warning"];
+    if (kind === "heartbeat" || kind === "motor fault" || kind === "can bus" || kind === "component error") {
+      return [e.text, /restored|cleared/.test(e.text) ? "ok" : "error"];
+    }
+    return null; // settings, media, maps, autonomy: in the Events list, not worth interrupting for
+  }
+  A.onState((s) => {
+    for (const e of Array.isArray(s.events) ? s.events : []) {
+      const key = `${e.t}|${e.kind}|${e.text}`;
+      if (seen.has(key)) continue;
+      seen.add(key);
+      if (!primed) continue;
+      for (const f of eventListeners) { try { f(e); } catch (err) { console.error(err); } }
+      const said = plain(e);
+      if (said) A.alert(said[0], said[1]);
+    }
+    primed = true;
+  });
+
+  // -- why the robot is held stopped, and what to do ----------------------------------------------------
+  const STOPS = {
+    cliff: "Stopped: a drop (stairs, a step) is under the robot's edge. Drive it back, away from the edge.",
+    obstacle: "Stopped: something is too close. Drive away from it: reverse or turn.",
+    heartbeat: "Stopped: the robot's two computers lost contact. It moves again when they talk again; if not, restart it.",
+    motor: "Stopped: a motor reports a fault. The robot moves again when both motors answer without error.",
+    bus: "Stopped: the motors' connection (CAN bus) failed. The robot moves again when it works again.",
+  };
+  let cause = null;
+  A.stopText = (c) => STOPS[c] || "";
+  A.onState((s) => {
+    const now = s.stop_cause ?? null;
+    if (now === cause) return;
+    if (now) A.alert(STOPS[now] || `Stopped: ${now}.`, "error");
+    else if (cause) A.alert("The robot may move again.", "ok");
+    cause = now;
+  });
+
+  // -- connection truth ---------------------------------------------------------------------------------
+  const banner = $("connection");
+  const opened = Date.now();
+  let lastAt = null;
+  let connected = false; // the socket has been ONLINE at least once
+  let stale = false;
+  let backTimer = null;
+  let offline = null; // the offline alert, taken down when the robot is back
+  A.live = true;
+  A.onState(() => { lastAt = Date.now(); check(); });
+
+  function setDrive(enabled) {
+    for (const el of document.querySelectorAll("[data-drive]")) {
+      if ("disabled" in el && el.tagName !== "DIV") el.disabled = !enabled;
+      el.setAttribute("aria-disabled", enabled ? "false" : "true");
+    }
+  }
+
+  function check() {
+    const now = Date.now();
+    const online = A.socket.status === "ONLINE";
+    // A page just opened is still connecting (its first state may come over HTTP before the socket is up): it
+    // is stale only once the socket or the first state is overdue.
+    if (online) connected = true;
+    const opening = (!connected || lastAt === null) && now - opened <= FIRST_STATE_GRACE_MS;
+    const nowStale = !opening && (!online || lastAt === null || now - lastAt > STALE_MS);
+    if (nowStale) {
+      const ago = lastAt === null ? "no state has come yet" : `the last state came ${((now - lastAt) / 1000).toFixed(1)} s ago`;
+      const why = online ? "No news from the robot" : "The connection to the robot is lost";
+      banner.textContent = `${why}: ${ago}. What you see is old, and driving is off.`;
+      banner.className = "connection stale";
+      banner.hidden = false;
+      if (backTimer) { clearTimeout(backTimer); backTimer = null; }
+    }
+    if (nowStale === stale) return;
+    stale = nowStale;
+    A.live = !stale;
+    document.body.classList.toggle("stale", stale);
+    setDrive(!stale);
+    if (stale) {
+      offline = A.alert("The robot is offline: no state is coming. Driving is off until it is back.", "error");
+    } else {
+      if (offline) { offline.remove(); offline = null; }
+      banner.textContent = "Connected again: the robot's state is live.";
+      banner.className = "connection back";
+      backTimer = setTimeout(() => { banner.hidden = true; }, 3000);
+      A.alert("The robot is back online.", "ok");
+    }
+  }
+  setInterval(check, Math.min(100, PERIOD_MS));
+
+  // Resolves when the robot's state satisfies `pred` (or after `ms`, with false).
+  A.until = (pred, ms) => new Promise((resolve) => {
+    const t0 = Date.now();
+    const poll = () => {
+      if (pred(A.state)) resolve(true);
+      else if (Date.now() - t0 > ms) resolve(false);
+      else setTimeout(poll, 50);
+    };
+    poll();
+  });
+})();

@@ -1,0 +1,90 @@
+"""Recording every run to MCAP: what it costs the whole robot's tick rate, and how big a recording grows.
+
+The whole simulated robot (CAN, motors, agent, localization, navigation: `atemr.robot.headless`) runs a goal
+across the studio and back, as fast as the CPU allows, once without a recording and once recording to MCAP
+(`atemr.robot.recorder` → `atemr.io.recording.writer_process`, what a paced robot uses, and the inline writer
+of headless runs, which encodes and writes on the robot's own thread). Runs alternate and the best of each is
+kept (a shared machine).
+Rows:
+
+* robot seconds per wall second recorded vs not, camera off, with the paced robot's writer process
+  (``trace.writer: process``; goal: at least 0.9, at most 10 % slower) and with the headless inline writer;
+* the same with the simulated camera on (10 fps) and recorded as JPEG at 2 fps, against the camera on and
+  not recorded;
+* the recording's size per hour of robot time, camera off and camera at 2 fps.
+
+Run: ``.venv/bin/python benchmarks/run recording`` (or ``atemr bench recording``).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from atemr.config import load_config
+from atemr.msgs import Pose2D
+from atemr.robot.headless import build_headless_robot
+
+
+def robot_run(seconds: float, folder: Path, *, writer: str | None, camera_hz: float) -> tuple[float, int]:
+    """Wall seconds for ``seconds`` of robot time, and the recording's size in bytes (0 when not recording).
+    ``writer``: the recording's ``trace.writer`` (None: no recording)."""
+    path = folder / f"bench-{time.perf_counter_ns()}.mcap"
+    overrides: dict[str, Any] = {"data_dir": str(folder), "sim.camera_hz": 10.0 if camera_hz else 0.0,
+                                 "trace.camera_hz": camera_hz, "trace.max_file_mb": 4096.0}
+    if writer is not None:
+        overrides["trace.file"] = str(path)
+        overrides["trace.writer"] = writer
+    robot = build_headless_robot(load_config(environ={}, overrides=overrides))
+    agent = robot.parts.agent
+    with robot:
+        robot.run(until=3.0)
+        agent.submit("set_auto")
+        start = time.perf_counter()
+        t = 3.0
+        goals = [Pose2D(6.0, 1.1, 0.0), Pose2D(2.6, 2.6, 0.0)]
+        while t < seconds:
+            if agent.state == "IDLE.AUTO":
+                agent.submit("goal", goal=goals[0])
+                goals.reverse()
+            t += 1.0
+            robot.run(until=t)
+        took = time.perf_counter() - start
+    return took, path.stat().st_size if writer is not None else 0
+
+
+def best(seconds: float, folder: Path, camera_hz: float,
+         writers: tuple[str, ...]) -> dict[str | None, tuple[float, int]]:
+    """Best wall time (and the last size) of each writer and of no recording, runs alternating, two each."""
+    out: dict[str | None, tuple[float, int]] = {}
+    for _ in range(2):
+        for writer in (None, *writers):
+            took, size = robot_run(seconds, folder, writer=writer, camera_hz=camera_hz)
+            out[writer] = (min(took, out.get(writer, (float("inf"), 0))[0]), size)
+    return out
+
+
+def run(quick: bool = False) -> list[dict[str, Any]]:
+    seconds = 20.0 if quick else 60.0
+    span = seconds - 3.0
+    rows: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        sizes = {}
+        cases = ((0.0, "camera off", ("process", "inline")), (2.0, "camera 10 fps, recorded at 2 fps", ("process",)))
+        for camera_hz, label, writers in cases:
+            times = best(seconds, folder, camera_hz, writers)
+            plain = times[None][0]
+            for writer in writers:
+                recorded = times[writer][0]
+                how = {"process": "paced robot's writer process", "inline": "headless, written inline"}[writer]
+                rows.append({"what": f"whole robot, robot s per wall s, recording ({how}) vs none ({label})",
+                             "ours": span / recorded, "baseline": span / plain, "ratio": plain / recorded,
+                             "goal": 0.9 if writer == "process" else None, "unit": "x real time"})
+            sizes[label] = times["process"][1] / seconds * 3600 / 1e6
+        for label, mb in sizes.items():
+            rows.append({"what": f"recording size per hour of robot time, goals back and forth ({label})",
+                         "ours": mb, "baseline": None, "ratio": None, "goal": None, "unit": "MB/h"})
+    return rows
