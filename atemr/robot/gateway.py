@@ -43,7 +43,7 @@ from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
-from atemr.robot.plain_words import plain_outcome, plain_refusal
+from atemr.robot.plain_words import plain_guard_refusal, plain_outcome, plain_refusal
 from atemr.robot.port import jpeg
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
@@ -368,7 +368,7 @@ class RobotGatewayImpl:
         if mode == "AUTO":  # the guards answer now: AUTO refused with the reason, not accepted then undone
             why = self.agent.refusal("set_auto")
             if why is not None:
-                return CommandResult.refused(why)
+                return CommandResult.refused(plain_guard_refusal("set_auto", why, self.robot.parts.localization.status))
         return self._submit("set_auto" if mode == "AUTO" else "set_manual")
 
     def set_goal(self, goal: Pose2D) -> CommandResult:
@@ -622,7 +622,8 @@ class RobotGatewayImpl:
             return CommandResult.refused(f"mission {brief(name)} is not valid: {exc}")
         why = self.agent.refusal("start_mission", mission=mission)
         if why is not None:
-            return CommandResult.refused(why)
+            return CommandResult.refused(plain_guard_refusal("start_mission", why,
+                                                             self.robot.parts.localization.status))
         return self._submit("start_mission", mission=mission)
 
     def stop_mission(self) -> CommandResult:

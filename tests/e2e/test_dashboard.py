@@ -541,25 +541,27 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
     wait_for(page, "ATEMR.state.active_map === 'flat-copy'")
     wait_for(page, "document.getElementById('localization').textContent.startsWith('NOT LOCALIZED')")
     assert "uninitialized" in page.inner_text("#localization-detail")
-    assert "set the pose or FIND POSITION" in page.inner_text("#localization-detail")
+    assert "SET POSITION or FIND POSITION" in page.inner_text("#localization-detail")
     wait_for(page, "[...document.querySelectorAll('#events li')].some((li) => li.textContent.includes("
                    "'not localized until a pose is set'))")
+    wait_for(page, "document.getElementById('alert-items').textContent.includes('Another map is in use')")
     page.click("#mode-toggle")
-    wait_for(page, "document.getElementById('command-result').textContent.startsWith('mode: refused')")
-    assert "not localized" in page.inner_text("#command-result")
+    wait_for(page, "document.getElementById('command-result').textContent.startsWith("
+                   "'Mode: Cannot switch to AUTO: the robot is not sure where it is')")
+    assert "FIND POSITION" in page.inner_text("#command-result")
     page.screenshot(path=str(shots / "mapping-map-switched-not-localized.png"), full_page=True)
     assert robot_site.agent_state == "IDLE.MANUAL" and page.inner_text("#mode-toggle") == "MANUAL"
 
     page.goto(f"{robot_site.url}/control")  # the operator sets the pose where the robot stands
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map.image !== null")
     truth = robot_site.sim.pose
-    page.click("#map-ctl")  # SEND CMD; in MANUAL the command is the initial pose
+    page.click("#set-position")  # the next tap on the map is where the robot is, a drag the way it faces
     x, y = screen_point(page, truth.x_m, truth.y_m)
     page.mouse.move(x, y)
     page.mouse.down()
     page.mouse.move(x + 40 * math.cos(truth.yaw_rad), y - 40 * math.sin(truth.yaw_rad), steps=4)
     page.mouse.up()
-    wait_for(page, "document.getElementById('command-result').textContent === 'initial_pose: ok'")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Set position: done'")
     wait_for(page, "document.getElementById('localization').textContent.startsWith('LOCALIZED')", timeout=10000)
     page.click("#mode-toggle")
     wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")

@@ -176,13 +176,15 @@ def test_auto_goals_and_missions_wait_for_a_pose_after_a_map_switch(booted):
     assert state["pose"] is None and not state["level1"]["localization"]  # 0x153 bit 4, as the secondary core hears
     assert any(e["kind"] == "localization map_changed" and "not localized" in e["text"] for e in state["events"])
     mission = gateway.start_mission("look-around")
-    assert not mission.ok and "not localized" in mission.reason and "FIND POSITION" in mission.reason
+    assert not mission.ok and mission.reason == (  # in the carer's words (robot.plain_words)
+        "Cannot start a mission: the robot is not sure where it is (0% sure, it needs 70%). Set its position on "
+        "the map (SET POSITION) or press FIND POSITION.")
     goal = gateway.set_goal(Pose2D(4.0, 2.0, 0.0))
     assert not goal.ok and "not localized" in goal.reason
     assert gateway.set_mode("MANUAL").ok
     run(robot, 0.3)
     auto = gateway.set_mode("AUTO")
-    assert not auto.ok and "not localized" in auto.reason and agent_state(robot) == "IDLE.MANUAL"
+    assert not auto.ok and "not sure where it is" in auto.reason and agent_state(robot) == "IDLE.MANUAL"
     assert gateway.set_initial_pose(robot.parts.sim.pose).ok
     run(robot, 0.5)
     assert gateway.state()["localization"]["localized"] and gateway.set_mode("AUTO").ok
