@@ -87,9 +87,6 @@ class RobotPortImpl:
             raise HardwareError(f"cannot save the image: {exc.strerror}", component="camera") from None
         return str(path)
 
-    def localized(self) -> bool | None:
-        return self.localization.status.localized
-
     def localization_status(self) -> LocalizationStatus | None:
         return self.localization.status
 

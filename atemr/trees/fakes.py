@@ -78,9 +78,6 @@ class RecordingPort:
         self.images.append(path)
         return path
 
-    def localized(self) -> bool | None:
-        return self.is_localized
-
     def localization_status(self) -> LocalizationStatus | None:
         if self.is_localized is None:
             return None

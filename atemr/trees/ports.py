@@ -64,13 +64,9 @@ class RobotPort(Protocol):
         """Store one camera frame and return where (a path or media id); raises `HardwareError`."""
         ...
 
-    def localized(self) -> bool | None:
-        """True when localization is confident; None when this robot cannot localize at all (the 0x153
-        LOCALIZATION bit). The same as ``localization_status().localized``."""
-        ...
-
     def localization_status(self) -> LocalizationStatus | None:
-        """The confidence number, its limit and the localizer's state; None when this robot cannot localize."""
+        """The confidence number, its limit and the localizer's state; None when this robot cannot localize at
+        all. Its ``localized`` is the 0x153 LOCALIZATION bit and what the guards and leaves wait for."""
         ...
 
     def relocalize(self, now: float) -> None:
