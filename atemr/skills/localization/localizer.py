@@ -22,6 +22,10 @@ Phases (`Phase`), each with its own method, run on every scan:
 confidence is the one number every consumer shows (dashboard, CAN 0x153 bit 4, ``mission run --json``, the
 agent's guards). Outside tracking it is the search's own (`GlobalResult.confidence`), or 0.
 
+A scan without a single valid return (a covered or glitched lidar) is no evidence for or against any pose:
+no phase acts on it, and while tracking the pose follows odometry alone (a lidar that stays blind is the
+health board's to report, not localization's).
+
 Every change is an `LocalizationEvent` (the dashboard's event list).
 """
 
@@ -222,6 +226,9 @@ class Localizer:
         self._odom = odom
         if self.phase is Phase.TRACKING:
             self.map_ekf.predict(now, odom)
+        if not len(points):  # no valid return (a blind or glitched scan): no evidence for or against any pose
+            return self.state
+        if self.phase is Phase.TRACKING:
             self._track(now, odom, points, sensor)
         elif self.phase is Phase.POSE_SET:
             self._check_pose(now, odom, points, sensor)
