@@ -61,6 +61,9 @@ BUILTIN_COMMANDS: dict[str, Builtin] = {
                       "feed a recording into SLAM (--slam) or localization (--localize --map NAME)"),
     "hw": Builtin("atemr.cli.hw:HwCommand",
                   "check, read and emulate the robot's devices (lidar, IMU, camera, motors, secondary core)"),
+    "localize": Builtin("atemr.cli.localize:LocalizeCommand",
+                        "put the simulated robot somewhere without telling it, run FIND POSITION, report what it "
+                        "found"),
 }
 
 

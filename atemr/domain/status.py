@@ -1,10 +1,11 @@
 """What the robot reports about itself, as plain values: lifecycle state codes, the agent's and the hardware's
-status bits, the power handshake, a component's health.
+status bits, the power handshake, a component's health, and how sure localization is.
 
 These are the domain's words, not the wire's: the agent (`atemr.fsm`, `atemr.trees`) composes them, the
 devices report `ComponentHealth`, and the CAN codec (`atemr.io.can.protocol`) carries them in the bytes of
 0x150 and 0x153. Keeping them here lets the agent and the devices use them without importing
-the codec or each other.
+the codec or each other. `LocalizationStatus` is the one confidence number that localization (a skill)
+computes and the guards, the 0x153 LOCALIZATION bit, the dashboard and the command line all show.
 
 Lifecycle state names are nested with `SEPARATOR` (``IDLE.AUTO``); a nested state reports its top-level
 state's code (``IDLE.AUTO`` → IDLE 0x02), since the secondary core's OPS screen only knows the top level.
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
+from typing import Literal
 
 
 class StateCode(IntEnum):
@@ -75,6 +77,43 @@ class ComponentHealth:
 
     ok: bool
     detail: str = ""
+
+
+#: What localization is doing: tracking with the confidence at or above its limit (``localized``) or below it
+#: (``lost``); a pose given and not yet checked against a scan (``pose set``); a whole-map search running
+#: (``searching``), or finished with several places alike (``ambiguous``) or none (``failed``); nothing to go
+#: on yet (``uninitialized``); no map to localize on (``no map``).
+LocalizationState = Literal["localized", "lost", "pose set", "searching", "ambiguous", "failed", "uninitialized",
+                            "no map"]
+
+
+@dataclass(frozen=True)
+class LocalizationStatus:
+    """Localization as every consumer shows it (the dashboard, CAN 0x153 bit 4, ``mission run --json``, the
+    agent's guards): the one confidence number (0 to 1), the limit it is compared with, and what the localizer
+    is doing. One type, so that no consumer can call the robot localized by another rule: localized means
+    ``confidence >= limit``, nothing else."""
+
+    confidence: float
+    limit: float
+    state: LocalizationState
+
+    @property
+    def localized(self) -> bool:
+        return self.confidence >= self.limit
+
+    def as_dict(self) -> dict[str, float | bool | str]:
+        """``{"confidence", "limit", "localized", "state"}`` for a JSON report."""
+        return {"confidence": self.confidence, "limit": self.limit, "localized": self.localized, "state": self.state}
+
+    def why_not(self) -> str:
+        """Why the robot is not localized ("" when it is), for a refusal the operator can act on."""
+        if self.localized:
+            return ""
+        if self.state == "no map":
+            return "not localized: no map is selected; select or build a map, then set the robot's position"
+        return (f"not localized (confidence {self.confidence:.0%}, needs {self.limit:.0%}; {self.state}): set the "
+                "robot's position on the map (SET POSITION) or press FIND POSITION")
 
 
 #: Between the levels of a nested lifecycle state name (``IDLE.AUTO``).

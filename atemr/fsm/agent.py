@@ -206,6 +206,13 @@ class Agent:
                 return None
             return f"'{trigger}' is not valid in state {self.state} (valid here: {', '.join(valid) or 'none'})"
 
+    def refusal(self, trigger: str, **kwargs: Any) -> str | None:
+        """Why ``trigger`` would be refused now, guards included (None: it would be taken now). Thread-safe;
+        nothing fires: the dashboard answers a refused MANUAL/AUTO switch or mission with the reason at once
+        instead of accepting it and reporting the refusal a tick later."""
+        with self._lock:
+            return self.lifecycle.refusal(trigger, **kwargs)
+
     def submit_reload(self, path: str | Path, *, origin: str = "dashboard") -> int:
         """Queue a reload of the agent document; applied only if it validates, in IDLE (deferred until then)."""
         return self.submit(RELOAD, origin=origin, path=str(path))

@@ -76,9 +76,10 @@ def auto_mode(g: GuardInput) -> str | None:
 
 @guards.register("mission_runnable")
 def mission_runnable(g: GuardInput) -> str | None:
-    """The event carries a validated mission whose every step has a registered behaviour, navigation
-    exists when a step drives to a pose, and the active map has every place it names (refused before it
-    starts, with the closest names, rather than failing half-way)."""
+    """The event carries a validated mission whose every step has a registered behaviour, navigation exists
+    when a step drives to a pose, the active map has every place it names (refused before it starts, with the
+    closest names, rather than failing half-way), and the robot is localized (AUTO can outlive the pose: a map
+    switched in IDLE.AUTO, a kidnap)."""
     mission = g.kwargs.get("mission")
     if not isinstance(mission, Mission):
         return f"start_mission needs a validated Mission, got {type(mission).__name__}"
@@ -94,6 +95,9 @@ def mission_runnable(g: GuardInput) -> str | None:
             mission.check_places(g.context.navigation.places(), "the active map")
         except ConfigError as exc:
             return exc.reason
+    status = g.context.port.localization_status()
+    if status is not None and not status.localized:
+        return f"mission '{mission.name}' refused: {status.why_not()}"
     return None
 
 
@@ -109,8 +113,9 @@ def level1_ok(g: GuardInput) -> str | None:
     bad = sorted(n for n, h in health.items() if n in HARDWARE_COMPONENTS and not h.ok)
     if bad:
         problems.append(f"unhealthy: {', '.join(bad)}")
-    if g.context.port.localized() is False:
-        problems.append("not localized: select a map and set the robot's pose")
+    status = g.context.port.localization_status()
+    if status is not None and not status.localized:
+        problems.append(status.why_not())
     return f"level-1 status not OK ({'; '.join(problems)})" if problems else None
 
 

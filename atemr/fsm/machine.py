@@ -139,6 +139,25 @@ class Lifecycle:
                                                  origin, decision, by))
         return self._record(TransitionRecord(now, trigger, source, self.state, True, text, origin, decision, by))
 
+    def refusal(self, trigger: str, **kwargs: Any) -> str | None:
+        """Why the guards would refuse ``trigger`` now (None: a transition of it would be taken), without
+        firing it: no callback runs, no autonomy request opens. For a caller that must answer at once."""
+        source = self.state
+        if trigger not in self.valid_triggers(source):
+            valid = ", ".join(self.valid_triggers(source)) or "none"
+            return f"'{trigger}' is not valid in state {source} (valid here: {valid})"
+        reasons: list[str] = []
+        for t in self.spec.transitions:
+            if t.trigger != trigger or not self.spec.covers(t, source):
+                continue
+            g = GuardInput(self.context, kwargs)
+            why = [w for w in (self._guards.get(name)(g) for name in t.conditions) if w is not None]
+            why += [f"{name} holds" for name in t.unless if self._guards.get(name)(g) is None]
+            if not why:
+                return None
+            reasons.extend(w for w in why if w not in reasons)
+        return "; ".join(reasons)
+
     def resolve(self, request: ConfirmRequest, decision: str, by: str, why: str) -> TransitionRecord:
         """Record how a pending request ended without being taken (denied, timed out, superseded)."""
         return self._record(TransitionRecord(self.context.now, request.trigger, request.source, None, False, why,

@@ -290,6 +290,7 @@ class RobotControl:
             **{k: snapshot[k] for k in ("state", "mode", "task", "task_progress", "last_task", "error",
                                         "valid_triggers", "transitions")},
             "pose": asdict(pose) if pose is not None else None,
+            "localization": None if self.localization is None else self.localization.status.as_dict(),
             "control": self.session.summary() if self.session is not None else None,
             "last_control": self.last.summary() if self.last is not None else None,
         }

@@ -45,7 +45,7 @@ from atemr.robot.core import Robot
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
 from atemr.robot.places import PlaceEditor
-from atemr.robot.plain_words import plain_outcome, plain_refusal
+from atemr.robot.plain_words import plain_guard_refusal, plain_outcome, plain_refusal
 from atemr.robot.port import jpeg
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
@@ -60,7 +60,7 @@ from atemr.ui.snapshot import (
     status_levels,
     system_json,
 )
-from atemr.ui.state import BatteryJson, MissionJson, Mode, RobotState, StopCause, top_state
+from atemr.ui.state import BatteryJson, LocalizationJson, MissionJson, Mode, RobotState, StopCause, top_state
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +72,8 @@ WIFI_WAIT_S = 10.0
 MAX_BUTTON_HOLD_S = 10.0
 #: Events shown on the dashboard.
 EVENTS_SHOWN = 30
+#: Candidate places of an ambiguous global localization drawn on the map at most.
+MAX_CANDIDATES_SHOWN = 12
 #: Longest a web request waits for a map to be read and prepared before answering "still loading".
 MAP_WAIT_S = 30.0
 #: Queued actions the pump runs per tick at most (the rest wait for the next tick) ...
@@ -276,6 +278,7 @@ class RobotGatewayImpl:
             "active_map": self.maps.active_name,
             "map_version": self.maps.version,
             "pose": pose_json(pose),
+            "localization": self._localization(),
             "scan": points_json(scan_points(scan, pose)) if scan is not None and pose is not None else [],
             "global_path": points_json(status.global_path) if running and status is not None else [],
             "local_path": points_json(status.local_trajectory) if running and status is not None else [],
@@ -310,6 +313,15 @@ class RobotGatewayImpl:
         if watch is None or latest is None:
             return None
         return {"percent": round(latest.percent, 1), "voltage_v": round(latest.voltage_v, 2), "level": watch.level}
+
+    def _localization(self) -> LocalizationJson:
+        localization = self.robot.parts.localization
+        status = localization.status
+        return {"confidence": status.confidence, "limit": status.limit, "localized": status.localized,
+                "state": status.state,
+                "candidates": [{"x_m": round(h.pose.x_m, 3), "y_m": round(h.pose.y_m, 3),
+                                "yaw_rad": round(h.pose.yaw_rad, 3), "agreement": round(h.agreement, 3)}
+                               for h in localization.candidates[:MAX_CANDIDATES_SHOWN]]}
 
     def _stop_cause(self) -> StopCause | None:
         """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge (or the floor
@@ -368,6 +380,10 @@ class RobotGatewayImpl:
         state = self.agent.state
         if state == f"IDLE.{mode}":
             return CommandResult.accepted()
+        if mode == "AUTO":  # the guards answer now: AUTO refused with the reason, not accepted then undone
+            why = self.agent.refusal("set_auto")
+            if why is not None:
+                return CommandResult.refused(plain_guard_refusal("set_auto", why, self.robot.parts.localization.status))
         return self._submit("set_auto" if mode == "AUTO" else "set_manual")
 
     def set_goal(self, goal: Pose2D) -> CommandResult:
@@ -688,6 +704,10 @@ class RobotGatewayImpl:
             mission = load_mission(self.missions_dir / f"{name}.yaml")
         except ConfigError as exc:
             return CommandResult.refused(f"mission {brief(name)} is not valid: {exc}")
+        why = self.agent.refusal("start_mission", mission=mission)
+        if why is not None:
+            return CommandResult.refused(plain_guard_refusal("start_mission", why,
+                                                             self.robot.parts.localization.status))
         return self._submit("start_mission", mission=mission)
 
     def stop_mission(self) -> CommandResult:

@@ -87,6 +87,7 @@ class TruthWatch:
         self._errors: list[tuple[float, float]] = []  # (position error m, heading error rad)
         self._unlocalized = 0
         self._events: list[dict[str, Any]] = []
+        self._lowest: float | None = None  # the lowest confidence sampled
         self._kidnap = kidnap
         self.kidnapped_at: float | None = None
 
@@ -106,6 +107,8 @@ class TruthWatch:
 
     def sample(self) -> None:
         estimate = self.localization.map_pose()
+        confidence = self.localization.confidence
+        self._lowest = confidence if self._lowest is None else min(self._lowest, confidence)
         for event in self.localization.drain_events():
             self._events.append({"t": round(event.t, 3), "kind": event.kind, "detail": event.detail})
         if estimate is None:
@@ -117,7 +120,9 @@ class TruthWatch:
 
     def report(self) -> dict[str, Any]:
         """The JSON part of a run's result: ``collisions`` (count and each), ``falls``, ``pose_error`` (RMSE and
-        max of position and heading over the localized samples), ``localization_events``, ``kidnapped_s``."""
+        max of position and heading over the localized samples), ``localization`` (at the end: the confidence,
+        its limit, localized, the state; and the lowest confidence sampled), ``localization_events``,
+        ``kidnapped_s``."""
         errors = np.array(self._errors, dtype=np.float64).reshape(-1, 2)
         hits = self.sim.collisions[self._collisions0:]
         truth = self.sim.pose
@@ -135,6 +140,8 @@ class TruthWatch:
                 "max_m": float(errors[:, 0].max()) if len(errors) else None,
                 "rmse_yaw_rad": float(np.sqrt(np.mean(errors[:, 1] ** 2))) if len(errors) else None,
             },
+            "localization": {**self.localization.status.as_dict(),
+                             "lowest_confidence": None if self._lowest is None else round(self._lowest, 4)},
             "localization_events": self._events,
             "kidnapped_s": self.kidnapped_at,
         }

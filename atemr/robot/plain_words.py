@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from atemr.domain.status import LocalizationStatus
+
 #: What each trigger the dashboard sends asks the robot to do.
 ACTIONS = {
     "set_auto": "switch to AUTO",
@@ -49,6 +51,31 @@ def plain_refusal(trigger: str, state: str) -> str:
     action = ACTIONS.get(trigger, trigger.replace("_", " "))
     doing = STATES.get(top, f"the robot is in state {top}")
     return f"Cannot {action} now: {doing}."
+
+
+def plain_guard_refusal(trigger: str, why: str, localization: LocalizationStatus) -> str:
+    """Why the agent's guards refuse ``trigger`` now, as a carer reads it. The guards decide (``why``, in the
+    agent's words); a robot that does not know where it is is said plainly with what to do, because that is
+    the refusal a carer meets most (after a map switch, a kidnap) and can mend at once. Any other reason (a
+    part unhealthy, the heartbeat lost) is the guard's own sentence, which the level-1 lights show too."""
+    action = ACTIONS.get(trigger, trigger.replace("_", " "))
+    if not localization.localized:
+        return f"Cannot {action}: {plain_not_localized(localization)}"
+    return f"Cannot {action} now: {why}."
+
+
+def plain_not_localized(status: LocalizationStatus) -> str:
+    """What a robot that is not localized means for the carer, and what to do (one sentence or two)."""
+    if status.state == "no map":
+        return "no map is chosen. Choose or make one on the Mapping page, then set the robot's position on it."
+    if status.state == "ambiguous":
+        return ("places on the map look alike to the robot (drawn on the map). Drive it a little so that it can "
+                "tell them apart, or set its position on the map (SET POSITION).")
+    if status.state in ("searching", "pose set"):
+        return ("the robot is still working out where it is. Wait a moment, or set its position on the map "
+                "(SET POSITION).")
+    return (f"the robot is not sure where it is ({status.confidence:.0%} sure, it needs {status.limit:.0%}). Set its "
+            "position on the map (SET POSITION) or press FIND POSITION.")
 
 
 def plain_outcome(report: dict[str, Any]) -> tuple[str, str]:

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
-from atemr.domain.status import ComponentHealth, PowerState
+from atemr.domain.status import ComponentHealth, LocalizationStatus, PowerState
 from atemr.errors import HardwareError
 from atemr.io.can import PrimaryStatus
 from atemr.io.secondary_link import SecondaryLink
@@ -87,8 +87,8 @@ class RobotPortImpl:
             raise HardwareError(f"cannot save the image: {exc.strerror}", component="camera") from None
         return str(path)
 
-    def localized(self) -> bool | None:
-        return self.localization.localized
+    def localization_status(self) -> LocalizationStatus | None:
+        return self.localization.status
 
     def relocalize(self, now: float) -> None:
         self.localization.start_global(now)

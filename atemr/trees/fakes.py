@@ -11,7 +11,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from atemr.domain.places import Places
-from atemr.domain.status import ComponentHealth, PowerState
+from atemr.domain.status import ComponentHealth, LocalizationStatus, PowerState
 from atemr.errors import HardwareError, NavigationError
 from atemr.io.can import PrimaryStatus
 from atemr.msgs import Pose2D, Twist
@@ -79,8 +79,10 @@ class RecordingPort:
         self.images.append(path)
         return path
 
-    def localized(self) -> bool | None:
-        return self.is_localized
+    def localization_status(self) -> LocalizationStatus | None:
+        if self.is_localized is None:
+            return None
+        return LocalizationStatus(0.95 if self.is_localized else 0.0, 0.7, "localized" if self.is_localized else "lost")
 
     def relocalize(self, now: float) -> None:
         if self.is_localized is None:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
 from atemr.domain.places import Places
-from atemr.domain.status import ComponentHealth, HardwareBits, PowerState
+from atemr.domain.status import ComponentHealth, HardwareBits, LocalizationStatus, PowerState
 from atemr.io.can import PrimaryStatus
 from atemr.msgs import ZERO_TWIST, Pose2D, Twist
 
@@ -65,9 +65,9 @@ class RobotPort(Protocol):
         """Store one camera frame and return where (a path or media id); raises `HardwareError`."""
         ...
 
-    def localized(self) -> bool | None:
-        """True when localization is confident; None when this robot cannot localize at all (the 0x153
-        LOCALIZATION bit)."""
+    def localization_status(self) -> LocalizationStatus | None:
+        """The confidence number, its limit and the localizer's state; None when this robot cannot localize at
+        all. Its ``localized`` is the 0x153 LOCALIZATION bit and what the guards and leaves wait for."""
         ...
 
     def relocalize(self, now: float) -> None:

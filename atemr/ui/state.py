@@ -15,6 +15,8 @@ from __future__ import annotations
 import types
 from typing import Any, Literal, TypedDict, Union, get_args, get_origin, get_type_hints, is_typeddict
 
+from atemr.domain.status import LocalizationState
+
 #: How often the robot sends its state; a page that hears nothing for two periods says the picture is old.
 STATE_RATE_HZ = 10.0
 
@@ -112,6 +114,27 @@ class BatteryJson(TypedDict):
     level: str
 
 
+class CandidateJson(TypedDict):
+    """A place global localization could not rule out, and the share of the scan on the map there."""
+
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    agreement: float
+
+
+class LocalizationJson(TypedDict):
+    """Localization as every consumer shows it (`atemr.domain.status.LocalizationStatus`): the one confidence
+    number (0 to 1), the limit it must reach, whether it does (localized), what the localizer is doing, and
+    while global localization is ambiguous, the places it cannot tell apart, best first."""
+
+    confidence: float
+    limit: float
+    localized: bool
+    state: LocalizationState
+    candidates: list[CandidateJson]
+
+
 class RobotState(TypedDict):
     """One snapshot of the robot as the dashboard shows it."""
 
@@ -127,6 +150,8 @@ class RobotState(TypedDict):
     map_version: int
     #: None when the robot does not know where it is.
     pose: PoseJson | None
+    #: How sure the robot is of that pose: the number AUTO, goals and missions wait for.
+    localization: LocalizationJson
     #: Valid lidar returns in the map frame (empty when not localized).
     scan: Points
     global_path: Points

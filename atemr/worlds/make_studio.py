@@ -9,6 +9,7 @@ the shipped map can be checked for being up to date (``tests/io/sim/test_worlds.
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -49,15 +50,18 @@ def _cells(box: tuple[float, float, float, float], xs: np.ndarray, ys: np.ndarra
     return (xs >= x0) & (xs <= x1) & (ys >= y0) & (ys <= y1)
 
 
-def build_studio_map(world_file: Path = HERE / "world.yaml") -> OccupancyMap:
-    """The studio's occupancy grid from the walls above and the mapped furniture of the world file."""
-    rows, cols = np.indices(SIZE_CELLS)
-    xs = ORIGIN.x_m + (cols + 0.5) * RESOLUTION_M
-    ys = ORIGIN.y_m + (rows + 0.5) * RESOLUTION_M
-    data = np.full(SIZE_CELLS, UNKNOWN, dtype=np.int8)
-    for box in FLOOR:
+def rasterize(name: str, size_cells: tuple[int, int], origin: Pose2D, *, floor: list[tuple[float, float, float, float]],
+              walls: list[tuple[float, float, float, float]], world_file: Path,
+              resolution_m: float = RESOLUTION_M) -> OccupancyMap:
+    """An occupancy grid from floor and wall boxes ``[x0, y0, x1, y1]`` (m) and the ``mapped: true`` furniture of
+    ``world_file``: what mapping the place would give (unknown outside the floor)."""
+    rows, cols = np.indices(size_cells)
+    xs = origin.x_m + (cols + 0.5) * resolution_m
+    ys = origin.y_m + (rows + 0.5) * resolution_m
+    data = np.full(size_cells, UNKNOWN, dtype=np.int8)
+    for box in floor:
         data[_cells(box, xs, ys)] = FREE
-    for box in WALLS:
+    for box in walls:
         data[_cells(box, xs, ys)] = OCCUPIED
     world = load_yaml(world_file)
     for item in world.get("furniture", []):
@@ -68,17 +72,29 @@ def build_studio_map(world_file: Path = HERE / "world.yaml") -> OccupancyMap:
         else:
             cx, cy, r = item["circle"]
             data[(xs - cx) ** 2 + (ys - cy) ** 2 <= r * r] = OCCUPIED
-    return OccupancyMap(data, RESOLUTION_M, ORIGIN, name="studio")
+    return OccupancyMap(data, resolution_m, origin, name=name)
+
+
+def build_studio_map(world_file: Path = HERE / "world.yaml") -> OccupancyMap:
+    """The studio's occupancy grid from the walls above and the mapped furniture of the world file."""
+    return rasterize("studio", SIZE_CELLS, ORIGIN, floor=FLOOR, walls=WALLS, world_file=world_file)
+
+
+def write_map(argv: list[str] | None, description: str, build: Callable[[], OccupancyMap], here: Path) -> int:
+    """The command line of a world's map generator: ``--out DIR`` (default ``here``), write ``<name>.pgm`` and
+    ``<name>.yaml`` there."""
+    grid = build()
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--out", type=Path, default=here, help=f"directory to write {grid.name}.pgm and .yaml")
+    args = parser.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = save_map(grid, args.out / f"{grid.name}.yaml")
+    print(f"wrote {path} and {path.with_suffix('.pgm')}")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=HERE, help="directory to write studio.pgm and studio.yaml")
-    args = parser.parse_args(argv)
-    args.out.mkdir(parents=True, exist_ok=True)
-    path = save_map(build_studio_map(), args.out / "studio.yaml")
-    print(f"wrote {path} and {path.with_suffix('.pgm')}")
-    return 0
+    return write_map(argv, __doc__.splitlines()[0], build_studio_map, HERE)
 
 
 if __name__ == "__main__":

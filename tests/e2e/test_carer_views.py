@@ -190,6 +190,10 @@ ALERTS = [  # what the robot does → what the carer reads
     ("event", {"kind": "localization lost", "text": "scan agrees with the map for 31%"},
      "The robot is no longer sure where it is"),
     ("event", {"kind": "localization relocalized", "text": "back"}, "The robot knows where it is again."),
+    ("event", {"kind": "localization ambiguous", "text": "global localization: 2 places agree"},
+     "Places on the map look alike to the robot"),
+    ("event", {"kind": "localization map_changed", "text": "map flat selected: not localized until a pose is set"},
+     "Another map is in use: the robot does not know where it is on it."),
     ("event", {"kind": "goal", "text": "Goal failed: no path to the goal."}, "Goal failed: no path to the goal."),
     ("event", {"kind": "mission", "text": "Mission 'patrol' finished."}, "Mission 'patrol' finished."),
 ]

@@ -319,7 +319,7 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
     assert math.hypot(pose.x_m - target[0], pose.y_m - target[1]) < 0.1
     assert abs(pose.yaw_rad - math.pi / 2) < 0.3
     page.screenshot(path=str(shots / "control-kidnap.png"), full_page=True)
-    # Localization was not told: FIND POSE has the robot find itself, and the map shows it where it now is.
+    # Localization was not told: FIND POSITION has the robot find itself, and the map shows it where it now is.
     page.click("#localize-global")
     wait_for(page, "document.getElementById('command-result').textContent === 'Find position: done'")
     wait_for(page, f"ATEMR.state.pose !== null && Math.hypot(ATEMR.state.pose.x_m - {pose.x_m}, "
@@ -522,3 +522,47 @@ def test_the_agent_page_shows_a_reload_error_with_its_position_and_the_diff(read
     assert page.inner_text("#reload-diff .del").rstrip() == "-            - {type: Halt}"
     assert page.inner_text("#reload-diff .add").rstrip() == "+            - {type: Hault}"
     assert "agent agent.yaml: invalid" in page.inner_text("#reload-status")
+
+
+def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, page, shots, helpers):
+    """Issue 21: selecting another map drops the pose and the page says so; AUTO is refused with the reason
+    (not accepted and undone) until the operator sets the pose on the map."""
+    store = robot_site.robot.parts.map_store
+    store.save("flat-copy", store.load("studio"))
+    robot_site.gateway.maps_changed()
+    helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
+    page.goto(f"{robot_site.url}/mapping")
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' "
+                   "&& ATEMR.state.localization.localized")
+    assert page.inner_text("#localization").startswith("LOCALIZED")
+    wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)")  # every level-1 state but the pose OK
+    page.select_option("#map-select", "flat-copy")
+    wait_for(page, "ATEMR.state.active_map === 'flat-copy'")
+    wait_for(page, "document.getElementById('localization').textContent.startsWith('NOT LOCALIZED')")
+    assert "uninitialized" in page.inner_text("#localization-detail")
+    assert "SET POSITION or FIND POSITION" in page.inner_text("#localization-detail")
+    wait_for(page, "[...document.querySelectorAll('#events li')].some((li) => li.textContent.includes("
+                   "'not localized until a pose is set'))")
+    wait_for(page, "document.getElementById('alert-items').textContent.includes('Another map is in use')")
+    page.click("#mode-toggle")
+    wait_for(page, "document.getElementById('command-result').textContent.startsWith("
+                   "'Mode: Cannot switch to AUTO: the robot is not sure where it is')")
+    assert "FIND POSITION" in page.inner_text("#command-result")
+    page.screenshot(path=str(shots / "mapping-map-switched-not-localized.png"), full_page=True)
+    assert robot_site.agent_state == "IDLE.MANUAL" and page.inner_text("#mode-toggle") == "MANUAL"
+
+    page.goto(f"{robot_site.url}/control")  # the operator sets the pose where the robot stands
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map.image !== null")
+    truth = robot_site.sim.pose
+    page.click("#set-position")  # the next tap on the map is where the robot is, a drag the way it faces
+    x, y = screen_point(page, truth.x_m, truth.y_m)
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + 40 * math.cos(truth.yaw_rad), y - 40 * math.sin(truth.yaw_rad), steps=4)
+    page.mouse.up()
+    wait_for(page, "document.getElementById('command-result').textContent === 'Set position: done'")
+    wait_for(page, "document.getElementById('localization').textContent.startsWith('LOCALIZED')", timeout=10000)
+    page.click("#mode-toggle")
+    wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
+    assert robot_site.agent_state == "IDLE.AUTO"

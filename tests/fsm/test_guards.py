@@ -92,6 +92,25 @@ def test_level1_and_map_name_and_mission() -> None:
     assert check("mission_runnable", port, navigation=StraightLineNavigation(port), mission=go) is None
 
 
+def test_auto_and_missions_need_the_confidence_above_its_limit(agent_spec: AgentSpec) -> None:
+    """Issue 21: "localized" is the confidence number at or above its limit, and the guards say so with it."""
+    lost = RecordingPort(is_localized=False)
+    answer = check("level1_ok", lost)
+    assert answer == ("level-1 status not OK (not localized (confidence 0%, needs 70%; lost): set the robot's "
+                      "position on the map (SET POSITION) or press FIND POSITION)")
+    wait = parse_mission(load_yaml("w", text="mission:\n  name: w\n  steps: [{wait: {duration_s: 1}}]\n"), "w")
+    assert "mission 'w' refused: not localized" in str(check("mission_runnable", lost, mission=wait))
+    assert check("level1_ok", RecordingPort(is_localized=True)) is None
+    assert check("level1_ok", RecordingPort(is_localized=None)) is None  # a robot that cannot localize at all
+    # the machine answers the same at once, without firing (the dashboard's MANUAL/AUTO toggle)
+    context = AgentContext(port=lost, link=RecordingLink())
+    machine = Lifecycle(agent_spec, context, initial="IDLE.MANUAL")
+    assert "not localized" in str(machine.refusal("set_auto")) and machine.state == "IDLE.MANUAL"
+    assert "'reached' is not valid in state IDLE.MANUAL" in str(machine.refusal("reached"))
+    lost.is_localized = True
+    assert machine.refusal("set_auto") is None and machine.state == "IDLE.MANUAL" and lost.modes == []
+
+
 def test_callbacks_act_through_the_port() -> None:
     port = RecordingPort(mapping_available=True)
     context = AgentContext(port=port)

@@ -142,14 +142,54 @@ def test_modes_goals_and_missions_are_accepted_or_refused_as_the_agent_decides(b
     assert agent_state(robot) == "IDLE.MANUAL"
 
 
-def test_a_refusal_by_a_guard_is_reported_as_an_event(booted):
+def test_a_refusal_by_a_guard_is_answered_at_once_or_reported_as_an_event(booted):
     robot, gateway = booted
-    robot.parts.health.add("lidar", lambda now: ComponentHealth(False, "test: lidar unplugged"))
-    assert gateway.set_mode("AUTO").ok  # may be taken in IDLE.MANUAL: queued; the guard decides
+    unplugged = [False]
+    robot.parts.health.add("lidar", lambda now: ComponentHealth(not unplugged[0], "test: lidar unplugged"))
+    assert gateway.set_mode("AUTO").ok  # every guard holds now: queued
+    unplugged[0] = True  # ... and the lidar goes before the agent's tick: its guard decides then
     run(robot, 0.3)
     assert agent_state(robot) in ("IDLE.MANUAL", "ERROR")
     refused = [e for e in robot.recent_events(50) if e["kind"] == "refused"]
     assert any("set_auto" in e["text"] and "lidar" in e["text"] for e in refused), refused
+    if agent_state(robot) == "IDLE.MANUAL":
+        now = gateway.set_mode("AUTO")  # while the guard would refuse, the answer says so at once
+        assert not now.ok and "level-1 status not OK" in now.reason and "lidar" in now.reason
+
+
+def test_auto_goals_and_missions_wait_for_a_pose_after_a_map_switch(booted):
+    """Issue 21: selecting another map drops the pose and says so; AUTO, goals and missions are refused with
+    the reason until a pose is set (the mode switch no longer says "accepted" first)."""
+    robot, gateway = booted
+    store = robot.parts.map_store
+    store.save("flat-copy", store.load("studio"))
+    gateway.maps_changed()
+    assert gateway.set_mode("AUTO").ok
+    run(robot, 0.3)
+    assert agent_state(robot) == "IDLE.AUTO" and gateway.state()["localization"]["localized"]
+    assert gateway.select_map("flat-copy").ok
+    run(robot, 0.3)
+    state = gateway.state()
+    assert state["active_map"] == "flat-copy" and state_problems(state) == []
+    loc = state["localization"]
+    assert not loc["localized"] and loc["confidence"] == 0.0 and loc["state"] == "uninitialized"
+    assert state["pose"] is None and not state["level1"]["localization"]  # 0x153 bit 4, as the secondary core hears
+    assert any(e["kind"] == "localization map_changed" and "not localized" in e["text"] for e in state["events"])
+    mission = gateway.start_mission("look-around")
+    assert not mission.ok and mission.reason == (  # in the carer's words (robot.plain_words)
+        "Cannot start a mission: the robot is not sure where it is (0% sure, it needs 70%). Set its position on "
+        "the map (SET POSITION) or press FIND POSITION.")
+    goal = gateway.set_goal(Pose2D(4.0, 2.0, 0.0))
+    assert not goal.ok and "not localized" in goal.reason
+    assert gateway.set_mode("MANUAL").ok
+    run(robot, 0.3)
+    auto = gateway.set_mode("AUTO")
+    assert not auto.ok and "not sure where it is" in auto.reason and agent_state(robot) == "IDLE.MANUAL"
+    assert gateway.set_initial_pose(robot.parts.sim.pose).ok
+    run(robot, 0.5)
+    assert gateway.state()["localization"]["localized"] and gateway.set_mode("AUTO").ok
+    run(robot, 0.3)
+    assert agent_state(robot) == "IDLE.AUTO"
 
 
 def test_mapping_begin_end_save_and_select(booted):

@@ -61,7 +61,9 @@ def test_a_map_begun_while_localized_is_in_the_active_maps_frame(robot):
     maps.end("living-room", robot.clock.now())
     robot.run(until=robot.clock.now() + 1.0)
     pose, truth = robot.parts.localization.map_pose(), sim.pose
-    assert pose is not None and pose.distance_to(truth) < 0.05, (pose, truth)
+    # the robot is localized on the saved map where the scan fits it; that map is SLAM's, itself up to about a
+    # cell (5 cm) off the world in places
+    assert pose is not None and pose.distance_to(truth) < 0.06, (pose, truth)
     assert abs(math.remainder(pose.yaw_rad - truth.yaw_rad, math.tau)) < 0.01, (pose, truth)
 
 

@@ -62,6 +62,17 @@ def test_the_state_contract_names_what_is_wrong_and_where(gateway):
     ]
 
 
+def test_the_state_contract_holds_localization_to_its_words(gateway):
+    """Issue 21: the dashboard's localization is the robot's LocalizationStatus; a state it does not name, or a
+    candidate without its agreement, breaks the contract."""
+    state = gateway.state()
+    state["localization"]["state"] = "confused"  # type: ignore[typeddict-item]
+    state["localization"]["candidates"] = [{"x_m": 1.0, "y_m": 2.0, "yaw_rad": 0.0}]  # type: ignore[typeddict-item]
+    problems = state_problems(state)
+    assert problems[0].startswith("state.localization.state: expected one of 'localized', 'lost', ")
+    assert problems[1:] == ["state.localization.candidates[0]: missing key 'agreement'"]
+
+
 def test_map_meta_and_png(alice, gateway):
     assert alice.get("/api/map").get_json() is None
     assert alice.get("/api/map.png").status_code == 404

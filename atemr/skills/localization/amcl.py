@@ -40,7 +40,7 @@ from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError, NavigationError
 from atemr.msgs import Pose2D
 from atemr.skills.diff_drive import wrap_angle
-from atemr.skills.localization.geometry import FloatArray, is_finite_pose
+from atemr.skills.localization.geometry import FloatArray, as_array, compose, is_finite_pose, relative
 from atemr.skills.localization.likelihood_field import FieldParams, LikelihoodField
 from atemr.skills.localization.motion_model import OdometryNoise, sample_motion_model_odometry
 
@@ -177,10 +177,13 @@ class Amcl:
     def initialized(self) -> bool:
         return self.particles.shape[0] > 0
 
-    def initialize(self, pose: Pose2D, covariance: FloatArray | None = None, *, now: float = 0.0) -> None:
+    def initialize(self, pose: Pose2D, covariance: FloatArray | None = None, *, now: float = 0.0,
+                   odom: Pose2D | None = None) -> None:
         """Start from the operator's pose: a Gaussian cloud of ``max_particles`` (default σ 0.25 m, 0.25 rad).
 
-        Raises `NavigationError` for a non-finite pose or an invalid covariance (the dashboard shows it).
+        ``odom``: the odometry pose ``pose`` refers to (the next update moves the cloud by the odometry since
+        then; without it, since the last update). Raises `NavigationError` for a non-finite pose or an invalid
+        covariance (the dashboard shows it).
         """
         if not is_finite_pose(pose):
             raise NavigationError(f"initial pose must be finite, got {pose}")
@@ -195,7 +198,22 @@ class Amcl:
         mean = np.array([pose.x_m, pose.y_m, pose.yaw_rad])
         self.particles = mean + self.rng.standard_normal((n, 3)) @ chol.T
         self.particles[:, 2] = wrap_angle(self.particles[:, 2])
+        if odom is not None and is_finite_pose(odom):
+            self._odom_ref = odom
         self._reset(now)
+
+    def rebase(self, pose: Pose2D, odom: Pose2D, *, now: float) -> None:
+        """Move the cloud rigidly so its mean is ``pose`` while odometry reads ``odom`` (its spread kept).
+
+        For a correction made outside the filter (a scan-to-map match of a robot standing still, whose
+        odometry drifts while AMCL, rightly, does not update)."""
+        if not self.initialized or not (is_finite_pose(pose) and is_finite_pose(odom)):
+            return
+        mean, _ = weighted_mean_cov(self.particles, self.weights)
+        moved = compose(as_array(pose), relative(mean, self.particles))
+        self.particles = moved
+        self._odom_ref = odom
+        self._estimate_from(now, self.weights)
 
     def initialize_global(self, *, now: float = 0.0) -> None:
         """Global localization: ``global_particles`` spread uniformly over free space, uniform yaw."""

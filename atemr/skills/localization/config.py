@@ -19,7 +19,7 @@ if TYPE_CHECKING:  # the skills import filterpy and scipy.stats (a second): only
 
 @dataclass(frozen=True)
 class LocalizationConfig:
-    """AMCL, the covariance monitor and mapping (names as in ROS amcl where there is one)."""
+    """AMCL, the confidence monitor, global localization and mapping (names as in ROS amcl where there is one)."""
 
     min_particles: int = field(default=300, metadata={"min": 10, "max": 100_000, "help": "AMCL's smallest cloud"})
     max_particles: int = field(default=5000, metadata={"min": 10, "max": 100_000, "help": "AMCL's largest cloud"})
@@ -36,9 +36,13 @@ class LocalizationConfig:
     update_min_a_deg: float = field(default=15.0, metadata={"min": 0.0, "max": 180.0, "help": "AMCL update angle"})
     max_std_xy_m: float = field(default=0.5, metadata={"min": 0.01, "max": 10.0, "help": "lost above this std"})
     max_std_yaw_deg: float = field(default=20.0, metadata={"min": 0.5, "max": 180.0, "help": "lost above this std"})
-    min_agreement: float = field(default=0.5, metadata={"min": 0.0, "max": 0.99,
-                                                        "help": "lost below this share of the scan on the map"})
-    lost_after: int = field(default=3, metadata={"min": 1, "max": 100, "help": "bad scans in a row before lost"})
+    min_confidence: float = field(default=0.7, metadata={
+        "min": 0.51, "max": 0.99, "help": "localized while the confidence (share of the scan on the map) is at least "
+                                          "this; global localization needs it too"})
+    confidence_time_s: float = field(default=1.0, metadata={"min": 0.05, "max": 60.0,
+                                                            "help": "time the per-scan evidence is averaged over"})
+    unmapped_allowance: float = field(default=0.25, metadata={
+        "min": 0.0, "max": 0.9, "help": "share of a scan unmapped obstacles may hide without counting as lost"})
     relocalize_window_m: float = field(default=1.0, metadata={"min": 0.05, "max": 10.0,
                                                               "help": "local relocalization search radius"})
     seed: int = field(default=0, metadata={"min": 0, "help": "seed of AMCL's random generator"})
@@ -49,6 +53,7 @@ class LocalizationConfig:
         """The `Localizer`'s parameters (raises `ConfigError` on inconsistent values)."""
         from atemr.skills.localization.amcl import AmclParams
         from atemr.skills.localization.covariance_monitor import MonitorParams
+        from atemr.skills.localization.global_search import GlobalSearchParams
         from atemr.skills.localization.likelihood_field import FieldParams
         from atemr.skills.localization.localizer import LocalizerParams
         from atemr.skills.localization.motion_model import OdometryNoise
@@ -60,9 +65,11 @@ class LocalizationConfig:
             noise=OdometryNoise(self.odom_alpha1, self.odom_alpha2, self.odom_alpha3, self.odom_alpha4),
             field=FieldParams(sigma_hit_m=self.sigma_hit_m, z_hit=1.0 - self.z_rand, z_rand=self.z_rand),
         )
-        monitor = MonitorParams(self.max_std_xy_m, math.radians(self.max_std_yaw_deg), self.min_agreement,
-                                self.lost_after)
-        return LocalizerParams(amcl=amcl, monitor=monitor, relocalize_window_m=self.relocalize_window_m)
+        monitor = MonitorParams(self.max_std_xy_m, math.radians(self.max_std_yaw_deg), self.min_confidence,
+                                self.confidence_time_s, self.unmapped_allowance)
+        search = GlobalSearchParams(min_agreement=self.min_confidence, range_max_m=amcl.field.range_max_m)
+        return LocalizerParams(amcl=amcl, monitor=monitor, global_search=search,
+                               relocalize_window_m=self.relocalize_window_m)
 
     def slam_params(self) -> SlamParams:
         from atemr.skills.slam import SlamParams

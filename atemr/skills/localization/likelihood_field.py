@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,6 +50,11 @@ class FieldParams:
                               path="localization.z_hit")
 
 
+#: Above this many table look-ups, `LikelihoodField.crossings` walks segments by sphere tracing instead of
+#: sampling them every half cell.
+DENSE_LOOKUPS = 200_000
+
+
 class LikelihoodField:
     """Distance and log-likelihood tables of one map, and vectorised scoring of poses against them.
 
@@ -70,25 +76,35 @@ class LikelihoodField:
         norm = 1.0 / (math.sqrt(2.0 * math.pi) * p.sigma_hit_m)
         rand = p.z_rand / p.range_max_m
         log_p = np.log(p.z_hit * norm * np.exp(-0.5 * (dist / p.sigma_hit_m) ** 2) + rand)
-        #: ``log p(z)`` of an end point in each cell; one extra cell at the end holds the off-map value.
-        self._log_p = np.append(log_p.ravel(), math.log(p.z_hit * norm * math.exp(-0.5 * (p.max_dist_m / p.sigma_hit_m)
-                                                                                   ** 2) + rand))
-        self._dist_flat = np.append(dist.ravel(), p.max_dist_m)
-        self._off_map = grid.height * grid.width
+        off_map_log_p = math.log(p.z_hit * norm * math.exp(-0.5 * (p.max_dist_m / p.sigma_hit_m) ** 2) + rand)
+        # The tables carry a border of one cell holding the off-map value: a point is clipped into it, so a
+        # look-up needs no test for "inside the map".
+        self._log_p = np.pad(log_p, 1, constant_values=off_map_log_p).ravel()
+        self._dist_flat = np.pad(dist, 1, constant_values=p.max_dist_m).ravel()
+        self._stride = grid.width + 2
         o = grid.origin
         self._origin = np.array([o.x_m, o.y_m, o.yaw_rad])
         self.log_p_max = float(self._log_p.max())
 
     # -- look-ups ----------------------------------------------------------------------------------
-    def _flat_index(self, gx: FloatArray, gy: FloatArray) -> NDArray[np.intp]:
-        """Flat table index of grid-frame metric points; off-map (and NaN) points → the extra cell."""
-        res = self.map.resolution_m
-        with np.errstate(invalid="ignore", over="ignore"):
-            col = np.floor(gx / res)
-            row = np.floor(gy / res)
-            inside = (col >= 0) & (col < self.map.width) & (row >= 0) & (row < self.map.height)
-        flat = np.where(inside, np.where(inside, row, 0) * self.map.width + np.where(inside, col, 0), self._off_map)
-        return flat.astype(np.intp)
+    def _flat_index(self, gx: NDArray[np.floating[Any]], gy: NDArray[np.floating[Any]]) -> NDArray[np.intp]:
+        """Flat index into the bordered tables of grid-frame metric points; off-map (and NaN) points land
+        on the border."""
+        inv = 1.0 / self.map.resolution_m
+        with np.errstate(invalid="ignore", over="ignore"):  # fmax/fmin take the number over a NaN: the border
+            col = np.floor(gx * inv)
+            np.fmax(col, -1.0, out=col)
+            np.fmin(col, float(self.map.width), out=col)
+            row = np.floor(gy * inv)
+            np.fmax(row, -1.0, out=row)
+            np.fmin(row, float(self.map.height), out=row)
+        # float32 holds integers exactly up to 2**24: flat indices of a map of up to 16 M cells
+        flat = row.astype(np.intp)
+        flat += 1
+        flat *= self._stride
+        flat += col.astype(np.intp)
+        flat += 1
+        return flat
 
     def _to_grid_frame(self, poses: FloatArray) -> FloatArray:
         """Poses ``(N, 3)`` in the world → relative to the map's origin (lower-left corner, its axes)."""
@@ -103,15 +119,25 @@ class LikelihoodField:
         return np.column_stack([c * dx + s * dy, -s * dx + c * dy, poses[:, 2] - oth])
 
     def _indices(self, poses: FloatArray, points: FloatArray) -> NDArray[np.intp]:
-        """Cell index of every point under every pose: ``(N, M)``."""
+        """Cell index of every point under every pose: ``(N, M)``.
+
+        The ``N × M`` arithmetic runs in float32 (twice as fast; a tenth of a millimetre at 1 km from the
+        origin, far below a cell), the pose transforms in float64."""
         with np.errstate(invalid="ignore", over="ignore"):
             g = self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
-            c = np.cos(g[:, 2])[:, None]
-            s = np.sin(g[:, 2])[:, None]
-        px, py = points[:, 0][None, :], points[:, 1][None, :]
+            c = np.cos(g[:, 2]).astype(np.float32)[:, None]
+            s = np.sin(g[:, 2]).astype(np.float32)[:, None]
+            gx0 = g[:, 0:1].astype(np.float32)
+            gy0 = g[:, 1:2].astype(np.float32)
+            px = points[:, 0].astype(np.float32)[None, :]
+            py = points[:, 1].astype(np.float32)[None, :]
         with np.errstate(invalid="ignore", over="ignore"):  # absurd poses land off the map, never warn
-            gx = g[:, 0:1] + c * px - s * py
-            gy = g[:, 1:2] + s * px + c * py
+            gx = c * px
+            gx -= s * py
+            gx += gx0
+            gy = s * px
+            gy += c * py
+            gy += gy0
         return self._flat_index(gx, gy)
 
     def distance(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
@@ -128,13 +154,75 @@ class LikelihoodField:
             return np.zeros(np.asarray(poses).reshape(-1, 3).shape[0])
         return self._log_p[self._indices(poses, pts)].sum(axis=1)
 
-    def agreement(self, poses: FloatArray, points: FloatArray) -> FloatArray:
-        """Fraction of points within ``agreement_tolerance_m`` of an obstacle, per pose (0 for no points)."""
+    def distances(self, poses: FloatArray, points: FloatArray) -> FloatArray:
+        """Distance (m) from every base-frame point, under every pose ``(N, 3)``, to the nearest occupied cell:
+        ``(N, M)``; 0 in an occupied cell, ``max_dist_m`` off the map."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         n = np.asarray(poses).reshape(-1, 3).shape[0]
         if pts.shape[0] == 0:
-            return np.zeros(n)
-        d = self._dist_flat[self._indices(poses, pts)]
+            return np.zeros((n, 0))
+        return self._dist_flat[self._indices(poses, pts)]
+
+    def crossings(self, poses: FloatArray, start_xy: tuple[float, float], points: FloatArray,
+                  stop_short_m: float) -> NDArray[np.bool_]:
+        """Whether the segment from ``start_xy`` to each base-frame point, ending ``stop_short_m`` before the
+        point, enters an occupied cell, under every pose: ``(N, M)``.
+
+        Few segments are sampled every half cell (the samples are the same base-frame points under every
+        pose: one look-up); many are walked by sphere tracing (`_crossings_traced`), which costs a few
+        steps per segment in open space instead of one per half cell.
+        """
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        n = np.asarray(poses).reshape(-1, 3).shape[0]
+        if pts.shape[0] == 0 or n == 0:
+            return np.zeros((n, pts.shape[0]), dtype=bool)
+        start = np.asarray(start_xy, dtype=np.float64).reshape(1, 2)
+        ray = pts - start
+        length = np.hypot(ray[:, 0], ray[:, 1])
+        reach = np.maximum(length - stop_short_m, 0.0)
+        samples = max(2, math.ceil(float(reach.max()) / (0.5 * self.map.resolution_m)) + 1)
+        if n * pts.shape[0] * samples > DENSE_LOOKUPS:
+            return self._crossings_traced(poses, start[0], ray, length, reach)
+        scale = np.divide(reach, length, out=np.zeros_like(length), where=length > 0)
+        frac = np.linspace(0.0, 1.0, samples)[None, :, None]
+        along = start[:, None, :] + (scale[:, None, None] * frac) * ray[:, None, :]
+        inside = self.distances(poses, along.reshape(-1, 2)).reshape(n, pts.shape[0], samples) <= 0.0
+        return np.asarray(inside.any(axis=2), dtype=bool)
+
+    def _crossings_traced(self, poses: FloatArray, start: FloatArray, ray: FloatArray, length: FloatArray,
+                          reach: FloatArray) -> NDArray[np.bool_]:
+        """`crossings` by sphere tracing: from a point whose cell is ``d`` from the nearest occupied cell centre,
+        nothing occupied lies within ``d − res·√2``, so every segment jumps that far (at least half a cell)."""
+        g = self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
+        n, m = g.shape[0], ray.shape[0]
+        c, s = np.cos(g[:, 2])[:, None], np.sin(g[:, 2])[:, None]
+        x0 = ((g[:, 0:1] + c * start[0] - s * start[1]) + np.zeros((1, m))).ravel()
+        y0 = ((g[:, 1:2] + s * start[0] + c * start[1]) + np.zeros((1, m))).ravel()
+        unit = np.divide(ray, length[:, None], out=np.zeros_like(ray), where=length[:, None] > 0)
+        ux, uy = (c * unit[:, 0] - s * unit[:, 1]).ravel(), (s * unit[:, 0] + c * unit[:, 1]).ravel()
+        end = np.broadcast_to(reach, (n, m)).ravel()
+        res = self.map.resolution_m
+        margin, least = res * math.sqrt(2.0), 0.5 * res
+        crossed = np.zeros(n * m, dtype=bool)
+        t = np.zeros(n * m)
+        live = np.arange(n * m)
+        while live.size:
+            tl = t[live]
+            d = self._dist_flat[self._flat_index(x0[live] + ux[live] * tl, y0[live] + uy[live] * tl)]
+            inside = d <= 0.0
+            crossed[live[inside]] = True
+            t[live] = np.minimum(tl + np.maximum(d - margin, least), end[live])
+            live = live[~inside & (tl < end[live])]  # one last look exactly at the end, then stop
+        return crossed.reshape(n, m)
+
+    def agreement(self, poses: FloatArray, points: FloatArray) -> FloatArray:
+        """Fraction of end points within ``agreement_tolerance_m`` of an obstacle, per pose (0 for no points).
+
+        Cheap, and blind to what lies between the sensor and the point: a scan seen through a wall still
+        scores. Decisions about the pose use `atemr.skills.localization.map_agreement` instead."""
+        d = self.distances(poses, points)
+        if d.shape[1] == 0:
+            return np.zeros(d.shape[0])
         return (d <= self.params.agreement_tolerance_m).mean(axis=1)
 
     def obstacle_points(self) -> FloatArray:

@@ -1,41 +1,93 @@
-"""The localization pipeline against one map: AMCL + map EKF + covariance monitor + relocalization.
+"""The localization pipeline against one map: global search, AMCL + map EKF, the confidence monitor, relocalization.
 
-States: ``uninitialized`` (no pose yet) → ``global`` (global localization running) → ``localized`` ⇄
-``lost`` (momentarily, while relocalizing). On every scan:
+Phases (`Phase`), each with its own method, run on every scan:
 
-1. the map EKF moves by the odometry increment; AMCL updates when the robot moved enough;
-2. while ``localized``: a fresh AMCL estimate corrects the map EKF, and the monitor checks the map
-   pose's covariance and the scan's agreement with the map there. Lost → relocalize at once: a
-   scan-to-map match around the last good pose (carried along by odometry since); if its agreement
-   clears the limit AMCL restarts there with a tight cloud, otherwise global localization starts;
-3. while ``global``: once AMCL's cloud is tight and the scan agrees with the map at its mean, the pose
-   is refined by a scan-to-map match and the robot counts as localized.
+* ``UNINITIALIZED``: no pose yet (a map just selected): nothing to do until a pose is set or searched for.
+* ``POSE_SET``: the operator gave a pose; the next scan is matched to the map near it (± 0.5 m, ± 20°). If
+  the scan agrees there the robot tracks from the matched pose, otherwise the pose is refused (an event
+  says how much of the scan agreed) and the robot searches the whole map.
+* ``SEARCHING``: global localization (`GlobalSearch`) on the next scan, three outcomes: *localized* → tracking;
+  *ambiguous* → the candidate places are kept; *failed* → searched again later.
+* ``AMBIGUOUS``: every candidate is carried along by odometry; each time the robot has moved or turned
+  enough for a new view, the candidates are refined on the new scan and its beams pooled with the earlier
+  ones, until one place is clearly best (tracking from there), or none explains the scans (a new search).
+* ``FAILED``: searched again once the robot has moved, or after ``retry_s``.
+* ``TRACKING``: AMCL updates when the robot moved enough and corrects the map EKF; a robot that stands still
+  (its odometry drifts, AMCL rightly does not update) has its map pose re-matched to the map every
+  ``hold_correction_s``. The monitor turns every scan into evidence and the evidence into the **confidence**
+  (`CovarianceMonitor`); below the limit the robot is lost: a scan-to-map match near the last good pose
+  (carried along by odometry), accepted if the scan agrees there, else a global search on the same scan.
 
-Every change is recorded as an `LocalizationEvent` (the agent turns them into dashboard events and
-0x153 bit 4). ``localized`` is False from "lost" until relocalization succeeds: the agent stops then.
+``localized`` means tracking with the confidence at or above ``monitor.min_confidence``, nothing else; the
+confidence is the one number every consumer shows (dashboard, CAN 0x153 bit 4, ``mission run --json``, the
+agent's guards). Outside tracking it is the search's own (`GlobalResult.confidence`), or 0.
+
+A scan without a single valid return (a covered or glitched lidar) is no evidence for or against any pose:
+no phase acts on it, and while tracking the pose follows odometry alone (a lidar that stays blind is the
+health board's to report, not localization's).
+
+Every change is an `LocalizationEvent` (the dashboard's event list).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import Literal
 
 import numpy as np
 
 from atemr.domain.maps import OccupancyMap
+from atemr.domain.status import LocalizationState
 from atemr.errors import NavigationError
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.amcl import Amcl, AmclParams, PoseEstimate
-from atemr.skills.localization.covariance_monitor import CovarianceMonitor, MonitorParams, MonitorReport
-from atemr.skills.localization.geometry import as_array, as_pose, compose, is_finite_pose, relative
+from atemr.skills.localization.covariance_monitor import (
+    CovarianceMonitor,
+    MonitorParams,
+    MonitorReport,
+    robust_agreement,
+)
+from atemr.skills.localization.geometry import FloatArray, as_array, as_pose, compose, is_finite_pose, relative
+from atemr.skills.localization.global_search import (
+    GlobalResult,
+    GlobalSearch,
+    GlobalSearchParams,
+    Hypotheses,
+    Hypothesis,
+)
 from atemr.skills.localization.likelihood_field import LikelihoodField
+from atemr.skills.localization.map_agreement import AgreementParams, MapAgreement
 from atemr.skills.localization.odometry_ekf import MapEkf, MapEkfParams
-from atemr.skills.localization.scan import scan_points
-from atemr.skills.localization.scan_to_map import ScanToMapMatcher
+from atemr.skills.localization.scan import scan_points, sensor_origin
+from atemr.skills.localization.scan_to_map import MapMatch, ScanToMapMatcher
 
-State = Literal["uninitialized", "global", "localized", "lost"]
-EventKind = Literal["initial_pose", "global_start", "localized", "lost", "relocalized"]
+EventKind = Literal["initial_pose", "pose_refused", "global_start", "localized", "ambiguous", "failed", "lost",
+                    "relocalized", "map_changed"]
+
+
+#: An operator's pose that fits the scan within this share of the best match nearby is kept as it was given
+#: (a pose from mapping, or typed exactly, is not moved by the match's own few centimetres).
+POSE_KEPT_WITHIN = 0.01
+
+
+class Phase(Enum):
+    """What the localizer does with the next scan (module docstring)."""
+
+    UNINITIALIZED = "uninitialized"
+    POSE_SET = "pose set"
+    SEARCHING = "searching"
+    AMBIGUOUS = "ambiguous"
+    FAILED = "failed"
+    TRACKING = "tracking"
+
+
+#: What each phase but tracking shows as the localization state (tracking shows localized or lost).
+_PHASE_STATES: dict[Phase, LocalizationState] = {
+    Phase.UNINITIALIZED: "uninitialized", Phase.POSE_SET: "pose set", Phase.SEARCHING: "searching",
+    Phase.AMBIGUOUS: "ambiguous", Phase.FAILED: "failed",
+}
 
 
 @dataclass(frozen=True)
@@ -49,25 +101,31 @@ class LocalizationEvent:
 
 @dataclass(frozen=True)
 class LocalizerParams:
-    """How AMCL, the monitor and relocalization are tuned."""
+    """How AMCL, the monitor, the searches and relocalization are tuned."""
 
     amcl: AmclParams = field(default_factory=AmclParams)
     map_ekf: MapEkfParams = field(default_factory=MapEkfParams)
     monitor: MonitorParams = field(default_factory=MonitorParams)
+    agreement: AgreementParams = field(default_factory=AgreementParams)
+    global_search: GlobalSearchParams = field(default_factory=GlobalSearchParams)
     #: Local relocalization: search window around the last good pose.
     relocalize_window_m: float = 1.0
     relocalize_window_rad: float = 0.8
-    #: A local match is accepted with at least this agreement (stricter than the monitor's limit: a wrong
-    #: local match would hide a kidnapping, a refused one only costs a global localization).
-    relocalize_min_agreement: float = 0.7
-    #: Global localization counts as converged below these standard deviations.
-    converged_std_xy_m: float = 0.15
-    converged_std_yaw_rad: float = 0.15
-    #: Cloud put round a matched pose (local relocalization, end of global localization).
+    #: An operator's pose is matched to the map within this window.
+    pose_window_m: float = 0.5
+    pose_window_rad: float = 0.35
+    #: Cloud put round a matched pose (a checked operator's pose, a relocalization, a global search's answer).
     matched_std_m: float = 0.05
     matched_std_rad: float = 0.05
-    #: Scans weighed without motion after a global start (the agent stops the robot while it is lost).
-    global_static_updates: int = 30
+    #: A robot that has not moved enough for AMCL has its pose re-matched to the map this often (s).
+    hold_correction_s: float = 1.0
+    hold_window_m: float = 0.1
+    hold_window_rad: float = 0.05
+    #: While ambiguous, a scan adds evidence once the robot moved or turned this much since the last one.
+    evidence_every_m: float = 0.3
+    evidence_every_rad: float = math.radians(45.0)
+    #: After a failed search: search again after this long, or once the robot moved as above.
+    retry_s: float = 5.0
 
 
 class Localizer:
@@ -77,50 +135,79 @@ class Localizer:
         self.params = p = params or LocalizerParams()
         self.map = grid
         self.field = LikelihoodField(grid, p.amcl.field)
+        self.agreement = MapAgreement(self.field, p.agreement)
+        self.search = GlobalSearch(self.field, self.agreement, p.global_search)
         self.amcl = Amcl(grid, rng, p.amcl, self.field)
         self.matcher = ScanToMapMatcher(self.field)
         self.map_ekf = MapEkf(p.map_ekf)
         self.monitor = CovarianceMonitor(p.monitor)
-        self.state: State = "uninitialized"
+        self.phase = Phase.UNINITIALIZED
         self.events: list[LocalizationEvent] = []
         self.last_report: MonitorReport | None = None
+        #: The last global search's answer (None before the first).
+        self.result: GlobalResult | None = None
+        self._hypotheses: Hypotheses | None = None
+        self._search_confidence = 0.0
+        self._prior: tuple[Pose2D, Pose2D | None] | None = None  # operator's pose, odometry when it was given
         self._last_good: tuple[Pose2D, Pose2D] | None = None  # (map pose, odometry) when last known good
-        self._odom: Pose2D | None = None
-        #: An estimate waiting for the first odometry pose (the operator clicked before any scan arrived).
-        self._pending: PoseEstimate | None = None
-        self._static_updates = 0
+        self._mark: tuple[float, Pose2D] | None = None  # (time, odometry) of the last view while not tracking
+        self._last_fix = 0.0
+        self._odom: Pose2D | None = None  # the odometry of the latest scan
 
     # -- operator ----------------------------------------------------------------------------------
     def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None, *,
                          odom: Pose2D | None = None) -> None:
-        """The operator's click: AMCL starts round ``pose``; refused (`NavigationError`) off the map's free space.
+        """The operator's click: checked against the next scan (`Phase.POSE_SET`); refused at once
+        (`NavigationError`) off the map's free space.
 
-        ``odom``: the odometry pose at ``now``. With it the map pose holds from this moment; without it, from the
-        next scan (until then the map→odom correction is the one before the click, and so is the map pose).
+        ``odom``: the odometry pose at ``now`` (the robot may move before the next scan). ``covariance`` is
+        accepted for compatibility and unused: the pose is matched to the map, not trusted as it is.
         """
+        del covariance
         if not is_finite_pose(pose):
             raise NavigationError(f"initial pose must be finite, got {pose}")
         row, col = self.map.world_to_cell(pose.x_m, pose.y_m)
         if not self.map.contains(row, col) or not self.map.free[int(row), int(col)]:
             raise NavigationError(f"initial pose ({pose.x_m:.2f}, {pose.y_m:.2f}) is not in free space of the map")
-        self.amcl.initialize(pose, covariance, now=now)
-        if odom is not None and is_finite_pose(odom):
-            self._odom = odom
-        self._start_tracking(now, self.amcl.estimate)
-        self._event(now, "initial_pose", f"initial pose ({pose.x_m:.2f}, {pose.y_m:.2f}, {pose.yaw_rad:.2f})")
+        self._prior = (pose, odom if odom is not None and is_finite_pose(odom) else None)
+        self._enter(Phase.POSE_SET, 0.0)
+        self._event(now, "initial_pose", f"initial pose ({pose.x_m:.2f}, {pose.y_m:.2f}, {pose.yaw_rad:.2f}) set; "
+                                         "checking it against the next scan")
 
     def start_global(self, now: float, why: str = "no initial pose") -> None:
-        """Global localization over the whole map's free space."""
-        self.amcl.initialize_global(now=now)
-        self._static_updates = 0
-        self.state = "global"
-        self.monitor.reset()
+        """Global localization over the whole map, on the next scan."""
+        self._enter(Phase.SEARCHING, 0.0)
         self._event(now, "global_start", f"global localization: {why}")
 
     # -- output ------------------------------------------------------------------------------------
     @property
+    def confidence(self) -> float:
+        """The one number: the monitor's while tracking, the last search's while searching, else 0."""
+        return self.monitor.confidence if self.phase is Phase.TRACKING else self._search_confidence
+
+    @property
     def localized(self) -> bool:
-        return self.state == "localized"
+        """The confidence at or above the limit, nothing else (outside tracking it never is: an ambiguous
+        search shares its evidence among at least two places, and the limit is above one half)."""
+        return self.confidence >= self.params.monitor.min_confidence
+
+    @property
+    def state(self) -> LocalizationState:
+        """``localized``, ``lost`` (tracking below the limit), or the phase's name."""
+        if self.phase is Phase.TRACKING:
+            return "localized" if self.localized else "lost"
+        return _PHASE_STATES[self.phase]
+
+    @property
+    def candidates(self) -> tuple[Hypothesis, ...]:
+        """The places under consideration while ambiguous (best first, carried along to the latest odometry),
+        else ()."""
+        hyps = self._hypotheses
+        if self.phase is not Phase.AMBIGUOUS or hyps is None:
+            return ()
+        if self._odom is None:
+            return hyps.ranked()
+        return hyps.ranked(relative(hyps.first_odom, as_array(self._odom)))
 
     @property
     def estimate(self) -> PoseEstimate | None:
@@ -131,87 +218,172 @@ class Localizer:
         return self.map_ekf.map_to_odom() if self.localized else None
 
     # -- per scan ----------------------------------------------------------------------------------
-    def update(self, now: float, odom: Pose2D, scan: LaserScan) -> State:
-        """Feed one scan with the odometry pose at its time; returns the state after it."""
-        if self.state == "uninitialized" or not (math.isfinite(now) and is_finite_pose(odom)):
+    def update(self, now: float, odom: Pose2D, scan: LaserScan) -> str:
+        """Feed one scan with the odometry pose at its time; returns `state` after it."""
+        if not (math.isfinite(now) and is_finite_pose(odom)):
             return self.state
+        points, sensor = scan_points(scan), sensor_origin(scan)
         self._odom = odom
-        points = scan_points(scan)
-        if self._pending is not None:
-            self._anchor(self._pending, odom)
-        elif self.map_ekf.initialized:
+        if self.phase is Phase.TRACKING:
             self.map_ekf.predict(now, odom)
-        if self.state == "global" and self._static_updates < self.params.global_static_updates:
-            self.amcl.request_update()  # a stopped robot must still be able to find itself
-            self._static_updates += 1
-        ran = self.amcl.update(now, odom, points)
-        if self.state == "global":
-            if ran:
-                self._check_global(now, odom, points)
+        if not len(points):  # no valid return (a blind or glitched scan): no evidence for or against any pose
             return self.state
-        if ran:
-            self.map_ekf.update(self.amcl.estimate)
-        est = self.map_ekf.estimate
-        agreement = float(self.field.agreement(as_array(est.pose)[None], points)[0]) if points.size else 0.0
-        report = self.monitor.check(est, agreement)
-        self.last_report = report
-        if not report.reason:
-            self._last_good = (est.pose, odom)
-        if report.lost:
-            self.state = "lost"
-            self._event(now, "lost", report.reason)
-            self._relocalize(now, odom, points)
+        if self.phase is Phase.TRACKING:
+            self._track(now, odom, points, sensor)
+        elif self.phase is Phase.POSE_SET:
+            self._check_pose(now, odom, points, sensor)
+        elif self.phase is Phase.SEARCHING:
+            self._search(now, odom, points, sensor)
+        elif self.phase is Phase.AMBIGUOUS:
+            self._gather(now, odom, points, sensor)
+        elif self.phase is Phase.FAILED:
+            self._retry(now, odom, points, sensor)
         return self.state
 
-    # -- internals ---------------------------------------------------------------------------------
-    def _event(self, now: float, kind: EventKind, detail: str) -> None:
-        self.events.append(LocalizationEvent(now, kind, detail))
+    # -- phases ------------------------------------------------------------------------------------
+    def _check_pose(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
+        assert self._prior is not None
+        pose, at = self._prior
+        if at is not None:
+            pose = as_pose(compose(as_array(pose), relative(as_array(at), as_array(odom))))
+        p = self.params
+        match = self.matcher.match(points, pose, window_xy_m=p.pose_window_m, window_yaw_rad=p.pose_window_rad)
+        value, given = self._fit(match.pose, points, sensor), self._fit(pose, points, sensor)
+        if given >= value - POSE_KEPT_WITHIN:  # a pose that fits as well as the match is kept as given
+            match, value = MapMatch(pose, match.agreement, match.score, False), given
+        if value >= p.monitor.min_confidence:
+            self._track_from(now, match.pose, odom, value)
+            self._event(now, "localized", f"initial pose checked: {value:.0%} of the scan on the map at "
+                                          f"{_where(match.pose)}")
+            return
+        self._event(now, "pose_refused", f"the scan does not match the map near the pose set: at best {value:.0%} of "
+                                         f"it agrees (at {_where(match.pose)}), below {p.monitor.min_confidence:.0%}")
+        self.start_global(now, "the pose set does not match the scan")
+        self._search(now, odom, points, sensor)
 
-    def _start_tracking(self, now: float, estimate: PoseEstimate) -> None:
-        self.state = "localized"
-        self.monitor.reset()
-        if self._odom is None:
-            self._pending = estimate
+    def _search(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
+        result, hypotheses = self.search.search(points, sensor, as_array(odom))
+        self.result = result
+        if result.outcome == "localized" and result.pose is not None:
+            self._track_from(now, result.pose, odom, result.confidence)
+            self._event(now, "localized", f"global localization: {result.reason}")
+            return
+        self._mark = (now, odom)
+        if result.outcome == "ambiguous":
+            hypotheses.keep(hypotheses.agreement >= self.params.monitor.min_confidence)
+            self._hypotheses = hypotheses
+            self._enter(Phase.AMBIGUOUS, result.confidence)
+            self._event(now, "ambiguous", f"global localization: {result.reason}; move the robot to tell them apart")
         else:
-            self._anchor(estimate, self._odom)
+            self._enter(Phase.FAILED, result.confidence)
+            self._event(now, "failed", f"global localization: {result.reason}")
 
-    def _anchor(self, estimate: PoseEstimate, odom: Pose2D) -> None:
-        """Tie a map pose to the odometry pose read at the same time (map EKF and last good pose)."""
-        self._pending = None
-        self.map_ekf.reset(estimate, odom)
-        self._last_good = (estimate.pose, odom)
-
-    def _matched(self, now: float, pose: Pose2D) -> PoseEstimate:
+    def _moved(self, odom: Pose2D) -> bool:
+        """Whether the robot moved or turned enough since the last view for a new one to tell more."""
+        if self._mark is None:
+            return True
         p = self.params
-        cov = np.diag([p.matched_std_m**2, p.matched_std_m**2, p.matched_std_rad**2])
-        self.amcl.initialize(pose, cov, now=now)
-        return PoseEstimate(now, pose, cov)
+        d = relative(as_array(self._mark[1]), as_array(odom))
+        return math.hypot(d[0], d[1]) >= p.evidence_every_m or abs(float(d[2])) >= p.evidence_every_rad
 
-    def _check_global(self, now: float, odom: Pose2D, points: np.ndarray) -> None:
+    def _gather(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
+        hyps = self._hypotheses
+        if hyps is None or not self._moved(odom):
+            return
+        self._mark = (now, odom)
+        hyps.add_scan(points, sensor, relative(hyps.first_odom, as_array(odom)))
+        hyps.keep(hyps.agreement >= self.params.monitor.min_confidence)
+        result = hyps.decide()
+        self.result = result
+        if result.outcome == "localized" and result.pose is not None:
+            self._track_from(now, result.pose, odom, float(self._fit(result.pose, points, sensor)))
+            self._event(now, "localized", f"after {len(hyps.hits)} views: {result.reason}")
+        elif result.outcome == "failed":
+            self.start_global(now, "no candidate place explains the new views")
+        else:
+            self._search_confidence = result.confidence
+
+    def _retry(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
+        if self._mark is None or self._moved(odom) or now - self._mark[0] >= self.params.retry_s:
+            self._search(now, odom, points, sensor)
+
+    def _track(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
         p = self.params
-        est = self.amcl.estimate
-        if est.std_xy_m > p.converged_std_xy_m or est.std_yaw_rad > p.converged_std_yaw_rad or not points.size:
-            return
-        match = self.matcher.match(points, est.pose, window_xy_m=0.3, window_yaw_rad=0.3)
-        if match.agreement < self.params.monitor.min_agreement:
-            return
-        self._start_tracking(now, self._matched(now, match.pose))
-        self._event(now, "localized", f"global localization converged at ({match.pose.x_m:.2f}, "
-                                      f"{match.pose.y_m:.2f}), {match.agreement:.0%} of the scan on the map")
+        if self.amcl.update(now, odom, points):
+            self.map_ekf.update(self.amcl.estimate)
+            self._last_fix = now
+        elif now - self._last_fix >= p.hold_correction_s:
+            self._hold(now, odom, points, sensor)
+        est = self.map_ekf.estimate
+        report = self.monitor.check(est, self.agreement.measure(as_array(est.pose)[None], points, sensor))
+        self.last_report = report
+        if report.evidence >= p.monitor.min_confidence:
+            self._last_good = (est.pose, odom)
+        if report.lost:
+            self._event(now, "lost", report.reason)
+            self._relocalize(now, odom, points, sensor)
 
-    def _relocalize(self, now: float, odom: Pose2D, points: np.ndarray) -> None:
+    def _hold(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
+        """A robot standing still: re-match its map pose to the map (its odometry drifts; AMCL does not update)."""
+        p = self.params
+        self._last_fix = now
+        est = self.map_ekf.estimate
+        match = self.matcher.match(points, est.pose, window_xy_m=p.hold_window_m, window_yaw_rad=p.hold_window_rad)
+        if self._fit(match.pose, points, sensor) < max(p.monitor.min_confidence, self._fit(est.pose, points, sensor)):
+            return
+        # the match is a measurement of the pose, as precise as a matched pose is: the map EKF starts from it
+        # (keeping the old covariance would grow it by the EKF's floor at every correction)
+        self.map_ekf.reset(PoseEstimate(now, match.pose, self._matched_covariance()), odom)
+        self.amcl.rebase(match.pose, odom, now=now)
+
+    def _relocalize(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
         p = self.params
         if self._last_good is not None and points.size:
             good_pose, good_odom = self._last_good
             guess = as_pose(compose(as_array(good_pose), relative(as_array(good_odom), as_array(odom))))
             match = self.matcher.match(points, guess, window_xy_m=p.relocalize_window_m,
                                        window_yaw_rad=p.relocalize_window_rad)
-            if match.agreement >= max(p.monitor.min_agreement, p.relocalize_min_agreement):
-                self._start_tracking(now, self._matched(now, match.pose))
-                self._event(now, "relocalized", f"scan-to-map match near the last good pose at ({match.pose.x_m:.2f}, "
-                                                f"{match.pose.y_m:.2f}), {match.agreement:.0%} on the map")
+            value = self._fit(match.pose, points, sensor)
+            if value >= p.monitor.min_confidence:
+                self._track_from(now, match.pose, odom, value)
+                self._event(now, "relocalized", f"scan-to-map match near the last good pose at {_where(match.pose)}, "
+                                                f"{value:.0%} of the scan on the map")
                 return
         self.start_global(now, "the scan does not match the map near the last good pose")
+        self._search(now, odom, points, sensor)
+
+    # -- internals ---------------------------------------------------------------------------------
+    def _fit(self, pose: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> float:
+        """The monitor's evidence for ``pose`` on this scan (unmapped obstacles allowed for)."""
+        counts = self.agreement.measure(as_array(pose)[None], points, sensor)
+        return robust_agreement(counts, self.params.monitor.unmapped_allowance)
+
+    def _enter(self, phase: Phase, confidence: float) -> None:
+        self.phase = phase
+        self._search_confidence = confidence
+        if phase is not Phase.AMBIGUOUS:
+            self._hypotheses = None
+
+    def _track_from(self, now: float, pose: Pose2D, odom: Pose2D, confidence: float) -> None:
+        """Tracking starts at a checked ``pose`` (odometry ``odom``), with the confidence it was found with."""
+        cov = self._matched_covariance()
+        self.amcl.initialize(pose, cov, now=now, odom=odom)
+        self.map_ekf.reset(PoseEstimate(now, pose, cov), odom)
+        self.monitor.reset(confidence, now)
+        self._last_good = (pose, odom)
+        self._last_fix = now
+        self._enter(Phase.TRACKING, 0.0)
+
+    def _matched_covariance(self) -> FloatArray:
+        p = self.params
+        return np.diag([p.matched_std_m**2, p.matched_std_m**2, p.matched_std_rad**2])
+
+    def _event(self, now: float, kind: EventKind, detail: str) -> None:
+        self.events.append(LocalizationEvent(now, kind, detail))
 
 
-__all__ = ["EventKind", "LocalizationEvent", "Localizer", "LocalizerParams", "State"]
+def _where(pose: Pose2D) -> str:
+    return f"({pose.x_m:.2f}, {pose.y_m:.2f}, {math.degrees(pose.yaw_rad):.0f}°)"
+
+
+__all__ = ["EventKind", "LocalizationEvent", "Localizer", "LocalizerParams", "Phase"]

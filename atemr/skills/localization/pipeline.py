@@ -10,8 +10,11 @@ until the next tick). Each tick handles the newest scan:
    relocalization).
 
 Tick it at the lidar rate (10 Hz). Outputs: `odom_pose`, `estimate` (map pose + covariance, None while
-not localized), `localized` (0x153 bit 4), `map_to_odom`, and `drain_events` for the agent and the
-dashboard. No I/O and no clock of its own: every time comes from the inputs or the scheduler's ``now``.
+not localized), `confidence` and `localized` (confidence at or above the limit), `status` (the confidence, its
+limit and the state, as 0x153 bit 4, the dashboard and the agent's guards read them), `candidates` (while
+global localization is ambiguous), `map_to_odom`, and `drain_events` for the agent and the dashboard.
+Selecting another map drops the pose (an event says so). No I/O and no clock of its own: every time comes
+from the inputs or the scheduler's ``now``.
 """
 
 from __future__ import annotations
@@ -23,11 +26,13 @@ from collections import deque
 import numpy as np
 
 from atemr.domain.maps import OccupancyMap
+from atemr.domain.status import LocalizationState, LocalizationStatus
 from atemr.errors import NavigationError, ProtocolError
 from atemr.msgs import ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.skills.diff_drive import DiffDrive
 from atemr.skills.localization.amcl import PoseEstimate
 from atemr.skills.localization.geometry import as_array, as_pose, compose, relative
+from atemr.skills.localization.global_search import Hypothesis
 from atemr.skills.localization.icp import IcpTarget, icp
 from atemr.skills.localization.localizer import LocalizationEvent, Localizer, LocalizerParams
 from atemr.skills.localization.odometry_ekf import OdometryEkf, OdometryEkfParams
@@ -82,6 +87,9 @@ class LocalizationPipeline:
         localizer = prepared if prepared is not None else self.prepare_map(grid)
         if self.localizer is not None:
             self._events.extend(self.localizer.events)
+            self._events.append(LocalizationEvent(self.odometry.t, "map_changed",
+                                                  f"map {grid.name} selected: not localized until a pose is set "
+                                                  "or found (FIND POSITION)"))
         self.localizer = localizer
 
     def _need(self) -> Localizer:
@@ -165,7 +173,34 @@ class LocalizationPipeline:
 
     @property
     def localized(self) -> bool:
+        """Whether the confidence is at or above the limit (`Localizer.localized`); False without a map."""
         return self.localizer is not None and self.localizer.localized
+
+    @property
+    def confidence(self) -> float:
+        """The one confidence number (`Localizer.confidence`); 0 without a map."""
+        return 0.0 if self.localizer is None else self.localizer.confidence
+
+    @property
+    def min_confidence(self) -> float:
+        """The localization limit the confidence is compared with."""
+        return self.localizer_params.monitor.min_confidence
+
+    @property
+    def state(self) -> LocalizationState:
+        """``no map``, or the localizer's state (localized, lost, searching, ambiguous, failed, ...)."""
+        return "no map" if self.localizer is None else self.localizer.state
+
+    @property
+    def status(self) -> LocalizationStatus:
+        """The one confidence number (rounded as every consumer shows it), its limit and the state: what the
+        agent's guards, 0x153 bit 4, the dashboard and the command line all read."""
+        return LocalizationStatus(round(self.confidence, 4), self.min_confidence, self.state)
+
+    @property
+    def candidates(self) -> tuple[Hypothesis, ...]:
+        """The places global localization could not tell apart (while ambiguous), best first."""
+        return () if self.localizer is None else self.localizer.candidates
 
     @property
     def estimate(self) -> PoseEstimate | None:

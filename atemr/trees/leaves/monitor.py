@@ -41,7 +41,8 @@ def compose_status(leaf: Leaf) -> PrimaryStatus:
     connectivity = health.get("connectivity")
     if connectivity is not None and connectivity.ok:
         agent |= AgentBits.CONNECTIVITY
-    if ctx.port.localized():
+    localization = ctx.port.localization_status()
+    if localization is not None and localization.localized:
         agent |= AgentBits.LOCALIZATION
     return PrimaryStatus(agent, hardware, state_code(ctx.state))
 

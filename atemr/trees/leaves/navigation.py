@@ -191,7 +191,8 @@ class Relocalize(Leaf):
     def update(self) -> py_trees.common.Status:
         if self._refusal:
             return self.fail(self._refusal)
-        if self.ctx.port.localized():
+        status = self.ctx.port.localization_status()
+        if status is not None and status.localized:
             self.feedback_message = "localized"
             return Status.SUCCESS
         if due(self.ctx.now, self._deadline):

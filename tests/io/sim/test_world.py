@@ -125,3 +125,16 @@ def test_external_maps_are_simulated_worlds(shared_dir, name):
     scan = sim.read_lidar(0.0)
     assert np.isfinite(scan.ranges_m).mean() > 0.1  # it sees walls
     assert sim.render_camera(0.0).shape == (480, 640, 3)
+
+
+def test_shipped_twin_rooms_map_is_what_the_script_generates_and_symmetric(tmp_path):
+    from atemr.worlds.make_twin_rooms import main as make_twin_rooms
+
+    assert make_twin_rooms(["--out", str(tmp_path)]) == 0
+    world = load_world("twin_rooms")
+    shipped = world.source.parent
+    assert filecmp.cmp(tmp_path / "twin_rooms.pgm", shipped / "twin_rooms.pgm", shallow=False)
+    assert filecmp.cmp(tmp_path / "twin_rooms.yaml", shipped / "twin_rooms.yaml", shallow=False)
+    data = world.map.data
+    assert np.array_equal(data, data[::-1, ::-1]), "turned half a turn, the flat is itself"
+    assert "twin_rooms" in shipped_world_names() and world.map.free[world.map.world_to_cell(2.0, 1.75)]

@@ -53,7 +53,8 @@ def test_pipeline_tracks_the_robot_in_the_simulator(studio_map, simdrive) -> Non
     assert float(np.sqrt(np.mean(np.square(errors)))) < 0.10
     assert max(odom_yaw_errors) < 0.1  # odom frame = start pose here (start yaw 0), drifting slowly
     kinds = [e.kind for e in pipeline.drain_events()]
-    assert kinds == ["initial_pose"] and pipeline.drain_events() == []
+    assert kinds == ["initial_pose", "localized"] and pipeline.drain_events() == []
+    assert pipeline.confidence >= pipeline.min_confidence and pipeline.state == "localized"
 
 
 def test_pipeline_without_a_map() -> None:

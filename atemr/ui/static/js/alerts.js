@@ -59,10 +59,18 @@
   A.onEvent = (f) => eventListeners.push(f);
   const seen = new Set();
   let primed = false; // the events already there when the page opened are history, not news
+  // Localization's events (`atemr.skills.localization.localizer.EventKind`) worth telling a carer; the others
+  // (a position set, a search started) are answered by the command's own feedback.
   const LOCALIZATION = {
     lost: ["The robot is no longer sure where it is. Set its position on the map (SET POSITION) or press FIND POSITION.", "warning"],
     relocalized: ["The robot knows where it is again.", "ok"],
-    converged: ["The robot found where it is.", "ok"],
+    localized: ["The robot knows where it is.", "ok"],
+    ambiguous: ["Places on the map look alike to the robot (drawn on the map). Drive it a little so that it can tell them apart, or set its position (SET POSITION).", "warning"],
+    failed: ["The robot could not find where it is. Set its position on the map (SET POSITION), or drive it a little and press FIND POSITION again.", "warning"],
+    pose_refused: ["What the robot sees does not fit the position you set, so it is searching the whole map. Wait, or set the position again.", "warning"],
+    map_changed: ["Another map is in use: the robot does not know where it is on it. Set its position (SET POSITION) or press FIND POSITION.", "warning"],
+    initial_pose: null,
+    global_start: null,
   };
   function plain(e) {
     const kind = String(e.kind || "");
@@ -70,8 +78,8 @@
       return [e.text, /reached|finished/.test(e.text) ? "ok" : "warning"];
     }
     if (kind.startsWith("localization ")) {
-      const known = LOCALIZATION[kind.slice("localization ".length)];
-      return known || [`Localization: ${e.text}`, "info"];
+      const what = kind.slice("localization ".length);
+      return what in LOCALIZATION ? LOCALIZATION[what] : [`Localization: ${e.text}`, "info"];
     }
     if (kind === "refused") return [e.text, "warning"];
     if (kind === "battery") return [e.text, /critical/.test(e.text) ? "error" : "warning"];

@@ -188,6 +188,8 @@ class MapView {
     }
     if (Array.isArray(s.places)) for (const p of s.places) this.place(p);
     if (s.goal) this.arrow(s.goal, "#d4a72c", 0.35);
+    const candidates = (s.localization && s.localization.candidates) || [];
+    for (const c of candidates) this.arrow(c, "#bf8700", 0.45);  // places an ambiguous search cannot tell apart
     if (this.pending) this.arrow(this.pending, "#8250df", 0.5);
     if (s.pose) this.robot(s.pose);
     if (this.drag && this.drag.end && this.commandMode) {

@@ -38,6 +38,20 @@
     if (!entries.length) el.textContent = "—";
   }
 
+  // -- localization: the one confidence number, the same the robot decides by ---------------------------
+  function localization(loc) {
+    const led = $("localization");
+    if (!led || !loc) return;
+    const pct = (v) => `${Math.round(100 * v)}%`;
+    led.className = `led ${loc.localized ? "ok" : "bad"}`;
+    led.textContent = loc.localized ? `LOCALIZED ${pct(loc.confidence)}` : `NOT LOCALIZED ${pct(loc.confidence)}`;
+    const detail = $("localization-detail");
+    const places = (loc.candidates || []).length;
+    detail.textContent = loc.localized ? `limit ${pct(loc.limit)}`
+      : `${loc.state}${places ? `: ${places} places look alike (drawn on the map); drive a little to tell them apart` : ""}; ` +
+        `needs ${pct(loc.limit)} — SET POSITION or FIND POSITION`;
+  }
+
   $("level2-toggle").addEventListener("click", () => { $("level2").hidden = !$("level2").hidden; });
   $("graph-toggle").addEventListener("click", () => { $("sysgraph").hidden = !$("sysgraph").hidden; graph.draw(); });
 
@@ -233,6 +247,7 @@
     modeBtn.classList.toggle("on", s.mode === "AUTO");
     $("state-agent").textContent = s.agent_state || "—";
     $("state-map").textContent = s.active_map || "—";
+    localization(s.localization);
     leds($("level1"), s.level1);
     leds($("level2"), s.level2);
     const w = s.wheel_speeds || {};

@@ -1,0 +1,180 @@
+"""Global localization that knows when it does not know (issue 21): localized, ambiguous or failed, never
+confidently wrong.
+
+The statistics run `benchmarks/global_localization.py` at the skill level (one simulated scan per true pose,
+the shipped search). The issue's 50 seeded poses on the studio and on each external map of ``../shared`` take
+about a minute of CPU (a search costs 50-200 ms, 0.7 s in the 50 m warehouse): the default suite runs all 50
+on the studio and a seeded subset on each external map, checking what must hold for every single answer (no
+confidently wrong one, the true place among an ambiguous answer's candidates); ``ATEMR_SOAK=1`` runs the 50
+everywhere and checks the rates too, as README's table reports them.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from atemr.errors import ConfigError
+from atemr.io.sim.lidar import Lidar, LidarParams
+from atemr.io.sim.scene import Scene
+from atemr.io.sim.world import load_world
+from atemr.msgs import Pose2D
+from atemr.skills.localization.global_search import GlobalSearchParams, mcnemar_z
+from atemr.skills.localization.localizer import Localizer
+from atemr.skills.localization.scan import scan_points, sensor_origin
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def load_quality() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("global_localization_under_test",
+                                                  ROOT / "benchmarks" / "global_localization.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+quality = load_quality()
+
+
+def scan_from(world_name: str, pose: Pose2D, seed: int = 0):  # type: ignore[no-untyped-def]
+    world = load_world(world_name)
+    scan = Lidar(LidarParams(), np.random.default_rng(seed)).scan(0.0, pose, Scene(world), np.zeros((0, 2)),
+                                                                   np.zeros(0))
+    return world, scan_points(scan), sensor_origin(scan)
+
+
+#: The issue's bar is 80 % localized on every map. The warehouse misses it: its aisles of identical shelves
+#: look alike within the lidar's 8 m, so one scan often cannot tell them apart, and the search says so
+#: (ambiguous, every look-alike listed) instead of guessing. What it reaches there is held here so it cannot
+#: get worse unnoticed; README's table says the same.
+MIN_LOCALIZED = {"nav2_warehouse": 0.6}
+FULL = os.environ.get("ATEMR_SOAK") == "1"
+#: Poses per map in the default suite (all 50 with ATEMR_SOAK=1).
+POSES = {"studio": 50, "nav2_depot": 12, "nav2_tb3_sandbox": 12, "turtlebot3_world": 12, "nav2_warehouse": 6}
+
+
+@pytest.mark.parametrize("name", ["studio", *quality.EXTERNAL_MAPS])
+def test_never_confidently_wrong_and_mostly_localized(name: str, shared_dir: Path) -> None:
+    world = name if name == "studio" else str(shared_dir / "worlds" / "external" / f"{name}.yaml")
+    if not (name == "studio" or Path(world).is_file()):
+        pytest.skip(f"{world} is not there")
+    poses = 50 if FULL else POSES[name]
+    trials = quality.run_world(world, poses, seed=0)
+    row = quality.summarize(name, trials)
+    wrong = [(t.truth, t.pose) for t in trials if t.wrong]
+    assert row.wrong == 0, f"confidently wrong on {name}: {wrong}"
+    unlisted = [t.truth for t in trials if t.outcome == "ambiguous" and not t.truth_listed]
+    assert not unlisted, f"ambiguous without the true place on {name}: {unlisted}"
+    if name not in MIN_LOCALIZED:  # mostly localized, even in a small sample
+        assert row.localized >= 0.5 * row.poses, quality.table([row])
+    if poses == 50:
+        assert row.localized >= MIN_LOCALIZED.get(name, quality.MIN_LOCALIZED) * row.poses, quality.table([row])
+        assert row.met == (name not in MIN_LOCALIZED)
+
+
+def test_twin_rooms_are_ambiguous_with_both_rooms_never_localized_in_either() -> None:
+    trials = quality.run_world("twin_rooms", 12, seed=1)
+    assert [t.outcome for t in trials] == ["ambiguous"] * 12
+    world = load_world("twin_rooms")
+    search = quality.search_for(world)
+    for truth in (Pose2D(2.0, 1.75, 0.0), Pose2D(7.0, 2.0, 2.5)):  # one in each room
+        _, points, sensor = scan_from("twin_rooms", truth)
+        result = search.localize(points, sensor)
+        assert result.outcome == "ambiguous" and result.pose is None, result.reason
+        twin = Pose2D(8.15 - truth.x_m, 3.5 - truth.y_m, truth.yaw_rad + math.pi)  # half a turn about the door
+        for place in (truth, twin):
+            assert any(h.pose.distance_to(place) < 0.1
+                       and abs(math.remainder(h.pose.yaw_rad - place.yaw_rad, 2 * math.pi)) < 0.05
+                       for h in result.candidates), (place, result.candidates)
+        assert result.confidence < search.params.min_agreement  # shared between the rooms: not localized
+        assert "2 places explain the scan about equally" in result.reason
+
+
+def test_a_scan_from_elsewhere_fails_and_says_why() -> None:
+    """A scan the map cannot explain (taken in another flat) is not forced onto the map."""
+    _, points, sensor = scan_from("twin_rooms", Pose2D(2.0, 1.75, 0.3))
+    result = quality.search_for(load_world("studio")).localize(points, sensor)
+    assert result.outcome == "failed" and result.pose is None
+    assert result.confidence < 0.7 and "no place on the map explains the scan" in result.reason
+    empty = quality.search_for(load_world("studio")).localize(np.zeros((0, 2)))
+    assert empty.outcome == "failed" and "too few valid returns" in empty.reason
+
+
+def test_the_issues_robot_is_found_where_it_stands() -> None:
+    """Issue 21: at about (5.23, 4.58) the old search converged in another room, sure of itself. Returns from
+    beyond the search's range (a lidar set up for a longer one) do not wrap round into it."""
+    truth = Pose2D(5.23, 4.58, -2.6)
+    world, points, sensor = scan_from("studio", truth)
+    far = np.array([[x, y] for x in (-30.0, 25.0) for y in (-18.0, 40.0)])
+    search = quality.search_for(world)
+    assert not np.isin(search.thin(np.vstack([points, far])), far).all(axis=1).any()
+    result = search.localize(np.vstack([points, far]), sensor)
+    assert result.outcome == "localized" and result.pose is not None, result.reason
+    assert result.pose.distance_to(truth) < 0.1 and result.confidence > 0.9
+
+
+def test_mcnemar_counts_only_the_beams_the_places_disagree_on() -> None:
+    a = np.array([True] * 90 + [False] * 10)
+    assert mcnemar_z(a, a) == 0.0
+    b = a.copy()
+    b[:20] = False  # B misses 20 beams A hits
+    assert mcnemar_z(a, b) == pytest.approx(20 / math.sqrt(20))
+    assert mcnemar_z(b, a) == pytest.approx(-mcnemar_z(a, b))
+
+
+def test_bad_parameters_name_the_key() -> None:
+    with pytest.raises(ConfigError, match="step_xy_m"):
+        GlobalSearchParams(step_xy_m=0.0)
+    with pytest.raises(ConfigError, match="min_agreement"):
+        GlobalSearchParams(min_agreement=1.0)
+    with pytest.raises(ConfigError, match="beams"):
+        GlobalSearchParams(keep=0)
+
+
+def drive_straight(world_name: str, start: Pose2D, metres: float) -> tuple[Localizer, Pose2D, list[str]]:
+    """FIND POSITION at ``start``, then the operator drives straight ahead (a scan every 4 cm, exact odometry)."""
+    world = load_world(world_name)
+    scene, lidar = Scene(world), Lidar(LidarParams(), np.random.default_rng(0))
+    localizer = Localizer(world.map, np.random.default_rng(0))
+    localizer.start_global(0.0, "test")
+    states, truth = [], start
+    for k in range(int(metres / 0.04) + 1):
+        d = 0.04 * k
+        truth = Pose2D(start.x_m + d * math.cos(start.yaw_rad), start.y_m + d * math.sin(start.yaw_rad), start.yaw_rad)
+        states.append(localizer.update(0.1 * k, Pose2D(d, 0.0, 0.0), lidar.scan(0.1 * k, truth, scene,
+                                                                               np.zeros((0, 2)), np.zeros(0))))
+    return localizer, truth, states
+
+
+def test_an_ambiguous_robot_decides_once_it_has_moved(shared_dir: Path) -> None:
+    """One scan cannot tell this place of the sandbox from its near mirror; a metre of driving can. Every
+    candidate is carried along and the new views pooled: localized at the true place, never the twin."""
+    world = shared_dir / "worlds" / "external" / "nav2_tb3_sandbox.yaml"
+    if not world.is_file():
+        pytest.skip(f"{world} is not there")
+    localizer, truth, states = drive_straight(str(world), Pose2D(-0.525, -0.075, 1.533), 1.0)
+    assert states[0] == "ambiguous" and states[-1] == "localized", states
+    assert "localized" not in states[:states.index("localized")] and "lost" not in states
+    kinds = [e.kind for e in localizer.events]
+    assert kinds == ["global_start", "ambiguous", "localized"] and "views" in localizer.events[-1].detail
+    estimate = localizer.estimate
+    assert estimate is not None and estimate.pose.distance_to(truth) < 0.05
+
+
+def test_twin_rooms_stay_ambiguous_while_driving_both_candidates_carried_along() -> None:
+    localizer, truth, states = drive_straight("twin_rooms", Pose2D(1.0, 1.75, 0.0), 1.2)
+    assert set(states) == {"ambiguous"}, states
+    twin = Pose2D(8.15 - truth.x_m, 3.5 - truth.y_m, truth.yaw_rad + math.pi)
+    places = localizer.candidates
+    assert any(h.pose.distance_to(truth) < 0.1 for h in places) and any(h.pose.distance_to(twin) < 0.1
+                                                                        for h in places), places
