@@ -1,6 +1,7 @@
 """CAN 0x153 agent bit 4 (localization) on the whole simulated robot: set while the robot knows where it is,
 cleared on the bus when the covariance monitor finds it lost (kidnapped: teleported 2.3 m), set again once it
-has relocalized, and the relocalized pose is the true one (thesis 5.4 iii; DESIGN.md §5 and §6)."""
+has relocalized, and the relocalized pose is the true one (thesis 5.4 iii; docs/navigation.md#localization
+and docs/can.md#the-inter-core-protocol-0x1500x157)."""
 
 from __future__ import annotations
 
