@@ -25,8 +25,12 @@ from atemr.ui.permissions import PERMISSIONS, Permission
 from atemr.yamlsafe import load_yaml
 
 ENV_PREFIX = "ATEMR_"
-#: Environment variables with the prefix that are not configuration keys.
-ENV_RESERVED = {"ATEMR_CONFIG"}
+#: Environment variables with the prefix that are not configuration keys: the configuration file's path, and
+#: the Python the ``./run`` and ``./test`` launchers use.
+ENV_RESERVED = {"ATEMR_CONFIG", "ATEMR_PYTHON"}
+#: The test suite's and the benchmarks' own switches (``ATEMR_TEST_SOAK=1``) live under this prefix, so that
+#: setting one never makes the robot they start refuse its configuration.
+ENV_TEST_PREFIX = "ATEMR_TEST_"
 
 #: URL schemes of the Socket.IO message queues the dashboard accepts (Redis, plain or TLS).
 QUEUE_SCHEMES = ("redis://", "rediss://")
@@ -232,7 +236,7 @@ def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:
     known = field_paths(Config)
     flat: dict[str, Any] = {}
     for name, value in environ.items():
-        if not name.startswith(ENV_PREFIX) or name in ENV_RESERVED:
+        if not name.startswith(ENV_PREFIX) or name in ENV_RESERVED or name.startswith(ENV_TEST_PREFIX):
             continue
         dotted = name[len(ENV_PREFIX):].lower().replace("__", ".")
         if dotted not in known:

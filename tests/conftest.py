@@ -1,5 +1,6 @@
 """Shared fixtures: paths to the project and ../shared, a clean py_trees blackboard for every test, and
-the agent's document and fake ports for the agent tests."""
+the agent's document and fake ports for the agent tests; a data directory of the suite's own; and how a parallel
+run (pytest-xdist, as ./test runs the suite) hands the tests out to its workers."""
 
 from __future__ import annotations
 
@@ -20,10 +21,10 @@ from atemr.trees.context import clear_blackboard
 from atemr.trees.fakes import RecordingLink, RecordingPort
 
 # Property tests are deterministic like the rest of the suite: the same examples on every run (CI's and a
-# newcomer's alike). ATEMR_HYPOTHESIS=explore draws fresh random examples to hunt for new counterexamples.
+# newcomer's alike). ATEMR_TEST_HYPOTHESIS=explore draws fresh random examples to hunt for new counterexamples.
 settings.register_profile("deterministic", derandomize=True, print_blob=True)
 settings.register_profile("explore", derandomize=False, print_blob=True)
-settings.load_profile("explore" if os.environ.get("ATEMR_HYPOTHESIS") == "explore" else "deterministic")
+settings.load_profile("explore" if os.environ.get("ATEMR_TEST_HYPOTHESIS") == "explore" else "deterministic")
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared"
@@ -199,8 +200,22 @@ _RUN_LOCK = pytest.StashKey[_RunLock]()
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """The controller of a distributed run makes the run's directory (its workers inherit the variable naming
+    """No test touches the data directory of the person running the suite (``~/.local/share/atemr``: their maps,
+    users and recordings, and a running robot's control socket): each pytest process gets its own, removed at the
+    end. The controller of a distributed run makes the run's directory (its workers inherit the variable naming
     it); a worker opens the run lock there."""
+    data_home = tempfile.mkdtemp(prefix="atemr-test-data-")
+    previous = os.environ.get("XDG_DATA_HOME")
+    os.environ["XDG_DATA_HOME"] = data_home
+
+    def restore() -> None:
+        if previous is None:
+            os.environ.pop("XDG_DATA_HOME", None)
+        else:
+            os.environ["XDG_DATA_HOME"] = previous
+        shutil.rmtree(data_home, ignore_errors=True)
+
+    config.add_cleanup(restore)
     if _is_worker(config):
         if RUN_DIR_ENV in os.environ:
             lock = config.stash[_RUN_LOCK] = _RunLock(Path(os.environ[RUN_DIR_ENV]))

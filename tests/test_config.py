@@ -80,6 +80,17 @@ def test_unknown_env_variable_is_an_error_with_a_suggestion():
         load_config(environ={"ATEMR_SIM__SEDE": "1"})
 
 
+def test_the_launchers_and_the_test_suites_variables_are_not_configuration():
+    environ = {"ATEMR_PYTHON": "python3.11", "ATEMR_TEST_SOAK": "1", "ATEMR_TEST_HYPOTHESIS": "explore",
+               "ATEMR_SIM__SEED": "4"}
+    assert load_config(environ=environ).sim.seed == 4
+
+
+def test_default_data_dir_follows_xdg(monkeypatch, tmp_path):
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path))
+    assert load_config(environ={}).data_dir == tmp_path / "atemr"
+
+
 def test_bad_argument_names_the_option():
     with pytest.raises(ConfigError, match=r"argument sim\.speed"):
         load_config(environ={}, overrides={"sim.speed": -1.0})

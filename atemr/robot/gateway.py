@@ -299,12 +299,14 @@ class RobotGatewayImpl:
         }
 
     def _stop_cause(self) -> StopCause | None:
-        """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge, an obstacle
-        in the stop zone, the heartbeat between the cores lost, a motor fault, a CAN bus fault."""
+        """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge (or the floor
+        sensors gone quiet, so a drop cannot be ruled out), an obstacle in the stop zone, the heartbeat between the
+        cores lost, a motor fault, a CAN bus fault."""
         parts = self.robot.parts
         last = parts.motion.last
         stops = self.inputs.safety_stops
         causes: list[tuple[bool, StopCause]] = [
+            (last is not None and last.cliff_stop and last.cliff_blind, "floor_sensors"),
             (last is not None and last.cliff_stop, "cliff"),
             (last is not None and last.emergency, "obstacle"),
             (HEARTBEAT_STOP in stops, "heartbeat"),

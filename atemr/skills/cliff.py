@@ -83,11 +83,15 @@ def blocked(
 
 @dataclass(frozen=True)
 class CliffVerdict:
-    """The twist after the cliff check, which sensors see a drop, and whether the twist was vetoed."""
+    """The twist after the cliff check, which sensors see a drop, and whether the twist was vetoed.
+
+    ``blind``: the readings were missing or stale, so every sensor counts as seeing a drop. A carer is then told
+    that the floor sensors went quiet, not that stairs are under the robot."""
 
     twist: Twist
     drops: tuple[bool, bool, bool]
     stopped: bool
+    blind: bool = False
 
 
 class CliffStop:
@@ -112,7 +116,8 @@ class CliffStop:
         # the same rule as `drops` and `blocked`, in plain floats: one twist per tick, where numpy's
         # per-call overhead would cost more than the arithmetic (tests check both agree)
         g = self.geometry
-        if readings is None or not (now - readings.t <= self.max_age_s):
+        blind = readings is None or not (now - readings.t <= self.max_age_s)
+        if readings is None or blind:
             flags = (self.require_readings,) * 3
         else:
             limit = g.drop_threshold_m
@@ -124,7 +129,8 @@ class CliffStop:
             or (flags[1] and v - w * g.front_right_xy[1] > 1e-9)
             or (flags[2] and -(v - w * g.rear_xy[1]) > 1e-9)
         )
-        return CliffVerdict(ZERO_TWIST if stop else twist, (flags[0], flags[1], flags[2]), stop)
+        return CliffVerdict(ZERO_TWIST if stop else twist, (flags[0], flags[1], flags[2]), stop,
+                            blind and self.require_readings)
 
 
 __all__ = ["SENSORS", "CliffGeometry", "CliffStop", "CliffVerdict", "blocked", "drops"]

@@ -107,6 +107,8 @@ class ControlResult:
     safety_stop: bool
     cliff_stop: bool
     cliff_drops: tuple[bool, bool, bool]
+    #: The cliff readings were missing or stale (the secondary core silent): the drops are assumed, not seen.
+    cliff_blind: bool
     blind: bool
     clearance: Clearance | None
     sectors: HexSectors | None
@@ -130,6 +132,7 @@ class ControlResult:
             "safety_stop": self.safety_stop,
             "cliff_stop": self.cliff_stop,
             "cliff_drops": list(self.cliff_drops),
+            "cliff_blind": self.cliff_blind,
             "blind": self.blind,
             "hex_m": None if self.sectors is None else {k: num(v) for k, v in self.sectors.as_dict().items()},
             "clearance_m": None
@@ -302,6 +305,7 @@ class MotionPipeline:
             safety_stop=chosen.locked,
             cliff_stop=verdict.stopped,
             cliff_drops=verdict.drops,
+            cliff_blind=verdict.blind,
             blind=hexes is None,
             clearance=clearance,
             sectors=hexes,

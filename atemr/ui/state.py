@@ -22,7 +22,7 @@ AgentState = Literal["UNDEFINED", "STARTUP", "IDLE", "EXEC", "MAPPING", "SHUTDOW
 AGENT_STATES: tuple[AgentState, ...] = get_args(AgentState)
 Mode = Literal["MANUAL", "AUTO"]
 #: Why a safety layer holds the robot stopped, the most urgent first (see `STOP_CAUSES`).
-StopCause = Literal["cliff", "obstacle", "heartbeat", "motor", "bus"]
+StopCause = Literal["cliff", "floor_sensors", "obstacle", "heartbeat", "motor", "bus"]
 #: ``[[x_m, y_m], ...]`` in the map frame, decimated and rounded to millimetres (`atemr.ui.snapshot.points_json`).
 Points = list[list[float]]
 

@@ -178,6 +178,7 @@ def test_a_silent_robot_shows_a_stale_banner_and_turns_driving_off_until_it_is_b
 
 
 ALERTS = [  # what the robot does → what the carer reads
+    ("stop_cause", "floor_sensors", "Stopped: the floor sensors that watch for stairs have gone quiet"),
     ("stop_cause", "obstacle", "Stopped: something is too close. Drive away from it"),
     ("stop_cause", "cliff", "Stopped: a drop (stairs, a step) is under the robot's edge"),
     ("stop_cause", "heartbeat", "Stopped: the robot's two computers lost contact"),
@@ -204,7 +205,8 @@ def test_each_alert_is_said_in_plain_words(ready_site, sized, helpers):
                 robot.events.append({"t": robot.clock.now(), **value})
         wait_for(page, f"document.getElementById('alert-items').textContent.includes({text!r})")
         if what == "stop_cause":
-            wait_for(page, f"document.getElementById('emergency').textContent === 'STOPPED: {value.upper()}'")
+            shown = value.upper().replace("_", " ")
+            wait_for(page, f"document.getElementById('emergency').textContent === 'STOPPED: {shown}'")
             with robot.lock:
                 robot.stop_cause = None
             wait_for(page, "document.getElementById('alert-items').textContent.includes('The robot may move again.')")

@@ -2,7 +2,8 @@
 in ERROR with the error classified and the component named; recovery to IDLE where the cause goes away.
 
 In every scenario the operator holds "forward" on the joystick while the fault happens, so "the motors stop"
-is a real claim, not the idle robot's zero.
+is a real claim, not the idle robot's zero. The dashboard's state says why the robot is stopped (``stop_cause``,
+which the carer reads in plain words), as each fault really reaches it.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from atemr.io.motors.rmd_codec import MotorErrorFlags
 from atemr.msgs import Twist
 from atemr.robot import build_robot
 from atemr.robot.core import Robot
+from atemr.robot.gateway import RobotGatewayImpl
 
 BOOTED_S = 7.0  # the agent is in IDLE.MANUAL and the heartbeat established by then
 FORWARD = Twist(0.2, 0.0)
@@ -42,6 +44,7 @@ class Harness:
         self.robot = robot
         self.agent: Any = robot.components["agent"]
         self.inputs = robot.parts.inputs
+        self.gateway = RobotGatewayImpl(robot)  # what the dashboard shows
         self.emulators = [robot.components["left_motor_emulator"], robot.components["right_motor_emulator"]]
         self.errors: list[Entered] = []
         self.records: list[TransitionRecord] = []
@@ -59,6 +62,10 @@ class Harness:
             self.inputs.operate(twist, t)
             self.robot.run(until=min(until, t + 0.1))
             t = self.robot.clock.now()
+
+    def stop_cause(self) -> str | None:
+        """Why the dashboard says the robot is held stopped."""
+        return self.gateway.state()["stop_cause"]
 
     def targets(self) -> list[float]:
         return [m.model.target_radps for m in self.emulators]
@@ -87,7 +94,9 @@ def harness(tmp_path: Any) -> Iterator[Harness]:
         assert h.agent.state == "IDLE.MANUAL"
         h.drive(BOOTED_S + 1.0)
         assert h.moving(), h.speeds()  # the operator really drives before the fault
+        assert h.stop_cause() is None
         yield h
+        h.gateway.close()
 
 
 def stop_time(h: Harness, fault_t: float, limit_s: float) -> float:
@@ -150,6 +159,7 @@ def test_heartbeat_loss_stops_the_motors_and_enters_error_then_recovers(harness:
     assert "heartbeat" in entered.reason and "secondary_core" in entered.reason
     assert entered.error is not None and not entered.error.critical
     assert classified(h, fault_t) == "recover"
+    assert h.stop_cause() == "heartbeat"
     h.drive(fault_t + 4.0)
     assert h.stopped()  # the operator still presses forward: nothing moves without the heartbeat
     restore()
@@ -181,10 +191,26 @@ def test_dropped_heartbeat_frames_alone_stop_the_motors_after_two_seconds(harnes
     h.drive(fault_t + 3.0)
     entered = first_error(h, fault_t)
     assert "heartbeat" in entered.reason and "secondary_core" in entered.reason, entered.reason
+    assert h.stop_cause() == "heartbeat"
     link.bus.recv = recv
     back_t = h.robot.clock.now()
     h.drive(back_t + 3.0)
     assert h.agent.state == "IDLE.MANUAL" and h.moving(), (h.agent.state, h.speeds())
+
+
+def test_a_silent_secondary_core_is_told_as_quiet_floor_sensors_then_lost_contact_never_as_stairs(
+        harness: Harness) -> None:
+    """Its IR frames stop first, and the cliff stop holds the base for want of readings: the carer reads that the
+    floor sensors went quiet (not that a drop is under the robot), then, 2 s on, that the cores lost contact."""
+    h = harness
+    fault_t = h.robot.clock.now()
+    silence_secondary_core(h)
+    causes: list[str | None] = []
+    while h.robot.clock.now() < fault_t + 3.0:
+        h.drive(h.robot.clock.now() + 0.1)
+        if not causes or causes[-1] != h.stop_cause():
+            causes.append(h.stop_cause())
+    assert causes == [None, "floor_sensors", "heartbeat"], causes
 
 
 def test_heartbeat_loss_keeps_the_agent_in_error_while_it_lasts(harness: Harness) -> None:
@@ -212,6 +238,7 @@ def test_a_silent_motor_stops_both_and_enters_error_naming_it(harness: Harness) 
     assert classified(h, fault_t) == "recover"
     h.drive(fault_t + 3.0)
     assert h.targets() == [0.0, 0.0]  # the right motor, still powered, is held at zero too
+    assert h.stop_cause() == "motor"
     assert h.robot.parts.driver.fault is not None
 
 
@@ -225,7 +252,7 @@ def test_an_over_temperature_flag_stops_both_and_enters_error_naming_it(harness:
     assert "right motor" in entered.reason and "OVER_TEMPERATURE" in entered.reason, entered.reason
     assert classified(h, fault_t) == "recover"
     h.drive(fault_t + 3.0)
-    assert h.stopped()
+    assert h.stopped() and h.stop_cause() == "motor"
 
 
 def test_a_silent_motor_holds_error_until_it_answers_then_the_robot_drives_again(harness: Harness) -> None:
@@ -307,6 +334,7 @@ def test_bus_off_stops_both_motors_and_enters_error_naming_the_bus_until_it_is_b
     assert classified(h, fault_t) == "recover"
     h.drive(fault_t + 3.0)
     assert h.agent.state == "ERROR" and h.stopped()  # held while the bus is off; the operator still presses
+    assert h.stop_cause() == "bus"
     off[0] = False
     back_t = h.robot.clock.now()
     h.drive(back_t + 0.8)

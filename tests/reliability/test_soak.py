@@ -9,8 +9,8 @@ benchmark's business, not this suite's), and memory bounded after the first roun
 slows the whole robot down about four times; run it by hand on a failing soak.)
 
 The issue's bar is one simulated hour. The simulation runs at only a few times real time on a loaded CI
-machine, so the default suite soaks ``SOAK_S`` (a few simulated minutes); ``ATEMR_SOAK=1`` runs the full
-hour (``ATEMR_SOAK_S`` overrides the length in simulated seconds).
+machine, so the default suite soaks ``SOAK_S`` (a few simulated minutes); ``ATEMR_TEST_SOAK=1`` runs the full
+hour (``ATEMR_TEST_SOAK_S`` overrides the length in simulated seconds).
 """
 
 from __future__ import annotations
@@ -104,9 +104,9 @@ def test_a_few_simulated_minutes_of_patrol(tmp_path: Any) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(os.environ.get("ATEMR_SOAK") != "1",
-                    reason="one simulated hour of the whole robot takes many minutes: set ATEMR_SOAK=1 to run it")
+@pytest.mark.skipif(os.environ.get("ATEMR_TEST_SOAK") != "1",
+                    reason="one simulated hour of the whole robot takes many minutes: set ATEMR_TEST_SOAK=1 to run it")
 @pytest.mark.timeout(7200)
 def test_one_simulated_hour_of_patrol(tmp_path: Any) -> None:
-    result = soak(tmp_path, float(os.environ.get("ATEMR_SOAK_S", HOUR_S)))
+    result = soak(tmp_path, float(os.environ.get("ATEMR_TEST_SOAK_S", HOUR_S)))
     check(result)

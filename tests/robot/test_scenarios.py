@@ -23,6 +23,7 @@ from atemr.config import load_config
 from atemr.io.can.bus import unique_channel
 from atemr.msgs import Pose2D, Twist
 from atemr.robot import Robot, build_robot
+from atemr.robot.gateway import RobotGatewayImpl
 from atemr.skills.motion_pipeline import ControlResult
 
 STUDIO = Path(__file__).resolve().parents[2] / "atemr" / "worlds" / "studio"
@@ -334,6 +335,9 @@ def test_a_drop_zone_stops_the_base_before_it_falls(tmp_path):
         assert not any(s.result.emergency for s in log)  # the lidar sees no wall there: the IR sensors stopped it
         assert log[-1].result.cliff_stop and log[-1].result.twist.is_zero and abs(log[-1].v) < 1e-3
         assert drive.sim.pose.y_m > -1.3 + 0.05, drive.sim.pose
+        gateway = RobotGatewayImpl(drive.robot)
+        assert gateway.state()["stop_cause"] == "cliff"  # what the carer reads: a drop under the robot's edge
+        gateway.close()
         # the operator keeps pushing: it does not creep over the edge
         drive.run(drive.t + 2.0, joy=Twist(DASHBOARD_SPEED, 0.0))
         assert drive.sim.falls == [] and drive.sim.pose.y_m > -1.3 + 0.05

@@ -63,6 +63,16 @@ def test_missing_or_stale_readings():
     assert not lenient.check(1.0, Twist(0.2, 0.3), None).stopped
 
 
+def test_a_stop_for_want_of_readings_is_told_apart_from_a_drop_seen():
+    """The dashboard tells a carer "the floor sensors went quiet", not "stairs under the robot", when it is so."""
+    safe = CliffStop(max_age_s=0.5)
+    assert safe.check(1.0, Twist(0.2, 0.0), None).blind
+    assert safe.check(1.0, Twist(0.2, 0.0), readings(t=0.4)).blind
+    seen = safe.check(1.0, Twist(0.2, 0.0), readings(fl=math.inf, t=0.9))
+    assert seen.stopped and not seen.blind
+    assert not CliffStop(require_readings=False).check(1.0, Twist(0.2, 0.0), None).blind
+
+
 def test_bad_geometry():
     with pytest.raises(ConfigError, match="floor_distance_m"):
         CliffGeometry(floor_distance_m=0.0)

@@ -95,6 +95,7 @@
   // -- why the robot is held stopped, and what to do ----------------------------------------------------
   const STOPS = {
     cliff: "Stopped: a drop (stairs, a step) is under the robot's edge. Drive it back, away from the edge.",
+    floor_sensors: "Stopped: the floor sensors that watch for stairs have gone quiet, so the robot cannot tell where a drop is. It moves again when they report; if not, restart it.",
     obstacle: "Stopped: something is too close. Drive away from it: reverse or turn.",
     heartbeat: "Stopped: the robot's two computers lost contact. It moves again when they talk again; if not, restart it.",
     motor: "Stopped: a motor reports a fault. The robot moves again when both motors answer without error.",

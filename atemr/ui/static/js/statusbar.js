@@ -73,7 +73,7 @@
     agent.textContent = s.agent_state || "—";
     agent.dataset.state = s.agent_state || "";
     if (s.stop_cause) {
-      emergency.textContent = `STOPPED: ${String(s.stop_cause).toUpperCase()}`; emergency.className = "ind error";
+      emergency.textContent = `STOPPED: ${String(s.stop_cause).replace("_", " ").toUpperCase()}`; emergency.className = "ind error";
       emergency.title = ATEMR.stopText ? ATEMR.stopText(s.stop_cause) : "";
     } else if (s.emergency === true) { emergency.textContent = "EMERGENCY"; emergency.className = "ind error"; }
     else if (s.emergency === false) {
