@@ -15,9 +15,10 @@ from datetime import timedelta
 from pathlib import Path
 from typing import Any
 
-from flask import Flask, redirect, request, url_for
+from flask import Flask, jsonify, redirect, render_template, request, url_for
 from flask_socketio import SocketIO
 from markupsafe import escape
+from werkzeug.exceptions import HTTPException
 from werkzeug.wrappers import Response
 
 from atemr import __version__
@@ -39,6 +40,7 @@ from atemr.ui.security import (
     may,
     refusal,
     trusted_hosts,
+    wants_json,
 )
 from atemr.ui.state import STATE_RATE_HZ
 from atemr.ui.users import HASH_METHOD, PasswordHashBusy, UserStore
@@ -123,6 +125,8 @@ def create_app(
     app.after_request(_security_headers)
     app.before_request(_first_start_gate)
     app.register_error_handler(PasswordHashBusy, _busy)
+    app.register_error_handler(404, _not_found)
+    app.register_error_handler(405, _not_found)
     app.jinja_env.globals["csrf_token"] = csrf_token
     app.context_processor(_template_globals)
 
@@ -160,6 +164,26 @@ def create_app(
         app.wsgi_app, trusted_hosts(config.ui.host, config.ui.trusted_hosts)
     )
     return app
+
+
+#: What a carer reads for an address that is not a page (a mistyped or an old bookmark) or a page asked wrongly.
+_NOT_FOUND = {
+    404: ("This page does not exist", "The address may be mistyped, or the page has moved."),
+    405: ("This page cannot do that", "The page was asked in a way it does not answer; start again from a page."),
+}
+
+
+def _not_found(exc: HTTPException) -> Response:
+    """A page in the dashboard's own layout (readable on a phone, with the way back), or JSON for an API call."""
+    code = exc.code or 404
+    title, text = _NOT_FOUND[code]
+    if exc.description != type(exc).description:  # a view said what is missing (abort(404, description=...))
+        text = str(exc.description)
+    if wants_json():
+        response = jsonify({"ok": False, "reason": exc.description or title})
+        response.status_code = code
+        return response
+    return html_response(render_template("not_found.html", title=title, text=text), code)
 
 
 def _busy(exc: PasswordHashBusy) -> Response:

@@ -319,7 +319,7 @@ def logout_user() -> str | None:
     return token
 
 
-def _wants_json() -> bool:
+def wants_json() -> bool:
     """Whether this request is an API call (answered with a bare status) rather than a page."""
     return request.path.startswith("/api/") or request.accept_mimetypes.best == "application/json"
 
@@ -331,13 +331,13 @@ def role_required(role: Role) -> Callable[[F], F]:
         @functools.wraps(view)
         def wrapped(*args: Any, **kwargs: Any) -> Any:
             user = current_user()
-            wants_json = _wants_json()
+            api = wants_json()
             if user is None:
-                if wants_json:
+                if api:
                     abort(401)
                 return redirect(url_for("auth.login", next=request.path))
             if not user.can(role):
-                if wants_json:
+                if api:
                     abort(403)
                 return html_response(
                     current_app.jinja_env.get_template("auth/no_access.html").render(
@@ -382,7 +382,7 @@ def permission_required(permission: Permission, back: str) -> Callable[[F], F]:
                 user = current_user()
                 log.warning("%s refused for %s: needs the permission %r", request.path,
                             user.username if user else "anonymous", permission)
-                if _wants_json():
+                if wants_json():
                     abort(403)
                 flash(f"Refused: {refusal(permission)}.", "error")
                 page = make_response(current_app.view_functions[back]())
