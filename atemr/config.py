@@ -219,7 +219,7 @@ class ControlConfig:
 
 @dataclass(frozen=True)
 class Config:
-    """Everything that can be configured; see README 'Configuration'."""
+    """Everything that can be configured; see docs/running.md#configuration."""
 
     log_level: LogLevel = "INFO"
     data_dir: Path = field(default_factory=default_data_dir)

@@ -26,7 +26,7 @@ SENSORS = ("lidar", "imu", "camera")
 
 
 def reading_json(kind: str, reading: Any, t: float) -> dict[str, Any]:
-    """One reading as ``hw echo`` prints it (see the README's hardware section for the fields)."""
+    """One reading as ``hw echo`` prints it (the fields: docs/real-robot.md#check-start-power-off)."""
     if kind == "lidar":
         return {"t": round(reading.t, 6), "angle_min": reading.angle_min_rad,
                 "angle_increment": reading.angle_increment_rad,

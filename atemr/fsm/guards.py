@@ -67,8 +67,8 @@ def goal_valid(g: GuardInput) -> str | None:
 
 @guards.register("auto_mode")
 def auto_mode(g: GuardInput) -> str | None:
-    """Goals drive the robot by themselves, so they are taken in AUTO mode only (DESIGN §3: a goal outside
-    AUTO is an invalid goal, it sends the agent to Error with this reason)."""
+    """Goals drive the robot by themselves, so they are taken in AUTO mode only (docs/agent.md#the-lifecycle:
+    a goal outside AUTO is an invalid goal, it sends the agent to Error with this reason)."""
     if g.context.mode == "AUTO":
         return None
     return f"goals are accepted in AUTO mode only (the robot is in {g.context.mode}): switch to AUTO first"

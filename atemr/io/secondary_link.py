@@ -1,4 +1,4 @@
-"""The primary core's side of its CAN link with the secondary core (DESIGN.md §6–§7, thesis 3.6).
+"""The primary core's side of its CAN link with the secondary core (docs/can.md, thesis 3.6).
 
 `SecondaryLink` is a scheduler component that owns nothing but a python-can bus, polled with
 ``recv(timeout=0)`` in `SecondaryLink.tick`, so in simulation it is deterministic. Each tick it:

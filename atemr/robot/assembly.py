@@ -191,7 +191,7 @@ def _add_control(robot: Robot) -> None:
     runs missions through. Added after the agent at the agent's rate, so it sees each tick's outcome at once."""
     from atemr.robot.control import RobotControl
 
-    control = RobotControl(robot, localization=robot.parts.localization, sim=robot.parts.sim)
+    control = RobotControl(robot, robot.parts.agent, localization=robot.parts.localization, sim=robot.parts.sim)
     robot.add(control, robot.config.agent.rate_hz)
     robot.parts = replace(robot.parts, control=control)
 
@@ -442,7 +442,7 @@ def _add_primary(robot: Robot, inputs: MotionInputs, health: HealthBoard, settin
     can_bus = _add_can_bus(robot, inputs, health)
 
     def on_heartbeat(ok: bool) -> None:
-        # DESIGN §10: both cores stop the motors when the heartbeat fails for 2 s.
+        # docs/testing.md#what-the-robot-promises: both cores stop the motors when the heartbeat fails for 2 s.
         inputs.set_safety_stop(HEARTBEAT_STOP, not ok)
         robot.event("heartbeat", "0x157 heartbeat " + ("restored" if ok else "lost: motors stopped"))
 

@@ -34,7 +34,7 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import asdict
-from typing import Any, cast
+from typing import Any
 
 from atemr.domain.status import top_level
 from atemr.errors import ControlError, brief
@@ -136,12 +136,13 @@ class RobotControl:
 
     name = "control"
 
-    def __init__(self, robot: Robot, *, localization: LocalizationPipeline | None = None,
+    def __init__(self, robot: Robot, agent: Agent, *, localization: LocalizationPipeline | None = None,
                  sim: Simulation | None = None, answer_timeout_s: float = ANSWER_TIMEOUT_S) -> None:
-        """``localization`` gives ``status`` the robot's pose; ``sim`` says it is simulated (world and seed go
-        into every result). Both are the robot's parts; a bare agent (tests) has neither."""
+        """``agent`` is the robot's agent, passed as itself so the channel needs no wired parts (a bare agent
+        in tests has none). ``localization`` gives ``status`` the robot's pose; ``sim`` says it is simulated
+        (world and seed go into every result). Both are the robot's parts; a bare agent has neither."""
         self.robot = robot
-        self.agent = cast(Agent, robot.components["agent"])
+        self.agent = agent
         self.localization = localization
         self.sim = sim
         self.answer_timeout_s = answer_timeout_s

@@ -26,7 +26,7 @@ from atemr.msgs import Pose2D, Twist, WheelSpeeds
 
 ArrayOrFloat = TypeVar("ArrayOrFloat", float, NDArray[np.float64])
 
-#: KAY's drive (DESIGN §4 defaults): RMD-L-7015 hub wheels.
+#: KAY's drive (docs/simulator.md#simulated-devices, the base): RMD-L-7015 hub wheels.
 DEFAULT_WHEEL_RADIUS_M = 0.085
 DEFAULT_TRACK_M = 0.40
 

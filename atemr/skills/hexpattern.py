@@ -24,8 +24,8 @@ FL+FR covers bearings within ±60°, which is the path a round footprint sweeps 
 seen from the stop distance (KAY's 0.25 m footprint radius at 0.28 m: asin(0.25/0.28) ≈ 63°); an
 obstacle beside the base (LC, RC) is passed, not hit.
 
-The layouts are data in `HEX_LAYOUTS` (a registry), so a third layout is one entry and the README draws
-them from the same table (`ascii_drawing`).
+The layouts are data in `HEX_LAYOUTS` (a registry), so a third layout is one entry, and the drawings in
+docs/navigation.md#hex-layouts come from the same table (`ascii_drawing`).
 """
 
 from __future__ import annotations
@@ -203,8 +203,8 @@ def scan_to_base(scan: LaserScan) -> BasePoints:
     """Drop invalid returns and move the rest to the base frame.
 
     Dropped: NaN, +inf, 0, and anything outside ``[range_min_m, range_max_m]``. Kept as an obstacle at
-    the minimum range: -inf ("closer than the sensor can measure", DESIGN §10). Malformed scans raise
-    `ProtocolError` naming the field.
+    the minimum range: -inf ("closer than the sensor can measure", docs/testing.md#what-the-robot-promises).
+    Malformed scans raise `ProtocolError` naming the field.
     """
     ranges = _check_scan(scan)
     r = np.where(ranges == -np.inf, scan.range_min_m, ranges)

@@ -8,7 +8,7 @@ No I/O and no clock: ``now`` and everything else arrives in `ControlInputs`; the
 (`ControlResult`) carries the wheel command and every decision behind it for telemetry. The object
 keeps only the state that must live between ticks (mux inputs, ramp velocity and latches, caches).
 
-Decisions beyond the single skills (DESIGN §4, §10):
+Decisions beyond the single skills (docs/navigation.md#the-motion-pipeline, docs/testing.md#what-the-robot-promises):
 
 * Admissible mux inputs: MANUAL mode → joystick and agent; AUTO → agent and navigation; the reactive
   input only with the awareness flag. The agent's own motions (Rotate, recoveries) are above navigation

@@ -49,7 +49,8 @@ from atemr.typed import Source, merge_into
 
 @dataclass(frozen=True)
 class MotionLimits:
-    """Every limit of the safe-motion layer (DESIGN §4, thesis table 3.2); SI units in the names."""
+    """Every limit of the safe-motion layer (docs/navigation.md#speed-ramp-and-safety-zones, thesis table
+    3.2); SI units in the names."""
 
     max_linear_mps: float = field(
         default=1.6, metadata={"min": 0.0, "max": 1.8, "help": "top forward/reverse speed (spec up to 1.8)"}

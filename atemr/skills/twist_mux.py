@@ -5,7 +5,7 @@ highest priority wins; an input whose last command is older than its timeout cou
 browser tab or a crashed planner stops the robot instead of leaving its last command running. Locks
 (the safety stop) have a priority too and, while engaged, silence every input below it with zero.
 
-ATEMR's order (DESIGN §4), highest first: safety stop > reactive engine (only with the operator's
+ATEMR's order (docs/navigation.md#twist-mux), highest first: safety stop > reactive engine (only with the operator's
 'awareness' flag) > joystick (MANUAL mode only) > navigation (AUTO mode only). Which inputs are
 admissible this tick (mode, awareness) is the caller's decision, passed to `TwistMux.select`; the mux
 itself knows only priorities and times.
@@ -20,7 +20,8 @@ from dataclasses import dataclass
 from atemr.errors import ConfigError
 from atemr.msgs import ZERO_TWIST, Twist
 
-#: Default input timeout (DESIGN §4, §10: as ROS twist_mux and diff_drive_controller).
+#: Default input timeout (docs/navigation.md#twist-mux, docs/testing.md#what-the-robot-promises: as ROS
+#: twist_mux and diff_drive_controller).
 DEFAULT_TIMEOUT_S = 0.5
 
 
@@ -47,7 +48,7 @@ class MuxResult:
         return self.source is not None
 
 
-#: ATEMR's inputs (DESIGN §4). The safety stop is a lock, above everything.
+#: ATEMR's inputs (docs/navigation.md#twist-mux). The safety stop is a lock, above everything.
 SAFETY_STOP = "safety_stop"
 REACTIVE = "reactive"
 JOYSTICK = "joystick"

@@ -22,7 +22,7 @@ ROLE_LABELS: dict[Role, str] = {"none": "no access", "user": "user", "admin": "a
 
 Permission = Literal["power", "delete_all", "agent_reload", "speed_limits", "awareness", "wifi"]
 PERMISSIONS: tuple[Permission, ...] = get_args(Permission)
-#: What each permission allows, as the dashboard and README say it.
+#: What each permission allows, as the dashboard and docs/dashboard.md#users-roles-and-permissions say it.
 PERMISSION_LABELS: dict[Permission, str] = {
     "power": "press the robot's power button (power off, power on, OPS/CONFIG)",
     "delete_all": "delete all maps, images, videos or traces at once",

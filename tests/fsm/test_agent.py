@@ -106,7 +106,8 @@ def test_a_trigger_invalid_in_the_state_is_refused_with_a_reason(rig: Rig) -> No
 
 
 def test_a_goal_in_manual_mode_is_an_invalid_goal(rig: Rig) -> None:
-    """DESIGN §3: a goal is valid in AUTO mode only; in MANUAL it goes to Error with the reason, then back."""
+    """A goal is valid in AUTO mode only; in MANUAL it goes to Error with the reason, then back
+    (docs/agent.md#the-lifecycle)."""
     idle(rig)
     result = rig.command("goal", goal=Pose2D(1.0, 1.0, 0.0))
     assert result.accepted and result.dest == "ERROR"  # type: ignore[attr-defined]

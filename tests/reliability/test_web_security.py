@@ -6,7 +6,7 @@ per-event role checks, cross-origin Socket.IO handshakes, and the root admin in 
 
 * the root admin cannot be removed or demoted *through the dashboard*, even by another admin;
 * no HTTP response carries a CORS grant (``Access-Control-Allow-Origin``) for a foreign origin, preflight
-  or not (same origin only, DESIGN §10);
+  or not (same origin only, docs/dashboard.md#security);
 * a state-changing POST from a foreign origin with a stolen session but no CSRF token is refused and
   changes nothing;
 * oversized bodies are refused (413) on routes that take no upload at all, before any handler runs;

@@ -71,8 +71,9 @@ def light_robot(data_dir: Path, spec: AgentSpec, **agent: Any) -> Running:
     """The agent over fake ports with the control channel, paced at 50x real time."""
     clock = RealTimeSimClock(speed=50.0)
     robot = Robot(Config(data_dir=data_dir), clock, Scheduler(clock, realtime=False))
-    robot.add(Agent(spec, RecordingPort(), RecordingLink(time_source=clock.now), **agent), 10.0)
-    robot.add(RobotControl(robot), 10.0)
+    the_agent = Agent(spec, RecordingPort(), RecordingLink(time_source=clock.now), **agent)
+    robot.add(the_agent, 10.0)
+    robot.add(RobotControl(robot, the_agent), 10.0)
     return Running(robot)
 
 

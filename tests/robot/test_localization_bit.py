@@ -1,7 +1,8 @@
 """CAN 0x153 agent bit 4 (localization) on the whole simulated robot: the one confidence number, as the
 secondary core hears it. Set while the robot knows where it is; a kidnap is noticed, and where the scan cannot
 tell two places apart (the twin rooms, point-symmetric) the robot does not pick one: bit 4 is cleared on the bus
-and stays cleared, the candidates are both rooms, until the operator sets the pose (thesis 5.4 iii; issue 21).
+and stays cleared, the candidates are both rooms, until the operator sets the pose (thesis 5.4 iii; issue 21;
+docs/navigation.md#localization and docs/can.md#the-inter-core-protocol-0x1500x157).
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""The thesis's low-level behaviours on the WHOLE simulated robot (issue 6, "Wiring"; DESIGN §4).
+"""The thesis's low-level behaviours on the WHOLE simulated robot (issue 6, "Wiring";
+docs/navigation.md#the-motion-pipeline).
 
 Every test builds the assembled robot on a `SimClock` (motors emulated over a private virtual CAN channel,
 the emulated secondary core, the agent), waits until the agent is IDLE and the secondary core in OPS,

@@ -1,4 +1,5 @@
-"""The primary ⇄ secondary core CAN protocol (DESIGN.md §6, thesis 3.6): IDs 0x150–0x157 as typed messages.
+"""The primary ⇄ secondary core CAN protocol: IDs 0x150–0x157 as typed messages (thesis 3.6;
+docs/can.md#the-inter-core-protocol-0x1500x157).
 
 Every message is a small frozen value object with ``encode() -> can.Message`` and a class method
 ``decode(msg)``; `decode` dispatches any frame by its ID. Decoders check the ID, the frame kind

@@ -1,8 +1,8 @@
 """Segmented transfer of short texts over 8-byte frames (0x154 WiFi SSID, 0x155 WiFi password).
 
-Wire format (DESIGN.md §6): each frame is one control byte + seven data bytes. Control bits 0–6 are the
-frame index from 0, bit 7 is set on the last frame; the last frame pads with 0x00. The text is UTF-8
-and may not contain NUL (padding would swallow it).
+Wire format (docs/can.md#segmented-transfers-0x154-0x155): each frame is one control byte + seven data
+bytes. Control bits 0–6 are the frame index from 0, bit 7 is set on the last frame; the last frame pads
+with 0x00. The text is UTF-8 and may not contain NUL (padding would swallow it).
 
 The receiver is a small state machine fed one frame at a time with the time it arrived (injected, so a
 simulation is repeatable). It restarts on index 0 and drops the whole transfer on a gap, an

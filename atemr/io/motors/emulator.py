@@ -17,7 +17,8 @@ CAN communication-timeout protection (the RMD's "communication interruption prot
 motor): when no speed command (0xA2) has arrived for ``comm_timeout_s`` (0.5 s by default, 0 = off) the
 motor stops by itself (`RmdMotorModel.comm_timeout`: brake to zero, command forgotten, ``comm_timed_out``
 set) until the next speed command, so a motor cut off from its driver never drives on a stale command
-(DESIGN §10). Only speed commands count: status reads and MOTOR_STOP/RUN do not keep a motor driving.
+(docs/testing.md#what-the-robot-promises). Only speed commands count: status reads and MOTOR_STOP/RUN do
+not keep a motor driving.
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ from atemr.io.motors.rmd_protocol import AnyReply, MotorReading, RmdProtocol, rm
 
 log = logging.getLogger(__name__)
 
-#: Default CAN communication timeout of the motor, s (DESIGN §10: no fresh command for 0.5 s → stop).
+#: Default CAN communication timeout of the motor, s (no fresh command for 0.5 s → stop:
+#: docs/testing.md#what-the-robot-promises).
 COMM_TIMEOUT_S = 0.5
 
 

@@ -24,7 +24,7 @@ class Topic:
     schema_encoding: str  # "ros2msg" | "jsonschema"
     schema_data: bytes
     message_encoding: str  # "cdr" | "json"
-    #: What it carries, for the README and ``atemr trace show --topics``.
+    #: What it carries, for docs/recording.md#what-is-recorded and ``atemr trace show --topics``.
     about: str = ""
 
     @property

@@ -1,4 +1,4 @@
-"""The secondary core's firmware logic (thesis 3.6.3, DESIGN.md §6–§7), as a scheduler component.
+"""The secondary core's firmware logic (thesis 3.6.3, docs/can.md#the-secondary-core), as a scheduler component.
 
 One `SecondaryCore` is the ESP32 board: its lifecycle machine (transitions), the power button, the
 0x157 heartbeat check, the 0x150 power handshake, soft emergency (braking both motors over CAN), the IR

@@ -1,9 +1,9 @@
 """From a `LaserScan` to the points every matcher uses: valid returns only, in the base frame.
 
-DESIGN §10: NaN, 0, ±inf and ranges outside [range_min, range_max] are dropped, never used as
-distances (-inf is an obstacle for the safety stop, but it has no position to match). Beams are
-optionally thinned evenly, which is what AMCL's ``max_beams`` does: neighbouring beams carry nearly the
-same information, and the filter's cost grows with their number.
+NaN, 0, ±inf and ranges outside [range_min, range_max] are dropped, never used as distances
+(docs/testing.md#what-the-robot-promises; -inf is an obstacle for the safety stop, but it has no position
+to match). Beams are optionally thinned evenly, which is what AMCL's ``max_beams`` does: neighbouring beams
+carry nearly the same information, and the filter's cost grows with their number.
 """
 
 from __future__ import annotations

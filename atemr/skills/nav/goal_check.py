@@ -1,5 +1,5 @@
-"""Goal checks before a goal is accepted (DESIGN §3 Idle → Exec): what a refusal says is what the operator
-reads in the agent's Error state, so each reason names the goal and the place.
+"""Goal checks before a goal is accepted (docs/agent.md#the-lifecycle, IDLE → EXEC): what a refusal says
+is what the operator reads in the agent's Error state, so each reason names the goal and the place.
 
 Checks, in order: finite numbers; AUTO mode; robot localized; inside the map; not in an obstacle (lethal)
 nor so close to one that the robot's footprint would touch it (inscribed); not in unknown space (unless

@@ -120,8 +120,8 @@ def _active(leaf: Leaf, in_states: tuple[str, ...]) -> bool:
 class WatchHeartbeat(Leaf):
     """Post ``fault`` (non-critical `HardwareError`) when the 0x157 heartbeat is lost.
 
-    Both cores already stop the motors on their own when it fails (DESIGN.md §10); the fault takes the
-    agent out of Exec/Mapping so it does not carry on as if nothing happened.
+    Both cores already stop the motors on their own when it fails (docs/testing.md#what-the-robot-promises);
+    the fault takes the agent out of Exec/Mapping so it does not carry on as if nothing happened.
     """
 
     Params = WatchParams

@@ -1,4 +1,4 @@
-"""Segmented transfer of SSID and password over 0x154/0x155 (DESIGN.md §6)."""
+"""Segmented transfer of SSID and password over 0x154/0x155 (docs/can.md#segmented-transfers-0x154-0x155)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The RMD's CAN communication-timeout protection: a motor that hears no speed command for ``comm_timeout_s``
-stops by itself (DESIGN §10), says so, and drives again only on a fresh speed command."""
+stops by itself (docs/testing.md#what-the-robot-promises), says so, and drives again only on a fresh speed command."""
 
 from __future__ import annotations
 

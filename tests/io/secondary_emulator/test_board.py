@@ -356,7 +356,7 @@ def test_any_long_hold_in_ready_powers_on(bench: LinkBench) -> None:
 
 
 def test_heartbeat_established_before_the_primary_reports_running(bench: LinkBench) -> None:
-    # DESIGN §3: StartUp checks the heartbeat first, then acknowledges power-on (0x150 byte 0 = 1).
+    # docs/agent.md#the-lifecycle: StartUp checks the heartbeat first, then acknowledges power-on (0x150 byte 0 = 1).
     bench.run(3.1)
     bench.core.button.hold(1.0)
     bench.run(2.0)

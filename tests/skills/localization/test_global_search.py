@@ -5,7 +5,7 @@ The statistics run `benchmarks/global_localization.py` at the skill level (one s
 the shipped search). The issue's 50 seeded poses on the studio and on each external map of ``../shared`` take
 about a minute of CPU (a search costs 50-200 ms, 0.7 s in the 50 m warehouse): the default suite runs all 50
 on the studio and a seeded subset on each external map, checking what must hold for every single answer (no
-confidently wrong one, the true place among an ambiguous answer's candidates); ``ATEMR_SOAK=1`` runs the 50
+confidently wrong one, the true place among an ambiguous answer's candidates); ``ATEMR_TEST_SOAK=1`` runs the 50
 everywhere and checks the rates too, as README's table reports them.
 """
 
@@ -58,8 +58,8 @@ def scan_from(world_name: str, pose: Pose2D, seed: int = 0):  # type: ignore[no-
 #: (ambiguous, every look-alike listed) instead of guessing. What it reaches there is held here so it cannot
 #: get worse unnoticed; README's table says the same.
 MIN_LOCALIZED = {"nav2_warehouse": 0.6}
-FULL = os.environ.get("ATEMR_SOAK") == "1"
-#: Poses per map in the default suite (all 50 with ATEMR_SOAK=1).
+FULL = os.environ.get("ATEMR_TEST_SOAK") == "1"
+#: Poses per map in the default suite (all 50 with ATEMR_TEST_SOAK=1).
 POSES = {"studio": 50, "nav2_depot": 12, "nav2_tb3_sandbox": 12, "turtlebot3_world": 12, "nav2_warehouse": 6}
 
 

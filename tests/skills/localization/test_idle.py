@@ -7,7 +7,7 @@ odometry EKF drifts while it stands (about 0.1° a second: the gyro's bias, meas
 drift, not the people, is what made the old monitor report "lost" every minute or two: AMCL rightly does not
 update a robot that does not move, so nothing held the map pose to the map.
 
-One simulated minute by default; ``ATEMR_SOAK=1`` runs the issue's full hour (``ATEMR_SOAK_S`` for another
+One simulated minute by default; ``ATEMR_TEST_SOAK=1`` runs the issue's full hour (``ATEMR_TEST_SOAK_S`` for another
 length), as `tests/reliability/test_soak.py` does: it is 36,000 scans, several minutes of CPU.
 """
 
@@ -31,8 +31,8 @@ SCAN_HZ = 10.0
 
 
 def idle_seconds() -> float:
-    if os.environ.get("ATEMR_SOAK") == "1":
-        return float(os.environ.get("ATEMR_SOAK_S", "3600"))
+    if os.environ.get("ATEMR_TEST_SOAK") == "1":
+        return float(os.environ.get("ATEMR_TEST_SOAK_S", "3600"))
     return 60.0
 
 
