@@ -5,35 +5,14 @@ screen page opens only with its token, and the token opens no operator event."""
 
 from __future__ import annotations
 
-import os
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
 
 pytestmark = pytest.mark.e2e
 
-#: Fake media (a test pattern and a beep) and no gesture needed to play audio: the kiosk tablet is set up alike.
-MEDIA_ARGS = ["--use-fake-device-for-media-stream", "--use-fake-ui-for-media-stream",
-              "--autoplay-policy=no-user-gesture-required"]
 STATS = "async () => window.atemrCall ? await window.atemrCall.stats() : null"
-
-
-@pytest.fixture(scope="module")
-def media_browser() -> Iterator[Any]:
-    """Chromium as the browser fixture launches it, plus the fake media devices."""
-    from pathlib import Path
-
-    if not Path("/usr/bin/chromium").exists():
-        pytest.skip("/usr/bin/chromium is missing")
-    sync_api = pytest.importorskip("playwright.sync_api")
-    args = ["--no-sandbox"] if os.geteuid() == 0 else []
-    with sync_api.sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path="/usr/bin/chromium", headless=True,
-                                     args=[*args, "--disable-gpu", "--no-first-run", *MEDIA_ARGS])
-        yield browser
-        browser.close()
 
 
 def wait_for(page: Any, js: str, timeout_s: float = 15.0) -> Any:

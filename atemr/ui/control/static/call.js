@@ -37,6 +37,7 @@
     if (s.state === "active" && !peer) {
       peer = new CallPeer((signal) => A.socket.emit("call_signal", signal), video, s.ice_servers);
       window.atemrCall = peer;
+      peer.onFailed = () => { A.socket.emit("call_end"); hangUp("the call's connection failed"); };
       peer.start(true).catch((err) => { text.textContent = `Camera or microphone: ${err.message}`; });
       show("active", "");
     } else if (s.state === "idle") hangUp(s.reason);

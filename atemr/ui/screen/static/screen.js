@@ -31,6 +31,11 @@
     if (s.state === "active" && !peer) {
       peer = new CallPeer(send, $("remote"), s.ice_servers);
       window.atemrCall = peer;
+      peer.onFailed = () => {
+        sock.emit("screen_hangup");
+        if (peer) { peer.stop(); peer = null; }
+        show("idle", "the call's connection failed");
+      };
       peer.start(false).catch((err) => { callText.textContent = `Camera or microphone: ${err.message}`; });
     } else if (s.state !== "active" && peer) {
       peer.stop();

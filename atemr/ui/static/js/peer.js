@@ -14,6 +14,7 @@ class CallPeer {
     this.local = null;
     this.chain = Promise.resolve();
     this.early = []; // candidates that came before the remote description
+    this.onFailed = () => {}; // the media link broke (the other side went without a word: this socket was down)
   }
 
   // Open the camera and microphone and the connection; the offerer also sends its offer.
@@ -29,6 +30,7 @@ class CallPeer {
           this.video.play().catch(() => {}); // autoplay refused: the first tap plays it
         }
       };
+      pc.onconnectionstatechange = () => { if (pc.connectionState === "failed") this.onFailed(); };
       pc.onicecandidate = (e) => this.send({ candidate: e.candidate ? e.candidate.toJSON() : null });
       if (offerer) {
         await pc.setLocalDescription(await pc.createOffer());
