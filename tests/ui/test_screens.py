@@ -123,3 +123,11 @@ def test_screen_socket_gets_plain_words_and_is_refused_operator_events(app, gate
 ])
 def test_plain_activity(state, words):
     assert plain_activity(state) == words
+
+
+def test_the_token_stays_out_of_the_request_log():
+    from atemr.ui.server import hide_tokens
+
+    line = '"GET /screen?token=Abc-_123 HTTP/1.1" 302 -'
+    assert hide_tokens(line) == '"GET /screen?token=<hidden> HTTP/1.1" 302 -'
+    assert hide_tokens('"GET /screen?a=1&token=x HTTP/1.1"') == '"GET /screen?a=1&token=<hidden> HTTP/1.1"'
