@@ -117,6 +117,10 @@ class FoxgloveConfig:
     port: int = field(default=8765, metadata={"min": 0, "max": 65535, "help": "TCP port (0: any free port)"})
 
 
+#: What an ICE server URL starts with (RFC 7064, RFC 7065).
+ICE_SCHEMES = ("stun:", "stuns:", "turn:", "turns:")
+
+
 @dataclass(frozen=True)
 class UiConfig:
     """The operator dashboard (Flask + Socket.IO). Paths left empty live under ``data_dir``."""
@@ -151,7 +155,21 @@ class UiConfig:
     user_permissions: tuple[Permission, ...] = field(default=(), metadata={
         "help": "destructive or safety actions the user role may do too (admin always may): any of "
                 + ", ".join(PERMISSIONS) + "; comma-separated in the environment"})
+    screen_auto_answer: bool = field(default=False, metadata={
+        "help": "the robot's screen answers a call at once (for a resident who cannot reach the screen)"})
+    ice_servers: tuple[str, ...] = field(default=(), metadata={
+        "help": "STUN/TURN server URLs for calls (stun:host:3478, turn:host:3478?transport=udp, turns:...); empty: "
+                "host candidates only, enough on one LAN; comma-separated in the environment"})
+    ice_username: str | None = field(default=None, metadata={"help": "username for the turn:/turns: servers"})
+    ice_credential: str | None = field(default=None, metadata={"help": "credential for the turn:/turns: servers"})
     foxglove: FoxgloveConfig = field(default_factory=FoxgloveConfig)
+
+    def __post_init__(self) -> None:
+        for url in self.ice_servers:
+            if not url.startswith(ICE_SCHEMES):
+                raise ConfigError(f"ui.ice_servers: {url!r} must start with {', '.join(ICE_SCHEMES)}")
+        if any(u.startswith(("turn:", "turns:")) for u in self.ice_servers) and not self.ice_username:
+            raise ConfigError("ui.ice_servers names a TURN server: set ui.ice_username and ui.ice_credential too")
 
 
 @dataclass(frozen=True)

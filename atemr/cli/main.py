@@ -46,6 +46,8 @@ BUILTIN_COMMANDS: dict[str, Builtin] = {
                      "run every benchmark (or the named ones) and print ours vs. baseline ratios"),
     "user": Builtin("atemr.cli.user:UserCommand",
                     "manage dashboard users: set-password NAME (the first admin password), list"),
+    "screen": Builtin("atemr.cli.screen:ScreenCommand",
+                      "the robot's screens (its tablet): add NAME (prints the device token once), list, revoke NAME"),
     "fuzzy": Builtin("atemr.cli.fuzzy:FuzzyCommand",
                      "evaluate a fuzzy engine on rows from stdin (eval) or print and plot it (show)"),
     "sim": Builtin("atemr.cli.sim:SimCommand",

@@ -30,6 +30,7 @@ from atemr.ui import sockets
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.media import files as media_files
 from atemr.ui.payload import PacketJSON
+from atemr.ui.screens import ScreenStore
 from atemr.ui.security import (
     LoginRateLimiter,
     TrustedHostMiddleware,
@@ -106,6 +107,7 @@ def create_app(
     )
     app.extensions["atemr.users"] = UserStore(database_path(config), hash_method=hash_method,
                                               session_lifetime_s=lifetime.total_seconds())
+    app.extensions["atemr.screens"] = ScreenStore(database_path(config))
     app.extensions["atemr.gateway"] = gateway
     clock = clock or WallClock()
     app.extensions["atemr.limiter"] = LoginRateLimiter(
@@ -136,9 +138,10 @@ def create_app(
     from atemr.ui.mapping import bp as mapping_bp
     from atemr.ui.media import bp as media_bp
     from atemr.ui.routines import bp as routines_bp
+    from atemr.ui.screen import bp as screen_bp
     from atemr.ui.settings import bp as settings_bp
 
-    for bp in (auth_bp, control_bp, mapping_bp, settings_bp, media_bp, agent_bp, routines_bp):
+    for bp in (auth_bp, control_bp, mapping_bp, settings_bp, media_bp, agent_bp, routines_bp, screen_bp):
         app.register_blueprint(bp)
     app.add_url_rule("/", "index", lambda: redirect(url_for("control.page")))
     # Browsers ask for /favicon.ico on their own (downloads, bookmarks) whatever the pages link.
@@ -156,10 +159,12 @@ def create_app(
         engineio_logger=False,
     )
     from atemr.ui.agent.events import events as agent_events
+    from atemr.ui.call import events as call
     from atemr.ui.control.events import events as control_events
     from atemr.ui.mapping.events import events as mapping_events
 
-    sockets.init_app(app, socketio, groups=(control_events, mapping_events, agent_events))
+    sockets.init_app(app, socketio, groups=(control_events, mapping_events, agent_events, call.events))
+    call.init_app(app)
     # Outermost: a foreign Host header (DNS rebinding) reaches neither the pages nor Socket.IO.
     app.wsgi_app = TrustedHostMiddleware(  # type: ignore[method-assign]
         app.wsgi_app, trusted_hosts(config.ui.host, config.ui.trusted_hosts)

@@ -23,6 +23,7 @@ from werkzeug.wrappers import Response
 
 from atemr.clock import Clock
 from atemr.ui.permissions import PERMISSION_LABELS, Permission, Role, needed_role
+from atemr.ui.screens import ScreenStore
 from atemr.ui.users import User, UserStore
 
 log = logging.getLogger(__name__)
@@ -34,6 +35,10 @@ CSRF_FORM_FIELD = "csrf_token"
 CSRF_HEADER = "X-CSRF-Token"
 #: The session key holding the session token (the users database knows which are live).
 SESSION_KEY = "sid"
+#: The session key holding a screen's device token (`atemr.ui.screens`); a session holds it or a login, never both.
+SCREEN_KEY = "screen"
+#: Why a screen's session is refused an operator's page or event.
+SCREEN_ONLY = "a screen device token opens only the robot's screen page and its events"
 #: Methods that change something and so must carry the CSRF token.
 UNSAFE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 
@@ -299,6 +304,42 @@ def current_user() -> User | None:
     return user
 
 
+def screen_store() -> ScreenStore:
+    return cast(ScreenStore, current_app.extensions["atemr.screens"])
+
+
+def screen_token() -> str | None:
+    """The screen device token the signed cookie carries, or None."""
+    token = session.get(SCREEN_KEY)
+    return token if isinstance(token, str) else None
+
+
+def current_screen() -> str | None:
+    """The name of the screen this session belongs to, or None; looked up on every request and event,
+    so a revoked token is refused at once."""
+    if "screen" in g:
+        return cast("str | None", g.screen)
+    token = screen_token()
+    name = screen_store().verify(token) if token is not None else None
+    if name is None and SCREEN_KEY in session:
+        session.pop(SCREEN_KEY, None)
+    g.screen = name
+    return name
+
+
+def login_screen(token: str) -> str | None:
+    """Start a screen session from a device token (a fresh session: any login in it ends); the screen's
+    name, or None when the token is unknown or revoked (the session is left as it was)."""
+    name = screen_store().verify(token)
+    if name is None:
+        return None
+    logout_user()
+    session[SCREEN_KEY] = token
+    session.permanent = True
+    g.screen = name
+    return name
+
+
 def login_user(user: User) -> None:
     """Start a fresh session for ``user`` (a new token and CSRF token too: no session fixation)."""
     session.clear()
@@ -332,6 +373,8 @@ def role_required(role: Role) -> Callable[[F], F]:
         def wrapped(*args: Any, **kwargs: Any) -> Any:
             user = current_user()
             api = wants_json()
+            if user is None and current_screen() is not None:
+                abort(403, description=f"Refused: {SCREEN_ONLY}.")
             if user is None:
                 if api:
                     abort(401)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import re
 import socket
 import threading
 from typing import Any
@@ -99,6 +100,15 @@ BUSY_RESPONSE = (
 )
 
 
+_TOKEN_IN_QUERY = re.compile(r"([?&]token=)[^&\s\"]+")
+
+
+def hide_tokens(line: str) -> str:
+    """A request line without the screen's device token (``/screen?token=...``): logs are read by more
+    people than the token is meant for."""
+    return _TOKEN_IN_QUERY.sub(r"\1<hidden>", line)
+
+
 class _RequestHandler(WSGIRequestHandler):
     """werkzeug's handler, logging through ``atemr.ui.http`` (requests at DEBUG) instead of attaching its
     own stderr handler, so the robot's log configuration decides what is shown; with time limits on the
@@ -107,7 +117,7 @@ class _RequestHandler(WSGIRequestHandler):
 
     def log(self, type: str, message: str, *args: Any) -> None:
         level = logging.DEBUG if type == "info" else logging.WARNING
-        http_log.log(level, "%s %s", self.address_string(), message % args)
+        http_log.log(level, "%s %s", self.address_string(), hide_tokens(message % args))
 
     def handle_one_request(self) -> None:
         self.connection.settimeout(HEADER_TIMEOUT_S)

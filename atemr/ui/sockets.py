@@ -37,12 +37,15 @@ from flask_socketio import SocketIO, join_room, leave_room
 from atemr.errors import AtemrError, ProtocolError
 from atemr.ui.gateway import NO_ROBOT, CommandResult, RobotGateway
 from atemr.ui.permissions import Permission, Role
-from atemr.ui.security import current_user, may, refusal, session_token
+from atemr.ui.screens import ScreenStore
+from atemr.ui.security import SCREEN_ONLY, current_screen, current_user, may, refusal, screen_token, session_token
 from atemr.ui.users import UserStore
 
 log = logging.getLogger(__name__)
 
 OPERATORS = "operators"
+#: Every connected screen (the robot's tablet, with a device token): the robot's state in plain words.
+SCREENS = "screens"
 CAMERA = "camera"
 AGENT = "agent"
 #: The ``status`` of an acknowledgement refused for the user's role or permission, as HTTP says it.
@@ -59,6 +62,7 @@ class Sessions:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._by_sid: dict[str, tuple[str, str]] = {}  # sid → (username, session token)
+        self._screens: dict[str, tuple[str, str]] = {}  # sid → (screen name, device token)
         self.camera: set[str] = set()
         self.agent: set[str] = set()
         self.checked_at = -float("inf")  # monotonic time of the last revocation check
@@ -67,9 +71,19 @@ class Sessions:
         with self._lock:
             self._by_sid[sid] = (username, token)
 
+    def add_screen(self, sid: str, name: str, token: str) -> None:
+        with self._lock:
+            self._screens[sid] = (name, token)
+
+    def screens(self) -> dict[str, str]:
+        """sid → device token of every connected screen."""
+        with self._lock:
+            return {sid: tok for sid, (_, tok) in self._screens.items()}
+
     def remove(self, sid: str) -> None:
         with self._lock:
             self._by_sid.pop(sid, None)
+            self._screens.pop(sid, None)
             self.camera.discard(sid)
             self.agent.discard(sid)
 
@@ -88,7 +102,7 @@ class Sessions:
 
     def __len__(self) -> int:
         with self._lock:
-            return len(self._by_sid)
+            return len(self._by_sid) + len(self._screens)
 
 
 def socketio_of(app: Flask) -> SocketIO:
@@ -127,6 +141,19 @@ class EventGroup:
 
         return decorate
 
+    def on_screen(self, event: str) -> Callable[[Handler], Handler]:
+        """Declare ``event`` as one only the robot's screen sends: its device token is re-checked on every
+        event (a revoked token is refused), and an operator's session is refused, so no one poses as the
+        screen. The handler gets the robot gateway (None without a robot) and the payload."""
+
+        def decorate(handler: Handler) -> Handler:
+            if event in self.handlers:
+                raise ValueError(f"Socket.IO event {event!r} is declared twice in the {self.name} group")
+            self.handlers[event] = _screen_checked(event, handler)
+            return handler
+
+        return decorate
+
     def register(self, socketio: SocketIO) -> None:
         for event, handler in self.handlers.items():
             socketio.on_event(event, handler)
@@ -141,6 +168,9 @@ def _checked(event: str, role: Role, permission: Permission | None, handler: Han
     @functools.wraps(handler)
     def checked(data: Any = None) -> dict[str, Any]:
         user = current_user()
+        if user is None and current_screen() is not None:
+            log.warning("socket event %r refused for the screen %s", event, current_screen())
+            return {**CommandResult.refused(f"'{event}': {SCREEN_ONLY}").to_json(), "status": FORBIDDEN}
         if user is None or not user.can(role):
             log.warning("socket event %r refused for %s", event, user.username if user else "anonymous")
             return {**CommandResult.refused(f"'{event}' needs the {role} role").to_json(), "status": FORBIDDEN}
@@ -164,20 +194,53 @@ def _checked(event: str, role: Role, permission: Permission | None, handler: Han
     return checked
 
 
+def _screen_checked(event: str, handler: Handler) -> Acknowledge:
+    """``handler`` for the screen's session only, its result or refusal as the acknowledgement."""
+
+    @functools.wraps(handler)
+    def checked(data: Any = None) -> dict[str, Any]:
+        screen = current_screen()
+        if screen is None:
+            user = current_user()
+            log.warning("screen event %r refused for %s", event, user.username if user else "anonymous")
+            return {**CommandResult.refused(f"only the robot's screen (with its device token) sends '{event}'")
+                    .to_json(), "status": FORBIDDEN}
+        try:
+            result = handler(gateway(), data)
+        except AtemrError as exc:
+            log.warning("screen event %r from %s refused: %s", event, screen, str(exc)[:300])
+            return CommandResult.refused(str(exc)).to_json()
+        return result.to_json() if isinstance(result, CommandResult) else result
+
+    return checked
+
+
 def _connect(auth: Any = None) -> bool:
     user = current_user()
     token = session_token()
+    sid = cast(str, request.sid)  # type: ignore[attr-defined]
+    if user is None and (screen := current_screen()) is not None:
+        sessions_of(current_app).add_screen(sid, screen, cast(str, screen_token()))
+        join_room(SCREENS)
+        return True
     if user is None or token is None or not user.can("user"):
         log.info("socket connection refused from %s: no session with access", request.remote_addr)
         return False
-    sid = cast(str, request.sid)  # type: ignore[attr-defined]
     sessions_of(current_app).add(sid, user.username, token)
     join_room(OPERATORS)
     return True
 
 
 def _disconnect(reason: Any = None) -> None:
-    sessions_of(current_app).remove(cast(str, request.sid))  # type: ignore[attr-defined]
+    sid = cast(str, request.sid)  # type: ignore[attr-defined]
+    sessions_of(current_app).remove(sid)
+    for hook in disconnect_hooks(current_app):
+        hook(sid)
+
+
+def disconnect_hooks(app: Flask) -> list[Callable[[str], None]]:
+    """What runs when a socket goes (by itself or closed by the server), with its sid: the call ends there."""
+    return cast("list[Callable[[str], None]]", app.extensions["atemr.disconnect_hooks"])
 
 
 def _subscription(event: str, room: str, members: Callable[[Sessions], set[str]]) -> Callable[[Any], dict[str, Any]]:
@@ -208,6 +271,7 @@ def _subscription(event: str, room: str, members: Callable[[Sessions], set[str]]
 def init_app(app: Flask, socketio: SocketIO, groups: Iterable[EventGroup]) -> None:
     """Attach the connect check, the subscriptions and the page ``groups``' events to ``socketio``."""
     app.extensions["atemr.sockets"] = Sessions()
+    app.extensions.setdefault("atemr.disconnect_hooks", [])
     socketio.on_event("connect", _connect)
     socketio.on_event("disconnect", _disconnect)
     socketio.on_event("camera", _subscription("camera", CAMERA, lambda s: s.camera))
@@ -221,6 +285,8 @@ def _close(app: Flask, sids: list[str]) -> None:
     for sid in sids:
         socketio.server.disconnect(sid, namespace="/")
         sessions_of(app).remove(sid)
+        for hook in disconnect_hooks(app):
+            hook(sid)
 
 
 def disconnect_user(app: Flask, username: str) -> None:
@@ -237,11 +303,15 @@ def disconnect_revoked(app: Flask) -> int:
     """Close every socket whose session is no longer live in the users database (logged out, expired,
     revoked elsewhere, user removed or without access); returns how many were closed."""
     by_sid = sessions_of(app).tokens()
-    if not by_sid:
-        return 0
-    store = cast(UserStore, app.extensions["atemr.users"])
-    live = store.live_sessions(set(by_sid.values()))
-    revoked = [sid for sid, token in by_sid.items() if token not in live]
+    screens = sessions_of(app).screens()
+    revoked: list[str] = []
+    if by_sid:
+        store = cast(UserStore, app.extensions["atemr.users"])
+        live = store.live_sessions(set(by_sid.values()))
+        revoked += [sid for sid, token in by_sid.items() if token not in live]
+    if screens:
+        live_screens = cast(ScreenStore, app.extensions["atemr.screens"]).live(set(screens.values()))
+        revoked += [sid for sid, token in screens.items() if token not in live_screens]
     if revoked:
         log.info("closing %d socket(s) whose session ended", len(revoked))
         _close(app, revoked)
@@ -259,6 +329,14 @@ def state_message(robot: RobotGateway) -> dict[str, Any]:
         state = {"error": "the robot's state could not be read"}
     state["sent_unix_s"] = round(time.time(), 4)
     return state
+
+
+def screen_message(state: dict[str, Any]) -> dict[str, Any]:
+    """What the robot's screen shows of the state: the robot's name and what it does, in plain words
+    (never the map, the pose or the camera: the screen sees only what the resident should read)."""
+    from atemr.ui.screen.words import plain_activity
+
+    return {"robot": state.get("robot") or "", "words": plain_activity(state)}
 
 
 def push(app: Flask, robot: RobotGateway | None) -> int:
@@ -282,7 +360,10 @@ def push(app: Flask, robot: RobotGateway | None) -> int:
     if robot is None or (clients == 0 and not queued):
         return clients
     socketio = socketio_of(app)
-    socketio.emit("state", state_message(robot), to=OPERATORS)
+    state = state_message(robot)
+    socketio.emit("state", state, to=OPERATORS)
+    if sessions.screens():
+        socketio.emit("screen_state", screen_message(state), to=SCREENS, ignore_queue=True)
     if sessions.camera:
         frame = robot.camera_jpeg()
         if frame:

@@ -394,18 +394,42 @@ def _skip_reason() -> str | None:
     return None
 
 
+#: A fake camera (a test pattern) and microphone (a beep), granted without asking, and sound that plays
+#: without a tap: for the call's tests, as a kiosk tablet is set up.
+MEDIA_ARGS = ["--use-fake-device-for-media-stream", "--use-fake-ui-for-media-stream",
+              "--autoplay-policy=no-user-gesture-required"]
+
+
 @pytest.fixture(scope="session")
-def browser() -> Iterator[Any]:
+def playwright() -> Iterator[Any]:
+    """One Playwright for the session: its sync API cannot run twice at once, so every browser comes from it."""
     reason = _skip_reason()
     if reason:
         pytest.skip(reason)
     from playwright.sync_api import sync_playwright
 
-    args = CHROMIUM_ARGS if os.geteuid() == 0 else CHROMIUM_ARGS[1:]
     with sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path=CHROMIUM, args=args, headless=True)
-        yield browser
-        browser.close()
+        yield pw
+
+
+def _launch(pw: Any, extra: list[str]) -> Any:
+    args = CHROMIUM_ARGS if os.geteuid() == 0 else CHROMIUM_ARGS[1:]
+    return pw.chromium.launch(executable_path=CHROMIUM, args=[*args, *extra], headless=True)
+
+
+@pytest.fixture(scope="session")
+def browser(playwright: Any) -> Iterator[Any]:
+    browser = _launch(playwright, [])
+    yield browser
+    browser.close()
+
+
+@pytest.fixture(scope="session")
+def media_browser(playwright: Any) -> Iterator[Any]:
+    """Chromium with `MEDIA_ARGS`: getUserMedia answers with fake devices."""
+    browser = _launch(playwright, MEDIA_ARGS)
+    yield browser
+    browser.close()
 
 
 @pytest.fixture

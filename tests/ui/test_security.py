@@ -11,7 +11,9 @@ from atemr.ui.security import LoginRateLimiter, is_local_address
 
 #: The only endpoints an anonymous visitor may reach.
 PUBLIC = {"static", "auth.login", "auth.logout", "auth.register", "auth.no_access", "auth.first_start", "index",
-          "control.static", "mapping.static", "agent.static", "favicon"}
+          "control.static", "mapping.static", "agent.static", "favicon", "screen.static"}
+#: Endpoints that open with a screen device token only: 403 with the reason for everyone else.
+SCREEN_ONLY = {"screen.page"}
 
 
 def _url_for_rule(rule) -> str:
@@ -24,6 +26,7 @@ def _url_for_rule(rule) -> str:
 def test_every_non_public_route_refuses_anonymous_and_no_access_users(app, ui):
     rules = [r for r in app.url_map.iter_rules() if r.endpoint not in PUBLIC]
     assert len(rules) >= 20
+    assert {r.endpoint for r in rules} >= SCREEN_ONLY
     anon = app.test_client()
     bob = app.test_client()
     app.extensions["atemr.users"].set_role("bob", "user")
@@ -35,7 +38,8 @@ def test_every_non_public_route_refuses_anonymous_and_no_access_users(app, ui):
         method = "POST" if "POST" in rule.methods else "GET"
         # anonymous POSTs are refused by the CSRF check (400) before anything else; bob's form token is
         # still good, but his session is not
-        for client, allowed in ((anon, {400} if method == "POST" else {302, 401}), (bob, {302, 401})):
+        refused = {403} if rule.endpoint in SCREEN_ONLY else {302, 401}
+        for client, allowed in ((anon, {400} if method == "POST" else refused), (bob, refused)):
             if method == "POST":
                 data = {"csrf_token": bob_token} if client is bob else {}
                 response = client.post(path, data=data)

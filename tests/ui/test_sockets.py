@@ -281,14 +281,120 @@ def test_studio_events_are_refused_without_a_session_or_a_role(app, gateway, ui,
 
 def test_page_groups_declare_their_events_once_and_every_event_is_registered(app):
     from atemr.ui.agent.events import events as agent
+    from atemr.ui.call.events import events as call
     from atemr.ui.control.events import events as control
     from atemr.ui.mapping.events import events as mapping
 
-    declared = set(control.handlers) | set(mapping.handlers) | set(agent.handlers)
-    assert declared == {e[0] for e in EVENTS}  # every declared event is tested above, and no other
+    declared = set(control.handlers) | set(mapping.handlers) | set(agent.handlers) | set(call.handlers)
+    # every declared event is tested above or below, and no other
+    assert declared == {e[0] for e in EVENTS} | {e[0] for e in CALL_EVENTS}
     registered = set(app.extensions["socketio"].server.handlers["/"])
     assert declared | {"connect", "disconnect", "camera", "agent_view"} == registered
     group = sockets.EventGroup("test")
     group.on("ping")(lambda robot, data: {"ok": True})
     with pytest.raises(ValueError, match="'ping' is declared twice in the test group"):
         group.on("ping")(lambda robot, data: {"ok": True})
+
+
+# -- the call (atemr.ui.call): (event, payload, who may send it) -----------------------------------------------
+CALL_EVENTS = [
+    ("call_start", None, "operator"),
+    ("call_signal", {"candidate": None}, "operator"),
+    ("call_end", None, "operator"),
+    ("screen_answer", None, "screen"),
+    ("screen_decline", None, "screen"),
+    ("screen_signal", {"candidate": None}, "screen"),
+    ("screen_hangup", None, "screen"),
+]
+
+
+def screen_socket(app):
+    token = app.extensions["atemr.screens"].add("tablet")
+    tablet = app.test_client()
+    tablet.get(f"/screen?token={token}")
+    return sio(app, tablet)
+
+
+def call_states(ws):
+    return [m["args"][0] for m in ws.get_received() if m["name"] == "call_state"]
+
+
+@pytest.mark.parametrize(("event", "data", "who"), CALL_EVENTS)
+def test_call_events_are_refused_to_the_other_side_and_to_strangers(app, alice, ui, event, data, who):
+    wrong = screen_socket(app) if who == "operator" else sio(app, alice)
+    ack = wrong.emit(event, data, callback=True)
+    assert ack["ok"] is False and ack["status"] == 403, ack
+    assert ("screen device token opens only" if who == "operator" else "only the robot's screen") in ack["reason"]
+    assert not sio(app, app.test_client()).is_connected()  # no session, no token: not even connected
+
+
+def test_a_call_through_the_sockets(app, alice, ui, tmp_path):
+    screen = screen_socket(app)
+    operator = sio(app, alice)
+    assert operator.emit("call_start", None, callback=True) == {"ok": True, "reason": ""}
+    ringing = call_states(screen)[-1]  # (each read drains what the socket received)
+    assert ringing["state"] == "ringing" and ringing["caller"] == "alice"
+    carol = app.test_client()
+    app.extensions["atemr.users"].create("carol", ui.USER_PW, "user")
+    ui.login(carol, "carol", ui.USER_PW)
+    second = sio(app, carol)
+    refused = second.emit("call_start", None, callback=True)
+    assert refused == {"ok": False, "reason": "the robot is ringing with alice: one call at a time"}
+    assert screen.emit("screen_answer", None, callback=True)["ok"]
+    active = call_states(operator)[-1]
+    assert active["state"] == "active" and active["ice_servers"] == []
+    offer = {"description": {"type": "offer", "sdp": "v=0 test"}}
+    assert operator.emit("call_signal", offer, callback=True)["ok"]
+    assert [m["args"][0] for m in screen.get_received() if m["name"] == "call_signal"] == [offer]
+    assert not second.emit("call_signal", offer, callback=True)["ok"]  # not a party
+    operator.disconnect()  # the page closed
+    assert call_states(screen)[-1] == {"state": "idle", "caller": "alice", "role": "", "reason": "the caller left"}
+    assert second.emit("call_start", None, callback=True)["ok"]  # free again
+
+
+@pytest.mark.parametrize("data", [
+    {"description": {"type": "pranswer", "sdp": "v=0"}},
+    {"description": {"type": "offer", "sdp": "x" * 100_001}},
+    {"description": {"type": "offer"}},
+    {"candidate": {"candidate": 5}},
+    {"candidate": {"candidate": "c", "sdpMLineIndex": True}},
+    {"candidate": None, "description": None},
+    "offer",
+    None,
+])
+def test_bad_call_signals_are_refused_with_the_event_named(app, alice, data):
+    screen = screen_socket(app)
+    operator = sio(app, alice)
+    operator.emit("call_start", None, callback=True)
+    screen.emit("screen_answer", None, callback=True)
+    ack = operator.emit("call_signal", data, callback=True)
+    assert ack["ok"] is False and "call_signal" in ack["reason"], ack
+
+
+def test_ice_servers_and_auto_answer_from_the_configuration(tmp_path, gateway, clock, ui):
+    from atemr.ui.app import create_app
+
+    config = ui.make_config(tmp_path, screen_auto_answer=True, ice_servers=("stun:stun.example.org:3478",
+                            "turn:turn.example.org:3478"), ice_username="kay", ice_credential="s3cret")
+    app = create_app(config, gateway, clock=clock, hash_method=ui.FAST_SCRYPT)
+    app.extensions["atemr.users"].set_password("admin", ui.ADMIN_PW)
+    admin = app.test_client()
+    ui.login(admin, "admin", ui.ADMIN_PW)
+    screen = screen_socket(app)
+    operator = sio(app, admin)
+    assert operator.emit("call_start", None, callback=True)["ok"]
+    assert call_states(screen)[-1]["ice_servers"] == [
+        {"urls": "stun:stun.example.org:3478"},
+        {"urls": "turn:turn.example.org:3478", "username": "kay", "credential": "s3cret"}]
+    assert call_states(operator)[-1]["state"] == "active"
+
+
+@pytest.mark.parametrize(("ui_settings", "message"), [
+    ({"ice_servers": ("http://stun.example.org",)}, "must start with stun:"),
+    ({"ice_servers": ("turn:turn.example.org",)}, "set ui.ice_username"),
+])
+def test_bad_ice_settings_are_refused(ui_settings, message, ui, tmp_path):
+    from atemr.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=message):
+        ui.make_config(tmp_path, **ui_settings)
