@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -163,14 +163,16 @@ def _add_routines(robot: Robot) -> None:
 def _add_battery(robot: Robot) -> None:
     """The battery watch (`atemr.robot.battery`) after the agent; in simulation with emulated motors, the simulated
     pack that supplies them (`atemr.io.sim.battery`), charging on the active map's dock."""
+    from atemr.io.sim.base import MountedWheel
     from atemr.io.sim.battery import SimBattery
     from atemr.robot.battery import RATE_HZ, BatteryWatch
 
     cfg, parts = robot.config, robot.parts
     maps, sim = parts.maps, parts.sim
     pack = None
-    motors: list[Any] = [getattr(w, "model", None) for w in (sim.left, sim.right)] if sim is not None else []
-    if sim is not None and driver_name(cfg, "motors") == "emulated" and None not in motors:
+    # the emulated motors' models, which the pack supplies (a wheel that is not a mounted motor model has none)
+    motors = [w.model for w in (sim.left, sim.right) if isinstance(w, MountedWheel)] if sim is not None else []
+    if sim is not None and driver_name(cfg, "motors") == "emulated" and len(motors) == 2:
         world = sim
 
         def dock_pose() -> Pose2D | None:
