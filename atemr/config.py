@@ -17,6 +17,7 @@ from typing import Any, Literal
 
 from atemr.errors import ConfigError
 from atemr.io.devices.config import DevicesConfig
+from atemr.skills.body import BodyConfig, RobotBody
 from atemr.skills.localization.config import LocalizationConfig
 from atemr.skills.nav.config import NavConfig
 from atemr.skills.ramp import MotionLimits
@@ -225,6 +226,13 @@ class Config:
     motion: MotionLimits = field(default_factory=MotionLimits)
     localization: LocalizationConfig = field(default_factory=LocalizationConfig)
     nav: NavConfig = field(default_factory=NavConfig)
+    #: The robot's height profile above its footprint (``nav.robot_radius_m``): base, mast, tablet
+    #: (`atemr.skills.body`); the simulator's collisions and the depth obstacle layer's heights use it.
+    body: BodyConfig = field(default_factory=BodyConfig)
+
+    def robot_body(self) -> RobotBody:
+        """The robot's volume: the footprint of ``nav`` with the profile of ``body``."""
+        return self.body.body(self.nav.robot_radius_m)
 
 
 def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:
