@@ -316,7 +316,8 @@ def _add_simulation(robot: Robot) -> tuple[Simulation, SecondaryCore | None]:
         emulators = [left, right]
         wheels = (MountedWheel(left.model, cfg.motors.left_direction),
                   MountedWheel(right.model, cfg.motors.right_direction))
-    sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params_from_config(cfg.sim), wheels=wheels)
+    sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params_from_config(cfg.sim, cfg.robot_body()),
+                           wheels=wheels)
     for component, rate in sim.components():
         robot.add(component, rate)
     for emulator in emulators:

@@ -39,6 +39,7 @@ from atemr.io.sim.scene import Contact, Scene
 from atemr.io.sim.world import Furniture, World, load_world
 from atemr.msgs import CliffReadings, ImuSample, LaserScan, Pose2D
 from atemr.scheduler import Scheduler
+from atemr.skills.body import KAY, RobotBody
 
 log = logging.getLogger(__name__)
 
@@ -63,8 +64,14 @@ class SimParams:
     imu_hz: float = 50.0
     cliff_hz: float = 20.0
     camera_hz: float = 0.0
+    #: The robot's volume (base, mast, tablet): collisions are checked part by part against what is at each
+    #: part's heights. Its base radius is the footprint and must be ``base.footprint_radius_m``.
+    body: RobotBody = KAY
 
     def __post_init__(self) -> None:
+        if not math.isclose(self.body.footprint_radius_m, self.base.footprint_radius_m):
+            raise ConfigError(f"the body's base radius ({self.body.footprint_radius_m}) must be the footprint "
+                              f"({self.base.footprint_radius_m})", path="sim.body")
         for name in ("physics_hz", "lidar_hz", "imu_hz", "cliff_hz"):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0 < value <= 10_000):
@@ -177,13 +184,14 @@ class Simulation:
 
     # -- physics -------------------------------------------------------------------------------
     def clearance_at(self, x: float, y: float) -> Contact:
-        """Signed clearance of the robot's footprint at (x, y) to walls, objects and moving obstacles."""
+        """Signed clearance of the robot's volume at (x, y) to walls, objects and moving obstacles, each part
+        against what is at its heights (people and pets stand on the floor: the base meets them first)."""
         r = self.params.base.footprint_radius_m
-        contact = self.scene.clearance(x, y, r)
+        contact = self.scene.body_clearance(x, y, self.params.body)
         for m in self.movers.items:
             gap = math.hypot(m.x_m - x, m.y_m - y) - m.spec.radius_m - r
             if gap < contact.clearance_m:
-                contact = Contact(gap, m.name)
+                contact = Contact(gap, m.name, "base")
         return contact
 
     def step_to(self, now: float) -> TruePose:
@@ -214,8 +222,8 @@ class Simulation:
             return
         event = self.base.step(t, dt)
         if event is not None:
-            log.info("collision at t=%.2f s with %s at (%.2f, %.2f)", event.t, event.what,
-                     event.pose.x_m, event.pose.y_m)
+            log.info("collision at t=%.2f s: the %s hit %s at (%.2f, %.2f)", event.t, event.part or "base",
+                     event.what, event.pose.x_m, event.pose.y_m)
         self._check_fall(t)
 
     def _check_fall(self, now: float) -> None:
@@ -336,14 +344,16 @@ class Simulation:
         self.command_wheels(*self.wheel_speeds_for(linear_mps, angular_radps))
 
 
-def params_from_config(cfg: SimConfig) -> SimParams:
-    """The simulation parameters named in the robot's configuration (``sim.*``); the rest keep defaults."""
+def params_from_config(cfg: SimConfig, body: RobotBody = KAY) -> SimParams:
+    """The simulation parameters named in the robot's configuration (``sim.*``, and the robot's ``body``); the
+    rest keep defaults."""
     return SimParams(
-        base=BaseParams(slip_std=cfg.wheel_slip, odom_noise_std=cfg.odom_noise),
+        base=BaseParams(slip_std=cfg.wheel_slip, odom_noise_std=cfg.odom_noise,
+                        footprint_radius_m=body.footprint_radius_m),
         lidar=LidarParams(beams=cfg.lidar_beams, noise_std_m=cfg.lidar_noise_m, dropout_prob=cfg.lidar_dropout),
         camera=CameraParams(width=cfg.camera_width, height=cfg.camera_height),
         physics_hz=cfg.physics_hz, lidar_hz=cfg.lidar_hz, imu_hz=cfg.imu_hz, cliff_hz=cfg.cliff_hz,
-        camera_hz=cfg.camera_hz,
+        camera_hz=cfg.camera_hz, body=body,
     )
 
 
