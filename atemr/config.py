@@ -60,6 +60,8 @@ class SimConfig:
     imu_hz: float = field(default=50.0, metadata={"min": 1.0, "max": 1000.0})
     cliff_hz: float = field(default=20.0, metadata={"min": 1.0, "max": 1000.0})
     camera_hz: float = field(default=10.0, metadata={"min": 0.0, "max": 60.0, "help": "camera frames/s (0: off)"})
+    depth_hz: float = field(default=10.0, metadata={
+        "min": 0.0, "max": 90.0, "help": "depth camera frames/s when the depth camera is the simulator's (0: off)"})
     camera_width: int = field(default=640, metadata={"min": 16, "max": 4096})
     camera_height: int = field(default=480, metadata={"min": 16, "max": 4096})
     wheel_slip: float = field(default=0.02, metadata={"min": 0.0, "max": 0.4, "help": "typical wheel slip fraction"})
