@@ -141,4 +141,5 @@ def test_the_robots_example_configuration_loads() -> None:
     assert (config.devices.lidar.driver, config.devices.imu.driver, config.devices.camera.driver,
             config.devices.motors.driver, config.devices.secondary.driver) == ("rplidar", "wt901", "opencv", "rmd",
                                                                                 "esp32")
+    assert config.devices.depth.driver == "realsense"
     assert config.can.interface == "socketcan" and config.can.channel == "can0"
