@@ -12,7 +12,11 @@ grid has the costmap's cells and ``z_resolution_m`` layers between those heights
    into the image and the pixel whose ray crosses it is read (`VoxelLayer._clear`);
 2. **mark**: the voxels that hold at least ``min_points`` points within ``mark_range_m`` (noise grows with
    depth, and a lone flying pixel is no obstacle) are set; points within ``wall_match_m`` of a mapped
-   obstacle are that obstacle seen with some pose error, and are not marked (as the lidar layer does);
+   obstacle are that obstacle seen with some pose error, and are not marked (as the lidar layer does); nor
+   are points within ``lidar_margin_m`` of what the lidar sees now (the frame's ``scan``): those are the lidar
+   layer's, which clears them with every scan and tracks them when they walk. Kept here they would stay behind
+   as a trail wherever a person walked out of the camera's view. Nothing is lost: the costmap keeps the
+   robot's centre 0.4 m from the lidar's obstacles, and its widest part above the base reaches 0.13 m;
 3. **project**: a cell is an obstacle when any voxel of its column is, and the costmap gets those columns
    (`Costmap.set_voxel_columns`): the planners keep away from them like from the lidar's.
 
@@ -31,9 +35,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from atemr.errors import NavigationError
-from atemr.msgs import CameraMount, DepthImage, Pose2D
+from atemr.msgs import CameraMount, DepthImage, LaserScan, Pose2D
 from atemr.skills.body import RobotBody
 from atemr.skills.depth_cloud import DepthProjector, mount_rotation
 from atemr.skills.nav.costmap import Costmap
@@ -56,6 +61,8 @@ class VoxelLayerParams:
     #: diagonal and the camera's noise at a couple of metres).
     clear_margin_m: float = 0.1
     wall_match_m: float = 0.08
+    #: Points this close (in plan) to a return of the frame's lidar scan are the lidar layer's (people, legs).
+    lidar_margin_m: float = 0.25
     #: How far round the robot `clearance` looks for marked cells.
     zone_radius_m: float = 1.5
 
@@ -66,8 +73,10 @@ class VoxelLayerParams:
                 raise NavigationError(f"voxel layer: {name} must be a finite number > 0, got {value!r}")
         if not (math.isfinite(self.floor_margin_m) and 0 <= self.floor_margin_m < self.max_height_m):
             raise NavigationError(f"voxel layer: need 0 <= floor_margin_m < max_height_m, got {self.floor_margin_m}")
-        if self.min_points < 1 or self.stride < 1 or self.wall_match_m < 0 or not self.clear_margin_m >= 0:
-            raise NavigationError("voxel layer: min_points and stride >= 1, wall_match_m and clear_margin_m >= 0")
+        if self.min_points < 1 or self.stride < 1 or not min(self.wall_match_m, self.clear_margin_m,
+                                                                   self.lidar_margin_m) >= 0:
+            raise NavigationError("voxel layer: min_points and stride >= 1; wall_match_m, clear_margin_m and "
+                                  "lidar_margin_m >= 0")
 
     @classmethod
     def for_body(cls, body: RobotBody, margin_m: float = 0.1) -> VoxelLayerParams:
@@ -100,8 +109,6 @@ class VoxelLayer:
         markable = costmap.static_distance_at(xs, ys) > max(p.wall_match_m, 1.5 * self.resolution_m)
         self._markable_flat = markable.reshape(-1)
         self._clears_seen = costmap.clears
-        #: Points marked by the last frame (map frame (x, y, z)), for the dashboard and tests.
-        self.last_marked = 0
 
     # -- frames ----------------------------------------------------------------------------------------------
     def _grid_frame(self, pose: Pose2D) -> tuple[float, float, float, float]:
@@ -130,9 +137,10 @@ class VoxelLayer:
         return (row * w + col) * p.layers + layer, inside
 
     # -- the update --------------------------------------------------------------------------------------------
-    def update(self, image: DepthImage, pose: Pose2D) -> int:
+    def update(self, image: DepthImage, pose: Pose2D, scan: LaserScan | None = None) -> int:
         """Clear along the frame's rays, mark its points, hand the columns to the costmap; returns how many
-        cells hold an obstacle. ``pose`` is the base's map pose when the frame was taken."""
+        cells hold an obstacle. ``pose`` is the base's map pose when the frame was taken; ``scan`` the lidar's
+        latest, whose obstacles this layer leaves to the lidar's layer."""
         if not all(math.isfinite(v) for v in (pose.x_m, pose.y_m, pose.yaw_rad)):
             raise NavigationError(f"voxel layer: robot pose must be finite, got {pose}")
         if self.costmap.clears != self._clears_seen:  # a recovery cleared the costmap: forget the voxels too
@@ -141,7 +149,7 @@ class VoxelLayer:
             self.columns[:] = False
         frame = self._grid_frame(pose)
         cleared = self._clear(image, frame)
-        marked = self._mark(image, frame)
+        marked = self._mark(image, frame, scan)
         self._project(np.concatenate([cleared, marked]))
         self.costmap.set_voxel_columns(self.columns)
         return int(self.columns.sum())
@@ -195,9 +203,10 @@ class VoxelLayer:
             self._mount, self._mount_rotation = image.mount, mount_rotation(image.mount)
         return self._mount_rotation
 
-    def _mark(self, image: DepthImage, frame: tuple[float, float, float, float]) -> NDArray[np.int32]:
-        """Set the voxels that hold at least ``min_points`` of the frame's points within ``mark_range_m``; returns
-        their flat indices."""
+    def _mark(self, image: DepthImage, frame: tuple[float, float, float, float], scan: LaserScan | None
+              ) -> NDArray[np.int32]:
+        """Set the voxels that hold at least ``min_points`` of the frame's points within ``mark_range_m``, away from
+        the map's and the lidar's obstacles; returns their flat indices."""
         p = self.params
         pts = self._projector.points(image)
         origin = self._projector.origin
@@ -205,12 +214,44 @@ class VoxelLayer:
         flat, inside = self._flat(pts[near], frame)
         flat = flat[inside]
         flat = flat[self._markable_flat[flat // p.layers]]
-        self.last_marked = len(flat)
+        if scan is not None and len(flat):
+            flat = flat[~self._lidar_sees(flat // p.layers, scan, frame)]
         if len(flat) and p.min_points > 1:
             voxels, counts = np.unique(flat, return_counts=True)
             flat = voxels[counts >= p.min_points]
         self._voxels_flat[flat] = True
         return flat
+
+    def _lidar_sees(self, cells: NDArray[np.int32], scan: LaserScan, frame: tuple[float, float, float, float]
+                    ) -> NDArray[np.bool_]:
+        """Which of ``cells`` (flat cell indices) lie within ``lidar_margin_m`` of one of the scan's returns: a
+        distance transform over the box the cells span, from the returns that fall in it."""
+        ranges = np.asarray(scan.ranges_m, dtype=np.float64)
+        ok = np.isfinite(ranges) & (ranges >= scan.range_min_m) & (ranges <= scan.range_max_m)
+        if not ok.any():
+            return np.zeros(len(cells), dtype=bool)
+        mount = scan.sensor_pose
+        angles = mount.yaw_rad + scan.angles_rad[ok]
+        returns = np.zeros((int(ok.sum()), 3), dtype=np.float32)
+        returns[:, 0] = mount.x_m + ranges[ok] * np.cos(angles)
+        returns[:, 1] = mount.y_m + ranges[ok] * np.sin(angles)
+        returns[:, 2] = self.params.floor_margin_m  # any height inside the grid: only the cell matters here
+        hit, inside = self._flat(returns, frame)
+        hit_cells = hit[inside] // self.params.layers
+        w = self.shape[1]
+        margin = math.ceil(self.params.lidar_margin_m / self.resolution_m)
+        rows, cols = cells // w, cells % w
+        r0, c0 = int(rows.min()) - margin, int(cols.min()) - margin
+        r1, c1 = int(rows.max()) + margin + 1, int(cols.max()) + margin + 1
+        hr, hc = hit_cells // w, hit_cells % w
+        keep = (hr >= r0) & (hr < r1) & (hc >= c0) & (hc < c1)
+        if not keep.any():
+            return np.zeros(len(cells), dtype=bool)
+        seen = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+        seen[hr[keep] - r0, hc[keep] - c0] = True
+        distance = ndimage.distance_transform_edt(~seen) * self.resolution_m
+        near: NDArray[np.bool_] = distance[rows - r0, cols - c0] <= self.params.lidar_margin_m
+        return near
 
     def _project(self, flat: NDArray[np.int32]) -> None:
         """Recompute the columns inside the box the touched voxels span."""

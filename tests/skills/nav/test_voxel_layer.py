@@ -158,3 +158,18 @@ def test_bad_poses_and_parameters_are_refused(tmp_path):
     with pytest.raises(NavigationError):
         VoxelLayerParams(floor_margin_m=2.0, max_height_m=1.0)
     assert VoxelLayerParams.for_body(KAY).max_height_m == pytest.approx(KAY.height_m + 0.1)
+
+
+def test_what_the_lidar_sees_is_left_to_the_lidar_layer(tmp_path):
+    # a person-sized column the lidar sees: marked here, it would stay behind as a trail once they walk away
+    sim = world(tmp_path, "  - {name: person, circle: [2.5, 2.0, 0.22], height_m: 1.7}\n", SHOE.replace(
+        "2.4, 1.9, 2.6, 2.1", "2.4, 1.2, 2.6, 1.4"))
+    image = sim.depth_camera.render(0.0, sim.pose, sim.scene, sim.movers)
+    scan = sim.read_lidar(0.0)
+    alone = new_layer(sim)
+    alone.update(image, sim.pose)
+    assert (np.abs(marked_xy(alone)[:, 1] - 2.0) < 0.3).any()  # without the scan: the person is marked
+    layer = new_layer(sim)
+    layer.update(image, sim.pose, scan)
+    xy = marked_xy(layer)
+    assert len(xy) > 0 and (np.abs(xy[:, 1] - 1.3) < 0.15).all()  # with it: only the shoe the lidar cannot see
