@@ -21,7 +21,11 @@ grid has the costmap's cells and ``z_resolution_m`` layers between those heights
    (`Costmap.set_voxel_columns`): the planners keep away from them like from the lidar's.
 
 The layer keeps its voxels between frames: what has left the camera's view (the table top right in front of
-the mast, closer than the camera's 0.3 m) stays marked until a ray passes through it. `clearance` gives the
+the mast, closer than the camera's 0.3 m) stays marked until a ray passes through it, or until ``decay_s``
+after it was last seen (the spatio-temporal voxel layer's decay): something that moved while out of view (a
+cat the lidar lost behind the bed) does not stay in the costmap for good. Memory of a table top the robot
+stands at outlives the decay anyway: its farther parts are seen again every frame, and as the robot creeps on
+they are what the stop zone meets. `clearance` gives the
 motion pipeline's slow and stop zones the nearest marked cell ahead, behind and beside the robot, so a
 table top in front of the mast stops the robot as a wall in front of the base does.
 
@@ -63,11 +67,13 @@ class VoxelLayerParams:
     wall_match_m: float = 0.08
     #: Points this close (in plan) to a return of the frame's lidar scan are the lidar layer's (people, legs).
     lidar_margin_m: float = 0.25
+    #: A column not marked again for this long is forgotten (what moved while out of view).
+    decay_s: float = 10.0
     #: How far round the robot `clearance` looks for marked cells.
     zone_radius_m: float = 1.5
 
     def __post_init__(self) -> None:
-        for name in ("max_height_m", "z_resolution_m", "mark_range_m", "zone_radius_m"):
+        for name in ("max_height_m", "z_resolution_m", "mark_range_m", "zone_radius_m", "decay_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise NavigationError(f"voxel layer: {name} must be a finite number > 0, got {value!r}")
@@ -100,6 +106,8 @@ class VoxelLayer:
         self.voxels = np.zeros((*self.shape, p.layers), dtype=bool)
         self._voxels_flat = self.voxels.reshape(-1)  # a view: (row * width + col) * layers + layer
         self.columns = np.zeros(self.shape, dtype=bool)
+        #: When each cell was last marked (image time), for the decay.
+        self._seen_t = np.full(self.shape, -np.inf, dtype=np.float64)
         self._projector = DepthProjector(p.stride)
         self._mount: CameraMount | None = None
         self._mount_rotation = np.eye(3)
@@ -150,7 +158,8 @@ class VoxelLayer:
         frame = self._grid_frame(pose)
         cleared = self._clear(image, frame)
         marked = self._mark(image, frame, scan)
-        self._project(np.concatenate([cleared, marked]))
+        self._seen_t.reshape(-1)[marked // self.params.layers] = image.t
+        self._project(np.concatenate([cleared, marked, self._decay(image.t)]))
         self.costmap.set_voxel_columns(self.columns)
         return int(self.columns.sum())
 
@@ -252,6 +261,15 @@ class VoxelLayer:
         distance = ndimage.distance_transform_edt(~seen) * self.resolution_m
         near: NDArray[np.bool_] = distance[rows - r0, cols - c0] <= self.params.lidar_margin_m
         return near
+
+    def _decay(self, now: float) -> NDArray[np.int32]:
+        """Forget the columns not marked for ``decay_s``; returns the flat index of their first voxel each."""
+        old = np.flatnonzero(self.columns.reshape(-1) & (self._seen_t.reshape(-1) < now - self.params.decay_s))
+        if len(old) == 0:
+            return np.zeros(0, dtype=np.int32)
+        w = self.shape[1]
+        self.voxels[old // w, old % w, :] = False
+        return (old * self.params.layers).astype(np.int32)
 
     def _project(self, flat: NDArray[np.int32]) -> None:
         """Recompute the columns inside the box the touched voxels span."""

@@ -173,3 +173,16 @@ def test_what_the_lidar_sees_is_left_to_the_lidar_layer(tmp_path):
     layer.update(image, sim.pose, scan)
     xy = marked_xy(layer)
     assert len(xy) > 0 and (np.abs(xy[:, 1] - 1.3) < 0.15).all()  # with it: only the shoe the lidar cannot see
+
+
+def test_what_is_not_seen_again_decays(tmp_path):
+    sim = world(tmp_path, SHOE)
+    layer = VoxelLayer(Costmap(sim.world.map), VoxelLayerParams(decay_s=3.0))
+    look(sim, layer)
+    away = Pose2D(1.0, 2.0, math.pi)  # turned round: the shoe is out of view
+    sim.kidnap(away)
+    for t in (1.0, 2.9):
+        layer.update(sim.depth_camera.render(t, away, sim.scene), away)
+        assert layer.columns.any()  # remembered
+    layer.update(sim.depth_camera.render(3.1, away, sim.scene), away)
+    assert not layer.columns.any() and not layer.voxels.any() and not layer.costmap.voxels.any()
