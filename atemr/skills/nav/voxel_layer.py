@@ -11,12 +11,14 @@ grid has the costmap's cells and ``z_resolution_m`` layers between those heights
    voxel is lower down). The rays are traced from the voxels' side: each marked voxel in reach is projected
    into the image and the pixel whose ray crosses it is read (`VoxelLayer._clear`);
 2. **mark**: the voxels that hold at least ``min_points`` points within ``mark_range_m`` (noise grows with
-   depth, and a lone flying pixel is no obstacle) are set; points within ``wall_match_m`` of a mapped
-   obstacle are that obstacle seen with some pose error, and are not marked (as the lidar layer does); nor
+   depth, and a lone flying pixel is no obstacle) are set; points within ``wall_match_m`` (plus
+   ``wall_match_per_m`` per metre of range) of a mapped obstacle are that obstacle seen with depth noise and
+   some pose error, and are not marked, as the lidar layer does (else every wall would narrow a doorway); nor
    are points within ``lidar_margin_m`` of what the lidar sees now (the frame's ``scan``): those are the lidar
    layer's, which clears them with every scan and tracks them when they walk. Kept here they would stay behind
    as a trail wherever a person walked out of the camera's view. Nothing is lost: the costmap keeps the
-   robot's centre 0.4 m from the lidar's obstacles, and its widest part above the base reaches 0.13 m;
+   robot's centre 0.4 m from the lidar's obstacles and its widest part above the base reaches 0.13 m, so
+   nothing within 0.27 m of them can touch it;
 3. **project**: a cell is an obstacle when any voxel of its column is, and the costmap gets those columns
    (`Costmap.set_voxel_columns`): the planners keep away from them like from the lidar's.
 
@@ -25,9 +27,9 @@ the mast, closer than the camera's 0.3 m) stays marked until a ray passes throug
 after it was last seen (the spatio-temporal voxel layer's decay): something that moved while out of view (a
 cat the lidar lost behind the bed) does not stay in the costmap for good. Memory of a table top the robot
 stands at outlives the decay anyway: its farther parts are seen again every frame, and as the robot creeps on
-they are what the stop zone meets. `clearance` gives the
-motion pipeline's slow and stop zones the nearest marked cell ahead, behind and beside the robot, so a
-table top in front of the mast stops the robot as a wall in front of the base does.
+they are what the stop zone meets. `clearance` gives the motion pipeline's slow and stop zones the nearest
+marked cell ahead, behind and beside the robot, so a table top in front of the mast stops the robot as a wall
+in front of the base does.
 
 All of it vectorised numpy over the frame's pixels, no loop per point or ray; no I/O, no clock.
 """
@@ -65,6 +67,7 @@ class VoxelLayerParams:
     #: diagonal and the camera's noise at a couple of metres).
     clear_margin_m: float = 0.1
     wall_match_m: float = 0.08
+    wall_match_per_m: float = 0.02
     #: Points this close (in plan) to a return of the frame's lidar scan are the lidar layer's (people, legs).
     lidar_margin_m: float = 0.25
     #: A column not marked again for this long is forgotten (what moved while out of view).
@@ -79,8 +82,8 @@ class VoxelLayerParams:
                 raise NavigationError(f"voxel layer: {name} must be a finite number > 0, got {value!r}")
         if not (math.isfinite(self.floor_margin_m) and 0 <= self.floor_margin_m < self.max_height_m):
             raise NavigationError(f"voxel layer: need 0 <= floor_margin_m < max_height_m, got {self.floor_margin_m}")
-        if self.min_points < 1 or self.stride < 1 or not min(self.wall_match_m, self.clear_margin_m,
-                                                                   self.lidar_margin_m) >= 0:
+        if self.min_points < 1 or self.stride < 1 or not min(self.wall_match_m, self.wall_match_per_m,
+                                                                   self.clear_margin_m, self.lidar_margin_m) >= 0:
             raise NavigationError("voxel layer: min_points and stride >= 1; wall_match_m, clear_margin_m and "
                                   "lidar_margin_m >= 0")
 
@@ -113,9 +116,9 @@ class VoxelLayer:
         self._mount_rotation = np.eye(3)
         rows, cols = np.indices(self.shape)
         xs, ys = costmap.map.cell_to_world(rows, cols)
-        #: Cells that are not a mapped obstacle seen from a pose a little off (those are never marked).
-        markable = costmap.static_distance_at(xs, ys) > max(p.wall_match_m, 1.5 * self.resolution_m)
-        self._markable_flat = markable.reshape(-1)
+        #: Distance from each cell to the map's obstacles: points this near one (by range) are that obstacle.
+        self._static_flat = costmap.static_distance_at(xs, ys).astype(np.float32).reshape(-1)
+        self._min_match = max(p.wall_match_m, 1.5 * self.resolution_m)
         self._clears_seen = costmap.clears
 
     # -- frames ----------------------------------------------------------------------------------------------
@@ -219,10 +222,13 @@ class VoxelLayer:
         p = self.params
         pts = self._projector.points(image)
         origin = self._projector.origin
-        near = (pts[:, 0] - origin[0]) ** 2 + (pts[:, 1] - origin[1]) ** 2 <= np.float32(p.mark_range_m ** 2)
+        plan_sq = (pts[:, 0] - origin[0]) ** 2 + (pts[:, 1] - origin[1]) ** 2
+        near = plan_sq <= np.float32(p.mark_range_m ** 2)
         flat, inside = self._flat(pts[near], frame)
         flat = flat[inside]
-        flat = flat[self._markable_flat[flat // p.layers]]
+        match = np.maximum(np.float32(self._min_match), np.float32(p.wall_match_m) + np.float32(p.wall_match_per_m)
+                           * np.sqrt(plan_sq[near][inside]))
+        flat = flat[self._static_flat[flat // p.layers] > match]
         if scan is not None and len(flat):
             flat = flat[~self._lidar_sees(flat // p.layers, scan, frame)]
         if len(flat) and p.min_points > 1:

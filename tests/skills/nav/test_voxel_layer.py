@@ -186,3 +186,10 @@ def test_what_is_not_seen_again_decays(tmp_path):
         assert layer.columns.any()  # remembered
     layer.update(sim.depth_camera.render(3.1, away, sim.scene), away)
     assert not layer.columns.any() and not layer.voxels.any() and not layer.costmap.voxels.any()
+
+
+def test_a_mapped_wall_seen_far_off_with_the_cameras_noise_is_not_marked(tmp_path):
+    sim = world(tmp_path)  # nothing but the room's walls, all in the map
+    layer = new_layer(sim)
+    for yaw in (0.0, 0.5, -0.5, math.pi / 2):  # the east wall 2.4 m off, the corners, the north wall
+        assert look(sim, layer, Pose2D(3.4, 2.0, yaw), frames=5) == 0
