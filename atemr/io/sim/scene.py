@@ -151,6 +151,11 @@ class Scene:
         labels.setflags(write=False)
         return labels
 
+    def blocked_at(self, z_m: float) -> NDArray[np.bool_]:
+        """The cells where something crosses the horizontal plane at ``z_m`` (walls, objects spanning it): what
+        a lidar scanning that plane can see, and what mapping with it can draw."""
+        return self.caster_at(z_m).blocked
+
     def caster_at(self, z_m: float) -> GridCaster:
         """A ray caster through what crosses the horizontal plane at ``z_m`` (walls, objects spanning it): the
         lidar's view. The objects under the plane and the table tops above it are not in it."""
