@@ -78,7 +78,8 @@ def test_bad_input_is_refused() -> None:
 
 def lidar_truth() -> OccupancyMap:
     """The studio's map as a lidar can draw it: its occupied cells where something crosses the lidar's plane
-    (the dining table's legs, not the footprint of its top, which the map shows)."""
+    (the dining table's legs, not the footprint of its top). The shipped map is drawn so already
+    (`atemr.worlds.make_studio`); taken from the scene, the truth stays the lidar's whatever the map says."""
     world = load_world("studio")
     blocked = Scene(world).blocked_at(LidarParams().height_m)
     data = world.map.data.copy()
