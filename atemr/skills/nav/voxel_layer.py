@@ -19,7 +19,15 @@ grid has the costmap's cells and ``z_resolution_m`` layers between those heights
    as a trail wherever a person walked out of the camera's view. Nothing is lost: the costmap keeps the
    robot's centre 0.4 m from the lidar's obstacles and its widest part above the base reaches 0.13 m, so
    nothing within 0.27 m of them can touch it;
-3. **project**: a cell is an obstacle when any voxel of its column is, and the costmap gets those columns
+3. **clear by the lidar**: a voxel wholly above the lidar's plane (``lidar_height_m``) and at most
+   ``lidar_band_m`` above it, in a cell a beam of the frame's scan passes through (its return is farther by
+   ``clear_margin_m``), is empty: anything there standing on the floor would cross the plane and return that
+   beam. The far edge of a walking cat's back (0.35 m), beyond ``lidar_margin_m`` of its returns and out of the
+   camera's view once the cat walked on, is forgotten at the next scan instead of closing a passage until the
+   decay; a table top or shelf above the band and a shoe under the plane are the camera's alone. A thing hanging
+   just above the plane over free floor is forgotten too while out of view (the camera marks it again whenever
+   it sees it);
+4. **project**: a cell is an obstacle when any voxel of its column is, and the costmap gets those columns
    (`Costmap.set_voxel_columns`): the planners keep away from them like from the lidar's.
 
 The layer keeps its voxels between frames: what has left the camera's view (the table top right in front of
@@ -70,6 +78,9 @@ class VoxelLayerParams:
     wall_match_per_m: float = 0.02
     #: Points this close (in plan) to a return of the frame's lidar scan are the lidar layer's (people, legs).
     lidar_margin_m: float = 0.25
+    #: The lidar's scan plane above the floor, and how far above it the lidar's free beams clear the voxels.
+    lidar_height_m: float = 0.2
+    lidar_band_m: float = 0.25
     #: A column not marked again for this long is forgotten (what moved while out of view).
     decay_s: float = 10.0
     #: How far round the robot `clearance` looks for marked cells.
@@ -83,9 +94,10 @@ class VoxelLayerParams:
         if not (math.isfinite(self.floor_margin_m) and 0 <= self.floor_margin_m < self.max_height_m):
             raise NavigationError(f"voxel layer: need 0 <= floor_margin_m < max_height_m, got {self.floor_margin_m}")
         if self.min_points < 1 or self.stride < 1 or not min(self.wall_match_m, self.wall_match_per_m,
-                                                                   self.clear_margin_m, self.lidar_margin_m) >= 0:
-            raise NavigationError("voxel layer: min_points and stride >= 1; wall_match_m, clear_margin_m and "
-                                  "lidar_margin_m >= 0")
+                                                                   self.clear_margin_m, self.lidar_margin_m,
+                                                                   self.lidar_height_m, self.lidar_band_m) >= 0:
+            raise NavigationError("voxel layer: min_points and stride >= 1; wall_match_m, clear_margin_m, "
+                                  "lidar_margin_m, lidar_height_m and lidar_band_m >= 0")
 
     @classmethod
     def for_body(cls, body: RobotBody, margin_m: float = 0.1) -> VoxelLayerParams:
@@ -95,6 +107,14 @@ class VoxelLayerParams:
     @property
     def layers(self) -> int:
         return max(1, math.ceil((self.max_height_m - self.floor_margin_m) / self.z_resolution_m))
+
+    @property
+    def lidar_layers(self) -> tuple[int, int]:
+        """The layers [first, end) wholly between the lidar's plane and ``lidar_band_m`` above it."""
+        eps = 1e-9
+        first = math.ceil((self.lidar_height_m - self.floor_margin_m) / self.z_resolution_m - eps)
+        end = math.floor((self.lidar_height_m + self.lidar_band_m - self.floor_margin_m) / self.z_resolution_m + eps)
+        return max(first, 0), min(max(end, 0), self.layers)
 
 
 class VoxelLayer:
@@ -160,6 +180,8 @@ class VoxelLayer:
             self.columns[:] = False
         frame = self._grid_frame(pose)
         cleared = self._clear(image, frame)
+        if scan is not None:
+            cleared = np.concatenate([cleared, self._clear_by_lidar(scan, frame)])
         marked = self._mark(image, frame, scan)
         self._seen_t.reshape(-1)[marked // self.params.layers] = image.t
         self._project(np.concatenate([cleared, marked, self._decay(image.t)]))
@@ -205,6 +227,50 @@ class VoxelLayer:
         measured[seen] = image.depth_m[v[seen].astype(np.intp), u[seen].astype(np.intp)]
         valid = (measured >= image.range_min_m) & (measured <= image.range_max_m)
         through = seen & valid & (measured > z + p.clear_margin_m)
+        flat = ((rows[through] * w + cols[through]) * p.layers + layers[through]).astype(np.int32)
+        self._voxels_flat[flat] = False
+        return flat
+
+    def _clear_by_lidar(self, scan: LaserScan, frame: tuple[float, float, float, float]) -> NDArray[np.int32]:
+        """Empty the marked voxels of the lidar's band (`VoxelLayerParams.lidar_layers`) in cells a beam of
+        ``scan`` passes through; returns their flat indices. From the voxels' side, as `_clear`: each one's cell
+        centre gives a bearing from the lidar, the beam nearest that bearing a range, and a valid return farther
+        than the centre by ``clear_margin_m`` means the beam crossed the cell at the lidar's plane."""
+        p = self.params
+        first, end = p.lidar_layers
+        empty = np.zeros(0, dtype=np.int32)
+        ranges = np.asarray(scan.ranges_m, dtype=np.float64)
+        if end <= first or len(ranges) == 0 or scan.angle_increment_rad <= 0:
+            return empty
+        res = self.resolution_m
+        c, s, gx, gy = frame
+        mount = scan.sensor_pose
+        lx = gx + c * mount.x_m - s * mount.y_m
+        ly = gy + s * mount.x_m + c * mount.y_m
+        reach = math.ceil(scan.range_max_m / res) + 1
+        h, w = self.shape
+        r0, c0 = math.floor(ly / res), math.floor(lx / res)
+        rs, re, cs, ce = max(r0 - reach, 0), min(r0 + reach + 1, h), max(c0 - reach, 0), min(c0 + reach + 1, w)
+        if rs >= re or cs >= ce or not self.columns[rs:re, cs:ce].any():
+            return empty
+        rows, cols, layers = np.nonzero(self.voxels[rs:re, cs:ce, first:end])
+        if len(rows) == 0:
+            return empty
+        rows, cols, layers = rows + rs, cols + cs, layers + first
+        ex = (cols + 0.5) * res - lx
+        ey = (rows + 0.5) * res - ly
+        dist = np.hypot(ex, ey)
+        # the bearing in the lidar's frame: grid-frame bearing less the robot's yaw and the lidar's own
+        bearing = np.arctan2(ey, ex) - math.atan2(s, c) - mount.yaw_rad
+        offset = np.mod(bearing - scan.angle_min_rad, 2 * math.pi)
+        beam = np.rint(offset / scan.angle_increment_rad).astype(np.intp)
+        beam[beam == round(2 * math.pi / scan.angle_increment_rad)] = 0  # a full turn is the first beam again
+        on = beam < len(ranges)
+        measured = np.full(len(dist), np.nan)
+        measured[on] = ranges[beam[on]]
+        with np.errstate(invalid="ignore"):
+            valid = (measured >= scan.range_min_m) & (measured <= scan.range_max_m)
+            through = valid & (measured > dist + p.clear_margin_m)
         flat = ((rows[through] * w + cols[through]) * p.layers + layers[through]).astype(np.int32)
         self._voxels_flat[flat] = False
         return flat

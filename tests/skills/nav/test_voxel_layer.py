@@ -193,3 +193,25 @@ def test_a_mapped_wall_seen_far_off_with_the_cameras_noise_is_not_marked(tmp_pat
     layer = new_layer(sim)
     for yaw in (0.0, 0.5, -0.5, math.pi / 2):  # the east wall 2.4 m off, the corners, the north wall
         assert look(sim, layer, Pose2D(3.4, 2.0, yaw), frames=5) == 0
+
+
+def test_what_the_lidar_now_sees_through_is_cleared_above_its_plane_and_a_table_top_is_not(tmp_path):
+    # a cat-sized thing (0.35 m): the far part of its top lies beyond the lidar margin of its returns
+    sim = world(tmp_path, "  - {name: ottoman, box: [2.2, 1.7, 2.9, 2.3], height_m: 0.35}\n", TABLE, SHOE.replace(
+        "2.4, 1.9, 2.6, 2.1", "2.4, 1.2, 2.6, 1.4"))
+    layer = new_layer(sim)
+    image = sim.depth_camera.render(0.0, sim.pose, sim.scene, sim.movers)
+    layer.update(image, sim.pose, sim.read_lidar(0.0))
+    xy = marked_xy(layer)
+    top = (np.abs(xy[:, 1] - 2.0) < 0.3) & (xy[:, 0] > 2.4) & (xy[:, 0] < 2.95)
+    assert top.any()  # the far part of its top, the camera's
+    assert (xy[:, 0] > 2.95).any()  # the table top
+    ottoman = next(i for i, item in sim.scene.objects.items() if item.name == "ottoman")
+    sim.remove_obstacle(ottoman)
+    away = Pose2D(1.0, 2.0, math.pi)  # turned round: only the lidar sees where it was
+    sim.kidnap(away)
+    layer.update(sim.depth_camera.render(0.1, away, sim.scene, sim.movers), away, sim.read_lidar(0.1))
+    xy = marked_xy(layer)
+    assert not ((np.abs(xy[:, 1] - 2.0) < 0.3) & (xy[:, 0] < 2.95)).any()  # its beams pass: gone at once
+    assert (xy[:, 0] > 2.95).any()  # the lidar passes under the table top: still marked
+    assert (np.abs(xy[:, 1] - 1.3) < 0.15).any()  # the shoe under the lidar's plane: still marked
