@@ -18,6 +18,7 @@ from typing import Any, Literal
 from atemr.errors import ConfigError
 from atemr.io.devices.config import DevicesConfig
 from atemr.skills.battery import BatteryParams
+from atemr.skills.body import BodyConfig, RobotBody
 from atemr.skills.localization.config import LocalizationConfig
 from atemr.skills.nav.config import NavConfig
 from atemr.skills.ramp import MotionLimits
@@ -64,6 +65,8 @@ class SimConfig:
     imu_hz: float = field(default=50.0, metadata={"min": 1.0, "max": 1000.0})
     cliff_hz: float = field(default=20.0, metadata={"min": 1.0, "max": 1000.0})
     camera_hz: float = field(default=10.0, metadata={"min": 0.0, "max": 60.0, "help": "camera frames/s (0: off)"})
+    depth_hz: float = field(default=10.0, metadata={
+        "min": 0.0, "max": 90.0, "help": "depth camera frames/s when the depth camera is the simulator's (0: off)"})
     camera_width: int = field(default=640, metadata={"min": 16, "max": 4096})
     camera_height: int = field(default=480, metadata={"min": 16, "max": 4096})
     wheel_slip: float = field(default=0.02, metadata={"min": 0.0, "max": 0.4, "help": "typical wheel slip fraction"})
@@ -261,6 +264,13 @@ class Config:
     nav: NavConfig = field(default_factory=NavConfig)
     #: The battery pack, its state-of-charge estimator and the limits the robot reacts at (`atemr.skills.battery`).
     battery: BatteryParams = field(default_factory=BatteryParams)
+    #: The robot's height profile above its footprint (``nav.robot_radius_m``): base, mast, tablet
+    #: (`atemr.skills.body`); the simulator's collisions and the depth obstacle layer's heights use it.
+    body: BodyConfig = field(default_factory=BodyConfig)
+
+    def robot_body(self) -> RobotBody:
+        """The robot's volume: the footprint of ``nav`` with the profile of ``body``."""
+        return self.body.body(self.nav.robot_radius_m)
 
 
 def env_layer(environ: Mapping[str, str]) -> dict[str, Any]:

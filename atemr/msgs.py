@@ -94,3 +94,44 @@ class CliffReadings:
     front_left_m: float
     front_right_m: float
     rear_m: float
+
+
+@dataclass(frozen=True)
+class CameraMount:
+    """Where a camera sits on the robot: its optical centre in the base frame (metres, z up from the floor)
+    and where it looks: ``pitch_rad`` positive tilts it down (REP 103), ``yaw_rad`` turns it left."""
+
+    x_m: float = 0.0
+    y_m: float = 0.0
+    z_m: float = 0.0
+    pitch_rad: float = 0.0
+    yaw_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class DepthImage:
+    """One depth frame, as a RealSense gives it: ``depth_m[v, u]`` is the distance along the optical axis
+    (z-depth, not the range along the ray) of the surface seen by pixel (u, v), 0 where there is no data.
+
+    The pinhole intrinsics (``fx``, ``fy``, ``cx``, ``cy``, pixels; the optical frame has x right, y down,
+    z forward) turn a pixel back into a 3-D point; ``mount`` places the camera on the robot. Readings outside
+    ``range_min_m``..``range_max_m`` are already 0.
+    """
+
+    t: float
+    depth_m: NDArray[np.float32]
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    range_min_m: float
+    range_max_m: float
+    mount: CameraMount = field(default_factory=CameraMount)
+
+    @property
+    def width(self) -> int:
+        return int(self.depth_m.shape[1])
+
+    @property
+    def height(self) -> int:
+        return int(self.depth_m.shape[0])

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
+from atemr.domain.maps import OCCUPIED, OccupancyMap
 from atemr.io.sim.scene import Scene
 from atemr.io.sim.world import World, load_world
 from atemr.msgs import Pose2D
@@ -79,20 +80,31 @@ def free_space(world: World, params: NavParams | None = None, *, margin_m: float
                ) -> tuple[np.ndarray, np.ndarray]:
     """(where a start or goal may be, connected component label of each cell of the space the robot can use).
 
-    Usable: the navigator's static costmap below INSCRIBED with ``margin_m`` to spare, farther than the inscribed
+    Usable: the navigator's static costmap (of the map with the mapped furniture's whole footprint: a table top
+    above the lidar's plane too) below INSCRIBED with ``margin_m`` to spare, farther than the inscribed
     radius plus the obstacle layer's padding from unmapped furniture, not over or next to a drop zone. Start/goal
     cells keep ``margin_m`` more from everything (the goal check judges the estimate, which may be off by a few cm).
     """
     p = params or NavParams()
     res = world.map.resolution_m
-    costmap = Costmap(world.map, p.costmap)
+    # The robot's whole volume must fit: the mapped furniture counts at every height, the footprint of a table
+    # top the lidar (and so the map) sees only the legs of included, as if it were drawn in the map.
+    scene = Scene(world)
+    rows, cols = np.indices(world.map.data.shape)
+    xs, ys = world.map.cell_to_world(rows, cols)
+    known = world.map.occupied.copy()
+    for item in world.furniture:
+        if item.mapped:
+            known |= item.contains(xs, ys)
+    grid = world.map.data.copy()
+    grid[known] = OCCUPIED
+    costmap = Costmap(OccupancyMap(grid, res, world.map.origin, name=world.map.name), p.costmap)
     usable = costmap.static_cost < INSCRIBED
     # A passage counts when the robot fits with a cell to spare (0.7 m for KAY: the studio's 0.8 m doorways),
     # not through a one-cell slit of the inscribed zone (a 0.65 m gap between a table and a wall).
-    walls = world.map.occupied | world.map.unknown
+    walls = known | world.map.unknown
     usable &= ndimage.distance_transform_edt(~walls, sampling=res) > p.costmap.inscribed_radius_m + margin_m
-    scene = Scene(world)
-    unmapped = scene.blocked & ~world.map.occupied
+    unmapped = scene.blocked & ~known
     reach = p.costmap.inscribed_radius_m + p.costmap.obstacle_padding_m
     if unmapped.any():
         usable &= ndimage.distance_transform_edt(~unmapped, sampling=res) > reach

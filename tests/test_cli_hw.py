@@ -47,7 +47,7 @@ def test_check_lists_every_device_and_exits_0_when_the_critical_ones_answer(emul
     assert main(["hw", "check", "--config", str(config), "--seconds", "1.5", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     rows = {r["device"]: r for r in report["devices"]}
-    assert report["ok"] and list(rows) == ["lidar", "imu", "camera", "motors", "secondary"]
+    assert report["ok"] and list(rows) == ["lidar", "imu", "camera", "depth", "motors", "secondary"]
     assert rows["lidar"]["ok"] and rows["lidar"]["port"] == lidar.port and "A2M8" in rows["lidar"]["model"]
     assert "fw 1.29" in rows["lidar"]["model"] and 7 <= rows["lidar"]["rate_hz"] <= 13  # 10 revolutions/s
     assert rows["imu"]["ok"] and rows["imu"]["model"] == "WT901" and 35 <= rows["imu"]["rate_hz"] <= 65  # 50 Hz
@@ -141,4 +141,5 @@ def test_the_robots_example_configuration_loads() -> None:
     assert (config.devices.lidar.driver, config.devices.imu.driver, config.devices.camera.driver,
             config.devices.motors.driver, config.devices.secondary.driver) == ("rplidar", "wt901", "opencv", "rmd",
                                                                                 "esp32")
+    assert config.devices.depth.driver == "realsense"
     assert config.can.interface == "socketcan" and config.can.channel == "can0"

@@ -97,7 +97,8 @@ class SimCommand:
                 inputs: MotionInputs = robot.parts.inputs
                 robot.add(Ticker("sim.joystick", lambda now: inputs.operate(Twist(v, w), now)), 10.0)
         else:
-            sim = build_simulation(config.sim.world, config.sim.seed, params=params_from_config(config.sim))
+            params = params_from_config(config.sim, config.robot_body())
+            sim = build_simulation(config.sim.world, config.sim.seed, params=params)
             sim.command_twist(v, w)
             # The clock starts after the (slow) building, so a real-time run is paced from its first tick.
             clock = SimClock() if args.headless else RealTimeSimClock(speed=config.sim.speed)

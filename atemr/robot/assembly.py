@@ -30,7 +30,7 @@ from atemr.errors import AtemrError, ConfigError, HardwareError
 from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.io.can.supervisor import BusSupervisor
 from atemr.io.devices.base import fresh
-from atemr.io.devices.drivers import DeviceContext, Devices, build_devices, driver_name, needs_world
+from atemr.io.devices.drivers import DeviceContext, Devices, build_devices, depth_mount, driver_name, needs_world
 from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.recording.mcap_writer import SUFFIX, RecordingWriter
@@ -54,6 +54,7 @@ from atemr.robot.wheels import WheelOdometryFeed
 from atemr.scheduler import Component, Scheduler
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.motion_pipeline import ControlInputs, MotionControl, MotionPipeline
+from atemr.skills.nav.voxel_layer import VoxelLayerParams
 from atemr.skills.ramp import checked_limits
 
 if TYPE_CHECKING:
@@ -251,8 +252,11 @@ def _add_agent(
     def measured() -> Twist | None:
         return None if control.last is None else control.last.twist
 
+    # The depth camera's obstacle layer (nav.depth_layer): up to the robot's height, into the costmap and the zones.
+    voxels = VoxelLayerParams.for_body(cfg.robot_body()) if cfg.nav.depth_layer else None
     navigation = RobotNavigation(maps, localization, scan=lambda: devices.lidar.latest, velocity=measured,
-                                 params=cfg.nav.nav_params(primary.pipeline.limits))
+                                 params=cfg.nav.nav_params(primary.pipeline.limits), depth=devices.depth,
+                                 depth_layer=voxels, on_clearance=inputs.set_depth_clearance)
     agent = Agent.from_config(cfg, port, SecondaryLinkPort(primary.link), navigation=navigation, on_halt=robot.stop)
     robot.add(agent, cfg.agent.rate_hz)
     # Hot reload: edits of the agent document and the missions are validated and handed to the agent.
@@ -367,7 +371,10 @@ def _add_simulation(robot: Robot) -> tuple[Simulation, SecondaryCore | None]:
         emulators = [left, right]
         wheels = (MountedWheel(left.model, cfg.motors.left_direction),
                   MountedWheel(right.model, cfg.motors.right_direction))
-    sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params_from_config(cfg.sim), wheels=wheels)
+    params = params_from_config(cfg.sim, cfg.robot_body(), depth_mount(cfg.devices.depth))
+    if driver_name(cfg, "depth") != "sim":
+        params = replace(params, depth_hz=0.0)  # nobody reads the simulated depth camera: do not render it
+    sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params, wheels=wheels)
     for component, rate in sim.components():
         robot.add(component, rate)
     for emulator in emulators:

@@ -128,7 +128,7 @@ class TruthWatch:
         truth = self.sim.pose
         return {
             "collisions": len(hits),
-            "collision_list": [{"t": round(c.t, 3), "what": c.what, "x_m": round(c.pose.x_m, 3),
+            "collision_list": [{"t": round(c.t, 3), "what": c.what, "part": c.part, "x_m": round(c.pose.x_m, 3),
                                 "y_m": round(c.pose.y_m, 3)} for c in hits],
             "falls": [{"t": round(f.t, 3), "zone": f.zone} for f in self.sim.falls],
             "true_pose": {"x_m": truth.x_m, "y_m": truth.y_m, "yaw_rad": truth.yaw_rad},

@@ -15,7 +15,7 @@ import threading
 from dataclasses import dataclass, field
 
 from atemr.msgs import CliffReadings, LaserScan, Twist
-from atemr.skills.motion_pipeline import ControlInputs, Mode, TimedTwist
+from atemr.skills.motion_pipeline import ControlInputs, Mode, TimedClearance, TimedTwist
 
 Source = str  # "joystick" | "navigation" | "agent"
 
@@ -35,6 +35,7 @@ class MotionInputs:
     _twists: dict[Source, TimedTwist] = field(default_factory=dict)
     _operator: TimedTwist | None = None
     _stops: set[str] = field(default_factory=set)
+    _depth: TimedClearance | None = None
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def offer(self, source: Source, twist: Twist, t: float) -> None:
@@ -72,6 +73,11 @@ class MotionInputs:
             else:
                 self._stops.discard(reason)
 
+    def set_depth_clearance(self, clearance: TimedClearance | None) -> None:
+        """The depth obstacle layer's nearest obstacles round the robot (the slow and stop zones read them)."""
+        with self._lock:
+            self._depth = clearance
+
     @property
     def safety_stops(self) -> frozenset[str]:
         with self._lock:
@@ -84,5 +90,5 @@ class MotionInputs:
                 now=now, scan=scan, cliff=cliff,
                 joystick=self._twists.get("joystick"), navigation=self._twists.get("navigation"),
                 agent=self._twists.get("agent"), mode=self.mode, awareness=self.awareness,
-                safety_stop=bool(self._stops),
+                safety_stop=bool(self._stops), depth_clearance=self._depth,
             )

@@ -4,6 +4,10 @@
 module gives it its inputs on the robot (the localized map pose, the latest scan, the localization flag,
 the measured twist) and gives the navigator each new map's costmap, prepared off the robot's thread when
 the map service switches maps (`atemr.robot.mapping.MapUser`).
+
+With a depth camera it also runs the depth obstacle layer (`atemr.skills.nav.voxel_layer`) on the navigator's
+costmap: every frame is folded in at the localized pose, and the layer's nearest obstacles round the robot go
+to the motion pipeline's slow and stop zones (``on_clearance``), whether the robot navigates or is driven.
 """
 
 from __future__ import annotations
@@ -11,11 +15,14 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from atemr.domain.maps import OccupancyMap
-from atemr.msgs import LaserScan, Pose2D, Twist
+from atemr.io.devices.base import Device
+from atemr.msgs import DepthImage, LaserScan, Pose2D, Twist
 from atemr.robot.mapping import MapService
 from atemr.robot.navigator_port import NavigatorPort
 from atemr.skills.localization.pipeline import LocalizationPipeline
+from atemr.skills.motion_pipeline import TimedClearance
 from atemr.skills.nav.navigator import Navigator, NavMap, NavParams
+from atemr.skills.nav.voxel_layer import VoxelLayer, VoxelLayerParams
 
 
 class RobotNavigation(NavigatorPort):
@@ -23,13 +30,34 @@ class RobotNavigation(NavigatorPort):
 
     def __init__(self, maps: MapService, localization: LocalizationPipeline,
                  scan: Callable[[], LaserScan | None], velocity: Callable[[], Twist | None],
-                 params: NavParams | None = None) -> None:
+                 params: NavParams | None = None, *, depth: Device[DepthImage] | None = None,
+                 depth_layer: VoxelLayerParams | None = None,
+                 on_clearance: Callable[[TimedClearance], None] | None = None) -> None:
         super().__init__(None, pose=localization.map_pose, scan=scan, localized=lambda: localization.localized,
                          velocity=velocity, places=lambda: maps.places)
         self.params = params
+        self._map_pose = localization.map_pose
+        #: The depth obstacle layer's settings (None: the layer is off), the layer on the current costmap.
+        self.depth_layer = depth_layer
+        self.voxels: VoxelLayer | None = None
+        self._on_clearance = on_clearance
         if maps.active is not None:
             self.use_map(maps.active, None)
         maps.add_map_user(self)
+        if depth is not None and depth_layer is not None:
+            depth.subscribe(self.on_depth)
+
+    def on_depth(self, image: DepthImage) -> None:
+        """A depth frame into the layer at the localized pose (nothing before a map and a pose)."""
+        navigator, pose = self.navigator, self._map_pose()
+        if navigator is None or pose is None or self.depth_layer is None:
+            return
+        layer = self.voxels
+        if layer is None or layer.costmap is not navigator.costmap:  # a new map: a new grid
+            layer = self.voxels = VoxelLayer(navigator.costmap, self.depth_layer)
+        layer.update(image, pose, self._scan())
+        if self._on_clearance is not None:
+            self._on_clearance(TimedClearance(layer.clearance(pose), image.t))
 
     # -- the map service's MapUser -------------------------------------------------------------------
     def prepare_map(self, grid: OccupancyMap) -> NavMap:

@@ -27,6 +27,10 @@ Decisions beyond the single skills (docs/navigation.md#the-motion-pipeline, docs
   the driver's period and the motors' lag), so it stops at or beyond the stop distance.
 * A scan older than ``scan_max_age_s`` is no scan: the ramp drives blind at slow-zone limits and the
   reactive engine is silent.
+* What the depth camera's obstacle layer holds near the robot (`ControlInputs.depth_clearance`: a table top
+  in front of the mast, a shoe under the lidar's plane) joins the lidar's clearances, nearest wins, aged by
+  the distance driven since it was computed like the scan's: the slow and stop zones treat a table top like a
+  wall. One older than ``scan_max_age_s`` is ignored (the depth device's health says why).
 """
 
 from __future__ import annotations
@@ -73,6 +77,14 @@ class TimedTwist:
 
 
 @dataclass(frozen=True)
+class TimedClearance:
+    """Nearest obstacles by direction from another source than the lidar (the depth layer), as of ``t``."""
+
+    clearance: Clearance
+    t: float
+
+
+@dataclass(frozen=True)
 class ControlInputs:
     """Everything one control tick reads."""
 
@@ -85,6 +97,8 @@ class ControlInputs:
     mode: Mode = "MANUAL"
     awareness: bool = False
     safety_stop: bool = False
+    #: The depth obstacle layer's clearances (`atemr.skills.nav.voxel_layer.VoxelLayer.clearance`), if any.
+    depth_clearance: TimedClearance | None = None
     #: New limits to apply before this tick (validated; rejected → `ConfigError`, old limits kept).
     limits: MotionLimits | Mapping[str, Any] | None = None
 
@@ -194,6 +208,8 @@ class MotionPipeline:
         # dead reckoning along the heading from our own commands, to age the scan's clearances
         self._travel_m = 0.0
         self._travel_at_scan_m = 0.0
+        self._depth: TimedClearance | None = None
+        self._travel_at_depth_m = 0.0
         self._last_now: float | None = None
         self._last_v = 0.0
 
@@ -218,6 +234,22 @@ class MotionPipeline:
             self._scan = scan
             self._travel_at_scan_m = self._travel_m - self._last_v * max(0.0, now - scan.t)
         return self._hex
+
+    def _aged(self, clearance: Clearance, travel_then_m: float) -> Clearance:
+        """``clearance`` as of now: reduced by the distance driven (by our own commands) since it was measured."""
+        moved = self._travel_m - travel_then_m
+        return Clearance(clearance.front_m - max(moved, 0.0), clearance.rear_m - max(-moved, 0.0), clearance.side_m)
+
+    def _with_depth(self, clearance: Clearance, depth: TimedClearance | None, now: float) -> Clearance:
+        """The lidar's clearances with the depth layer's, nearest wins (a stale depth clearance is ignored)."""
+        if depth is None or not (now - depth.t <= self.settings.scan_max_age_s):
+            return clearance
+        if depth is not self._depth:
+            self._depth = depth
+            self._travel_at_depth_m = self._travel_m - self._last_v * max(0.0, now - depth.t)
+        seen = self._aged(depth.clearance, self._travel_at_depth_m)
+        return Clearance(min(clearance.front_m, seen.front_m), min(clearance.rear_m, seen.rear_m),
+                         min(clearance.side_m, seen.side_m))
 
     def _take_inputs(self, inputs: ControlInputs) -> None:
         """Check the time and mode, count the distance driven since the last tick, apply new limits, note a mode
@@ -282,9 +314,8 @@ class MotionPipeline:
             self.ramp.halt()  # lost input or safety stop: stop now, not along the ramp
         clearance = None
         if hexes is not None:
-            front, rear, side = hexes.nearest_by_direction()
-            moved = self._travel_m - self._travel_at_scan_m
-            clearance = Clearance(front - max(moved, 0.0), rear - max(-moved, 0.0), side)
+            clearance = self._aged(Clearance(*hexes.nearest_by_direction()), self._travel_at_scan_m)
+            clearance = self._with_depth(clearance, inputs.depth_clearance, now)
         ramped = self.ramp.step(now, chosen.twist, clearance, command=command)
         verdict = self.cliff.check(now, ramped.twist, inputs.cliff)
         if verdict.stopped:
@@ -358,5 +389,6 @@ __all__ = [
     "MotionControl",
     "MotionPipeline",
     "PipelineSettings",
+    "TimedClearance",
     "TimedTwist",
 ]

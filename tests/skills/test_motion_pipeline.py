@@ -27,9 +27,10 @@ from atemr.skills.motion_pipeline import (
     MotionControl,
     MotionPipeline,
     PipelineSettings,
+    TimedClearance,
     TimedTwist,
 )
-from atemr.skills.ramp import MotionLimits
+from atemr.skills.ramp import Clearance, MotionLimits
 
 DT = 0.02
 FOOTPRINT_M = 0.25
@@ -448,3 +449,39 @@ def test_motion_control_commands_zero_when_the_tick_fails():
     with pytest.raises(ConfigError):
         control.tick(0.0)
     assert sent == [WheelSpeeds()]
+
+
+# ---- the depth layer's clearances (issue 24) -------------------------------------------------------------------
+
+
+def run_with_depth(world: World, pipeline: MotionPipeline, edge_x: float, seconds: float,
+                   depth_age_limit: float = math.inf) -> list[tuple[Pose2D, ControlResult]]:
+    """Drive forward with the joystick; a 10 Hz depth layer reports a table top's edge at ``edge_x`` ahead
+    (the lidar, 0.2 m up, sees nothing of it) until ``depth_age_limit``, then goes silent."""
+    log = []
+    depth = None
+    for tick in range(round(seconds / DT)):
+        if tick % 5 == 0 and world.t < depth_age_limit:
+            depth = TimedClearance(Clearance(front_m=edge_x - world.pose.x_m), world.t)
+        result = pipeline.tick(ControlInputs(now=world.t, scan=world.scan(), cliff=world.cliff(),
+                                             joystick=TimedTwist(Twist(0.8, 0.0), world.t), depth_clearance=depth))
+        log.append((world.pose, result))
+        world.step(result)
+    return log
+
+
+def test_a_table_top_the_depth_layer_sees_stops_the_base_as_a_wall_does():
+    world = World()  # the lidar sees nothing at all
+    log = run_with_depth(world, MotionPipeline({"brake_latency_s": 0.0}), edge_x=3.0, seconds=8.0)
+    gap = 3.0 - world.pose.x_m
+    assert 0.28 - 0.35 * DT * 5 - 1e-9 <= gap < 0.28  # aged by the travel since the frame, as the scan is
+    last = log[-1][1]
+    assert last.emergency and last.twist.is_zero
+    assert last.clearance is not None and last.clearance.front_m < 0.28
+    assert all(r.slow or r.emergency for pose, r in log if 3.0 - pose.x_m < 0.56)
+
+
+def test_a_stale_depth_clearance_is_ignored():
+    world = World()
+    run_with_depth(world, MotionPipeline({"brake_latency_s": 0.0}), edge_x=3.0, seconds=6.0, depth_age_limit=0.5)
+    assert world.pose.x_m > 3.0  # after the camera went silent nothing held the base back

@@ -56,7 +56,8 @@ class CheckRow:
 
 
 def check_devices(config: Config, *, seconds: float = 2.0, until_healthy: bool = False,
-                  kinds: tuple[str, ...] = ("lidar", "imu", "camera", "motors", "secondary")) -> list[CheckRow]:
+                  kinds: tuple[str, ...] = ("lidar", "imu", "camera", "depth", "motors", "secondary"),
+                  ) -> list[CheckRow]:
     """Open the configured devices, read them for ``seconds``, and report each (see the module docstring).
 
     ``until_healthy`` ends the window early once every device answers (the start-up check: a present device

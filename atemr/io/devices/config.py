@@ -9,6 +9,7 @@ motors with a simulated lidar on the bench::
       lidar:  {driver: rplidar, port: /dev/ttyUSB0, baudrate: 115200, pose: [0.10, 0.0, 0.0]}
       imu:    {driver: wt901, port: /dev/ttyUSB1, baudrate: 9600}
       camera: {driver: opencv, source: "0"}    # a V4L2 index, a device path, a video file or an rtsp/http URL
+      depth:  {driver: realsense}              # the D415 (the realsense extra); none: no depth camera
       motors: {driver: rmd, protocol: v1}      # or emulated
       secondary: {driver: esp32}               # or emulated
 
@@ -86,6 +87,31 @@ class CameraDeviceConfig:
 
 
 @dataclass(frozen=True)
+class DepthDeviceConfig:
+    """The depth camera: a RealSense D415 (``realsense``, the ``realsense`` extra), or the simulator's.
+
+    ``auto`` is the simulator's in simulation and none on the robot: naming ``realsense`` says the robot has
+    one (and needs pyrealsense2)."""
+
+    driver: Literal["auto", "sim", "realsense", "none"] = field(default="auto", metadata={
+        "help": "auto: sim in simulation, none on the robot; realsense: a D415 (pip install 'atemr[realsense]')"})
+    pose: tuple[float, ...] = field(default=(0.10, 0.0, 0.85, 0.2094, 0.0), metadata={
+        "help": "the optical centre in the base frame and where it looks: [x_m, y_m, z_m, pitch_rad, yaw_rad] "
+                "(pitch positive: tilted down); KAY's: on the mast under the tablet, 12 degrees down"})
+    serial: str = field(default="", metadata={"help": "the camera's serial number (empty: the first one found)"})
+    width: int = field(default=424, metadata={"min": 16, "max": 1280, "help": "depth stream width (D415: 424)"})
+    height: int = field(default=240, metadata={"min": 16, "max": 720, "help": "depth stream height (D415: 240)"})
+    fps: int = field(default=15, metadata={"min": 6, "max": 90, "help": "the stream's frame rate (D415: 6..90)"})
+    keep_hz: float = field(default=10.0, metadata={"min": 0.5, "max": 90.0, "help": "frames per second kept"})
+    range_max_m: float = field(default=3.0, metadata={"min": 0.5, "max": 10.0, "help": "farther is no data"})
+
+    def validate(self) -> None:
+        if len(self.pose) != 5 or not all(math.isfinite(v) for v in self.pose):
+            raise ValueError(f"pose must be [x_m, y_m, z_m, pitch_rad, yaw_rad], five finite numbers, got "
+                             f"{list(self.pose)}")
+
+
+@dataclass(frozen=True)
 class MotorsDeviceConfig:
     """The two RMD-L-7015 drive motors on CAN: real (``rmd``) or the emulators on the robot's bus."""
 
@@ -110,6 +136,7 @@ class DevicesConfig:
     lidar: LidarDeviceConfig = field(default_factory=LidarDeviceConfig)
     imu: ImuDeviceConfig = field(default_factory=ImuDeviceConfig)
     camera: CameraDeviceConfig = field(default_factory=CameraDeviceConfig)
+    depth: DepthDeviceConfig = field(default_factory=DepthDeviceConfig)
     motors: MotorsDeviceConfig = field(default_factory=MotorsDeviceConfig)
     secondary: SecondaryDeviceConfig = field(default_factory=SecondaryDeviceConfig)
 
@@ -119,6 +146,7 @@ AUTO_DRIVERS = {
     "lidar": ("sim", "rplidar"),
     "imu": ("sim", "wt901"),
     "camera": ("sim", "opencv"),
+    "depth": ("sim", "none"),
     "motors": ("emulated", "rmd"),
     "secondary": ("emulated", "esp32"),
 }

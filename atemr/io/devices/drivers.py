@@ -1,8 +1,9 @@
 """Device drivers by name, one registry per device kind, and `build_devices` that the robot's wiring calls.
 
 Like the CAN bus kinds (`atemr.io.can.bus`), drivers are registered by name and a third-party package adds
-its own through the ``atemr.lidar_drivers`` / ``atemr.imu_drivers`` / ``atemr.camera_drivers`` entry-point
-groups. A driver is a factory: `DeviceContext` in, a `Device` out (or None for ``camera: none``). Real
+its own through the ``atemr.lidar_drivers`` / ``atemr.imu_drivers`` / ``atemr.camera_drivers`` /
+``atemr.depth_drivers`` entry-point groups. A driver is a factory: `DeviceContext` in, a `Device` out (or None
+for ``camera: none`` and ``depth: none``). Real
 drivers are imported only when chosen, so a simulated robot never imports pyserial or OpenCV.
 
 The CAN devices (motors, secondary core) have no factory here: the primary's motor driver and secondary
@@ -21,9 +22,9 @@ from numpy.typing import NDArray
 from atemr.config import Config
 from atemr.errors import ConfigError
 from atemr.io.devices.base import Device
-from atemr.io.devices.config import SIMULATED_DRIVERS, resolved_driver
+from atemr.io.devices.config import SIMULATED_DRIVERS, DepthDeviceConfig, resolved_driver
 from atemr.io.sim.simulation import PeriodicSource, Simulation
-from atemr.msgs import ImuSample, LaserScan
+from atemr.msgs import CameraMount, DepthImage, ImuSample, LaserScan
 from atemr.registry import Registry
 
 #: How old the newest simulated reading may be before the device counts as silent, in seconds.
@@ -51,22 +52,30 @@ DeviceFactory = Callable[[DeviceContext], Device[Any] | None]
 lidar_drivers: Registry[DeviceFactory] = Registry("lidar_drivers")
 imu_drivers: Registry[DeviceFactory] = Registry("imu_drivers")
 camera_drivers: Registry[DeviceFactory] = Registry("camera_drivers")
-REGISTRIES = {"lidar": lidar_drivers, "imu": imu_drivers, "camera": camera_drivers}
+depth_drivers: Registry[DeviceFactory] = Registry("depth_drivers")
+REGISTRIES = {"lidar": lidar_drivers, "imu": imu_drivers, "camera": camera_drivers, "depth": depth_drivers}
 
 Frame = NDArray[np.uint8]
 
 
 @dataclass(frozen=True)
 class Devices:
-    """The robot's sensors, each behind the device interface; the camera may be absent."""
+    """The robot's sensors, each behind the device interface; the cameras may be absent."""
 
     lidar: Device[LaserScan]
     imu: Device[ImuSample]
     camera: Device[Frame] | None
+    depth: Device[DepthImage] | None = None
 
     def all(self) -> list[Device[Any]]:
         """Every device present, lidar first."""
-        return [d for d in (self.lidar, self.imu, self.camera) if d is not None]
+        return [d for d in (self.lidar, self.imu, self.camera, self.depth) if d is not None]
+
+
+def depth_mount(cfg: DepthDeviceConfig) -> CameraMount:
+    """Where ``devices.depth.pose`` puts the depth camera on the robot."""
+    x, y, z, pitch, yaw = cfg.pose
+    return CameraMount(x, y, z, pitch, yaw)
 
 
 def _sim_device(kind: str, ctx: DeviceContext, what: str, max_age_s: float) -> Device[Any]:
@@ -74,7 +83,7 @@ def _sim_device(kind: str, ctx: DeviceContext, what: str, max_age_s: float) -> D
 
     sim = ctx.world(kind)
     sources: dict[str, PeriodicSource[Any]] = {"lidar": sim.lidar_source, "imu": sim.imu_source,
-                                               "camera": sim.camera_source}
+                                               "camera": sim.camera_source, "depth": sim.depth_source}
     return SimDevice(kind, sources[kind], now=ctx.now, max_age_s=max_age_s, what=what, world=sim.world.name)
 
 
@@ -90,19 +99,44 @@ def sim_imu(ctx: DeviceContext) -> Device[Any]:
     return _sim_device("imu", ctx, "IMU sample", SIM_MAX_AGE_S["imu"])
 
 
+def _sim_frames(kind: str, ctx: DeviceContext, what: str, rate_hz: Callable[[Simulation], float]) -> Device[Any] | None:
+    """A simulated camera's frames as a device (silent after three frame periods, at least 1 s); none when the
+    simulation renders none (its rate is 0)."""
+    hz = rate_hz(ctx.world(kind))
+    return None if hz <= 0 else _sim_device(kind, ctx, what, max(1.0, 3.0 / hz))
+
+
 @camera_drivers.register("sim")
 def sim_camera(ctx: DeviceContext) -> Device[Any] | None:
     """The simulator's camera; none when ``sim.camera_hz`` is 0."""
-    sim = ctx.world("camera")
-    if sim.params.camera_hz <= 0:
-        return None
-    return _sim_device("camera", ctx, "camera frame", max(1.0, 3.0 / sim.params.camera_hz))
+    return _sim_frames("camera", ctx, "camera frame", lambda sim: sim.params.camera_hz)
 
 
 @camera_drivers.register("none")
 def no_camera(ctx: DeviceContext) -> None:
     """No camera on this robot."""
     return None
+
+
+@depth_drivers.register("sim")
+def sim_depth(ctx: DeviceContext) -> Device[Any] | None:
+    """The simulator's depth camera (a D415 rendering the same scene); none when ``sim.depth_hz`` is 0."""
+    return _sim_frames("depth", ctx, "depth frame", lambda sim: sim.params.depth_hz)
+
+
+@depth_drivers.register("none")
+def no_depth(ctx: DeviceContext) -> None:
+    """No depth camera on this robot: the obstacle layers are the lidar's alone."""
+    return None
+
+
+@depth_drivers.register("realsense")
+def realsense(ctx: DeviceContext) -> Device[Any]:
+    """Intel RealSense D415 over USB through pyrealsense2 (`atemr.io.devices.realsense`; the realsense extra)."""
+    from atemr.io.devices.realsense import RealSenseDepth
+
+    cfg = ctx.config.devices.depth
+    return RealSenseDepth.from_config(cfg, now=ctx.now, mount=depth_mount(cfg))
 
 
 @lidar_drivers.register("rplidar")
@@ -147,7 +181,7 @@ def needs_world(config: Config) -> bool:
     (a ``sim`` sensor, or motors or a secondary core ``emulated`` in it)."""
     if config.simulation:
         return True
-    kinds = ("lidar", "imu", "camera", "motors", "secondary")
+    kinds = ("lidar", "imu", "camera", "depth", "motors", "secondary")
     return any(driver_name(config, kind) in SIMULATED_DRIVERS for kind in kinds)
 
 
@@ -165,4 +199,4 @@ def build_devices(ctx: DeviceContext) -> Devices:
     lidar, imu = build_device(ctx, "lidar"), build_device(ctx, "imu")
     if lidar is None or imu is None:
         raise ConfigError("the robot needs a lidar and an IMU", path="devices")
-    return Devices(lidar=lidar, imu=imu, camera=build_device(ctx, "camera"))
+    return Devices(lidar=lidar, imu=imu, camera=build_device(ctx, "camera"), depth=build_device(ctx, "depth"))

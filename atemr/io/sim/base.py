@@ -92,11 +92,13 @@ class BaseParams:
 
 @dataclass(frozen=True)
 class Collision:
-    """The base touched something at time ``t`` while moving; ``what`` names it (``wall``, ``sofa``, ...)."""
+    """The robot touched something at time ``t`` while moving; ``what`` names it (``wall``, ``sofa``, ...) and
+    ``part`` which part of the robot did (``base``, ``mast``, ``tablet``; empty when only a footprint is known)."""
 
     t: float
     pose: Pose2D
     what: str
+    part: str = ""
 
 
 #: Signed clearance of the footprint at a point (negative: overlapping), and what is nearest.
@@ -191,7 +193,7 @@ class DiffDriveBase:
                 stopped = integrate_arc(self.pose, v, w, dt_s * moved_fraction)
                 target = Pose2D(stopped.x_m, stopped.y_m, target.yaw_rad)  # a round body still turns freely
                 if not self.in_contact:
-                    event = Collision(t, target, after.what)
+                    event = Collision(t, target, after.what, after.part)
                     self.collisions.append(event)
                 self.in_contact = True
             else:

@@ -113,6 +113,7 @@ class Camera:
             d_furn = np.where(furn.distance_m * self.col_cos < d_wall, furn.distance_m * self.col_cos, np.inf)
             labels = np.where(np.isfinite(d_furn), scene.labels[np.maximum(furn.row, 0), np.maximum(furn.col, 0)], 0)
             furn_top = scene.label_heights[labels]
+            furn_bottom = scene.label_bottoms[labels]
             furn_color = scene.label_colors[labels] * np.where(furn.side == 1, 0.78, 1.0)[:, None]
 
         d_mover = np.full(p.width, np.inf)
@@ -132,16 +133,17 @@ class Camera:
 
         # Painter's order per column: the wall, then furniture and people far to near.
         if np.isfinite(d_furn).any():
-            self._paint(img, np.where(d_furn >= d_mover, d_furn, np.inf), furn_top, furn_color)
+            self._paint(img, np.where(d_furn >= d_mover, d_furn, np.inf), furn_top, furn_color, furn_bottom)
         if np.isfinite(d_mover).any():
             self._paint(img, d_mover, mover_top, mover_color)
         if np.isfinite(d_furn).any() and np.isfinite(d_mover).any():
-            self._paint(img, np.where(d_furn < d_mover, d_furn, np.inf), furn_top, furn_color)
+            self._paint(img, np.where(d_furn < d_mover, d_furn, np.inf), furn_top, furn_color, furn_bottom)
         return img
 
     def _paint(self, img: NDArray[np.uint8], depth: NDArray[np.float64], top_m: NDArray[np.float64],
-               color: NDArray[np.float64]) -> None:
-        """Draw, in each column, a vertical span from the floor to ``top_m`` at ``depth`` (inf: nothing)."""
+               color: NDArray[np.float64], bottom_m: NDArray[np.float64] | None = None) -> None:
+        """Draw, in each column, a vertical span from ``bottom_m`` (the floor by default: a table top floats) to
+        ``top_m`` at ``depth`` (inf: nothing)."""
         p = self.params
         if not np.isfinite(depth).any():
             return
@@ -149,7 +151,7 @@ class Camera:
         centre = p.height / 2 - 0.5
         with np.errstate(divide="ignore", invalid="ignore"):
             first = np.ceil(centre - f * (top_m - p.height_m) / depth)
-            last = np.floor(centre + f * p.height_m / depth)
+            last = np.floor(centre + f * (p.height_m - (0.0 if bottom_m is None else bottom_m)) / depth)
         visible = np.isfinite(depth)
         first = np.where(visible, first, p.height).astype(np.int32)
         last = np.where(visible, last, -1).astype(np.int32)

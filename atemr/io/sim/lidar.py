@@ -20,7 +20,8 @@ from atemr.msgs import LaserScan, Pose2D
 
 @dataclass(frozen=True)
 class LidarParams:
-    """The sensor; defaults are the RPLIDAR A2M8 of the thesis, mounted 10 cm ahead of the base centre."""
+    """The sensor; defaults are the RPLIDAR A2M8 of the thesis, mounted 10 cm ahead of the base centre and
+    scanning the plane ``height_m`` above the floor (only what crosses that plane returns)."""
 
     beams: int = 360
     range_min_m: float = 0.15
@@ -28,6 +29,7 @@ class LidarParams:
     noise_std_m: float = 0.01
     dropout_prob: float = 0.005
     mount: Pose2D = field(default_factory=lambda: Pose2D(0.10, 0.0, 0.0))
+    height_m: float = 0.2
 
     def __post_init__(self) -> None:
         if not 8 <= self.beams <= 8192:
@@ -35,6 +37,8 @@ class LidarParams:
         if not 0 <= self.range_min_m < self.range_max_m:
             raise ConfigError(f"need 0 <= range_min_m < range_max_m, got {self.range_min_m}, {self.range_max_m}",
                               path="lidar.range_min_m")
+        if not (math.isfinite(self.height_m) and 0 < self.height_m < 3):
+            raise ConfigError(f"must be within (0, 3) m, got {self.height_m!r}", path="lidar.height_m")
         if not (0 <= self.noise_std_m < 1 and 0 <= self.dropout_prob < 1):
             raise ConfigError("noise_std_m and dropout_prob must be within [0, 1)", path="lidar")
 
@@ -52,7 +56,8 @@ class Lidar:
         self.angles_rad = -math.pi + params.angle_increment_rad * np.arange(params.beams, dtype=np.float64)
 
     def true_ranges(self, pose: Pose2D, scene: Scene, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """Noise-free distance along each beam to the first wall, object or moving obstacle (inf: none)."""
+        """Noise-free distance along each beam to the first wall, object or moving obstacle that crosses the scan
+        plane (inf: none); a shoe under the plane and a table top above it are not seen."""
         p = self.params
         c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
         sx = pose.x_m + c * p.mount.x_m - s * p.mount.y_m
@@ -60,7 +65,7 @@ class Lidar:
         world_angles = pose.yaw_rad + p.mount.yaw_rad + self.angles_rad
         gx, gy, gyaw = scene.to_grid_frame(sx, sy, pose.yaw_rad + p.mount.yaw_rad)
         grid_angles = gyaw + self.angles_rad
-        ranges = scene.blocked_caster.cast((gx, gy), grid_angles, p.range_max_m).distance_m
+        ranges = scene.caster_at(p.height_m).cast((gx, gy), grid_angles, p.range_max_m).distance_m
         if len(centres):
             d, _ = cast_circles((sx, sy), world_angles, centres, radii, p.range_max_m)
             ranges = np.minimum(ranges, d)

@@ -60,6 +60,8 @@ class GridCaster:
         padded = np.zeros((height + 2, width + 2), dtype=bool)
         padded[1:-1, 1:-1] = blocked
         self._blocked = blocked
+        #: The grid the rays are cast through (read-only).
+        self.blocked = blocked
         self._flat = padded.ravel()
         self._stride = width + 2
         # Outside the grid nothing blocks, but a ray may come back in: no skipping there (0).

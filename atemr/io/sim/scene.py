@@ -5,6 +5,11 @@ cells (walls) plus every piece of furniture and every obstacle dropped at run ti
 label grid (0 free, 1 wall, 2+ an object) in the map's frame. Lidar, camera and collisions all read it,
 so what the robot bumps into is exactly what its sensors could have seen. Moving obstacles are
 circles kept outside the grid (see `atemr.io.sim.movers`).
+
+Objects have a vertical extent (``clearance_m`` to ``height_m``). Walls stand from the floor to the wall
+height. `Scene.caster_at` gives the grid of what crosses one horizontal plane (the lidar's), and
+`Scene.body_clearance` checks the robot's volume part by part against the grid of what is at each part's
+heights, so a table top at 0.72 m is missed by the lidar, passed under by the base and hit by the mast.
 """
 
 from __future__ import annotations
@@ -14,10 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from atemr.errors import ConfigError
 from atemr.io.sim.raycast import GridCaster
 from atemr.io.sim.world import Color, Furniture, World
+from atemr.skills.body import RobotBody
 
 WALL = 1
 FIRST_OBJECT = 2
@@ -30,6 +37,8 @@ class Contact:
 
     clearance_m: float
     what: str
+    #: Which part of the robot's volume is nearest (`atemr.skills.body`; empty for a plain disc).
+    part: str = ""
 
 
 class Scene:
@@ -98,15 +107,16 @@ class Scene:
         return dict(self._objects)
 
     def _rebuild(self) -> None:
-        labels = np.where(self.map.occupied, WALL, 0).astype(np.int16)
-        for label, item in self._objects.items():
-            labels[item.contains(self._cell_x, self._cell_y)] = label
-        labels.setflags(write=False)
+        self._masks = {label: item.contains(self._cell_x, self._cell_y) for label, item in self._objects.items()}
+        labels = self._labels(None)
         self.labels = labels
+        #: Label grids and casters of what lies between two heights or crosses one plane, built when first asked.
+        self._layers: dict[tuple[float, float], tuple[NDArray[np.int16], NDArray[np.float64]]] = {}
+        self._plane_casters: dict[float, GridCaster] = {}
         self.blocked = labels != 0
         self.walls = labels == WALL
         self.furniture = labels >= FIRST_OBJECT
-        #: Ray casters for the lidar (everything), and the camera (walls and furniture drawn separately).
+        #: Ray casters through everything, whatever its height, and for the camera (walls, furniture apart).
         self.blocked_caster = GridCaster(self.blocked, self.resolution_m)
         no_objects = not self.furniture.any()
         self.walls_caster = self.blocked_caster if no_objects else GridCaster(self.walls, self.resolution_m)
@@ -122,8 +132,56 @@ class Scene:
         for label, item in self._objects.items():
             colors[label] = item.color
             heights[label] = item.height_m
+        bottoms = np.zeros(n, dtype=np.float64)
+        for label, item in self._objects.items():
+            bottoms[label] = item.clearance_m
         self.label_colors = colors
         self.label_heights = heights
+        self.label_bottoms = bottoms
+
+    def _labels(self, heights: tuple[float, float] | None) -> NDArray[np.int16]:
+        """Walls (the map's occupied cells no object explains) and the objects between ``heights`` (all: None)."""
+        labels = np.where(self.map.occupied, WALL, 0).astype(np.int16)
+        if heights is not None:  # the map's cells an object explains are that object, not a wall
+            for mask in self._masks.values():
+                labels[mask] = 0
+        for label, item in self._objects.items():
+            if heights is None or item.spans(*heights):
+                labels[self._masks[label]] = label
+        labels.setflags(write=False)
+        return labels
+
+    def blocked_at(self, z_m: float) -> NDArray[np.bool_]:
+        """The cells where something crosses the horizontal plane at ``z_m`` (walls, objects spanning it): what
+        a lidar scanning that plane can see, and what mapping with it can draw."""
+        return self.caster_at(z_m).blocked
+
+    def caster_at(self, z_m: float) -> GridCaster:
+        """A ray caster through what crosses the horizontal plane at ``z_m`` (walls, objects spanning it): the
+        lidar's view. The objects under the plane and the table tops above it are not in it."""
+        caster = self._plane_casters.get(z_m)
+        if caster is None:
+            if all(item.spans(z_m, z_m) for item in self._objects.values()):
+                caster = self.blocked_caster
+            else:
+                caster = GridCaster(self._labels((z_m, z_m)) != 0, self.resolution_m)
+            self._plane_casters[z_m] = caster
+        return caster
+
+    def _layer(self, bottom_m: float, top_m: float) -> tuple[NDArray[np.int16], NDArray[np.float64]]:
+        key = (bottom_m, top_m)
+        layer = self._layers.get(key)
+        if layer is None:
+            if all(item.spans(bottom_m, top_m) for item in self._objects.values()):
+                layer = (self.labels, self._edt_m)
+            else:
+                labels = self._labels(key)
+                blocked = labels != 0
+                edt = (ndimage.distance_transform_edt(~blocked) if blocked.any()
+                       else np.full(blocked.shape, np.inf)) * self.resolution_m
+                layer = (labels, edt)
+            self._layers[key] = layer
+        return layer
 
     def name_of(self, label: int) -> str:
         """What a label is, for collision reports."""
@@ -172,23 +230,39 @@ class Scene:
         """Distance from a disc of ``radius_m`` at (x, y) to the nearest blocked cell (negative: inside).
 
         Only cells within reach of the disc are examined, so the answer is exact up to ``radius_m`` plus
-        a cell; farther away the clearance is reported as that reach.
+        a cell; farther away the clearance is reported as that reach. Every object counts, whatever its height.
         """
+        return self._clearance(self.labels, self._edt_m, x_m, y_m, radius_m)
+
+    def body_clearance(self, x_m: float, y_m: float, body: RobotBody) -> Contact:
+        """The smallest clearance of the robot's parts at (x, y), each against what is at its own heights; the
+        contact names the object and the part (a table top meets the mast, not the base)."""
+        best: Contact | None = None
+        for part in body.parts:
+            labels, edt = self._layer(part.bottom_m, part.top_m)
+            contact = self._clearance(labels, edt, x_m, y_m, part.radius_m)
+            if best is None or contact.clearance_m < best.clearance_m:
+                best = Contact(contact.clearance_m, contact.what, part.name if contact.what else "")
+        assert best is not None  # a body has at least its base
+        return best
+
+    def _clearance(self, labels: NDArray[np.int16], edt_m: NDArray[np.float64], x_m: float, y_m: float,
+                   radius_m: float) -> Contact:
         res = self.resolution_m
         gx, gy, _ = self.to_grid_frame(x_m, y_m, 0.0)
         row0, col0 = math.floor(gy / res), math.floor(gx / res)
         reach = (math.ceil(radius_m / res) + 1) * res - radius_m
-        h, w = self.labels.shape
+        h, w = labels.shape
         if 0 <= row0 < h and 0 <= col0 < w:
             # The exact distance is at least the centre-to-centre one minus two half cell diagonals.
-            lower = float(self._edt_m[row0, col0]) - 1.4143 * res - radius_m
+            lower = float(edt_m[row0, col0]) - 1.4143 * res - radius_m
             if lower > reach:
                 return Contact(reach, "")
         dr, dc = self._offsets(radius_m)
         rows, cols = row0 + dr, col0 + dc
         inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
         rows, cols = rows[inside], cols[inside]
-        lab = self.labels[rows, cols]
+        lab = labels[rows, cols]
         hit = lab != 0
         if not hit.any():
             return Contact(reach, "")

@@ -32,13 +32,15 @@ from atemr.io.devices.base import Subscribers
 from atemr.io.sim.base import BaseParams, Collision, DiffDriveBase, MountedWheel, WheelMotor
 from atemr.io.sim.camera import Camera, CameraParams
 from atemr.io.sim.cliff import CliffParams, CliffSensors
+from atemr.io.sim.depth import DepthCamera, DepthCameraParams
 from atemr.io.sim.imu import Imu, ImuParams
 from atemr.io.sim.lidar import Lidar, LidarParams
 from atemr.io.sim.movers import Movers
 from atemr.io.sim.scene import Contact, Scene
 from atemr.io.sim.world import Furniture, World, load_world
-from atemr.msgs import CliffReadings, ImuSample, LaserScan, Pose2D
+from atemr.msgs import CameraMount, CliffReadings, DepthImage, ImuSample, LaserScan, Pose2D
 from atemr.scheduler import Scheduler
+from atemr.skills.body import KAY, RobotBody
 
 log = logging.getLogger(__name__)
 
@@ -51,26 +53,37 @@ MAX_STEP_S = 0.01
 
 @dataclass(frozen=True)
 class SimParams:
-    """Rates and sensor/base models of a simulation (``camera_hz = 0``: no camera)."""
+    """Rates and sensor/base models of a simulation (``camera_hz = 0``: no camera; ``depth_hz = 0``: no depth
+    camera)."""
 
     base: BaseParams = field(default_factory=BaseParams)
     lidar: LidarParams = field(default_factory=LidarParams)
     imu: ImuParams = field(default_factory=ImuParams)
     cliff: CliffParams = field(default_factory=CliffParams)
     camera: CameraParams = field(default_factory=CameraParams)
+    depth: DepthCameraParams = field(default_factory=DepthCameraParams)
     physics_hz: float = 100.0
     lidar_hz: float = 10.0
     imu_hz: float = 50.0
     cliff_hz: float = 20.0
     camera_hz: float = 0.0
+    depth_hz: float = 0.0
+    #: The robot's volume (base, mast, tablet): collisions are checked part by part against what is at each
+    #: part's heights. Its base radius is the footprint and must be ``base.footprint_radius_m``.
+    body: RobotBody = KAY
 
     def __post_init__(self) -> None:
+        if not math.isclose(self.body.footprint_radius_m, self.base.footprint_radius_m):
+            raise ConfigError(f"the body's base radius ({self.body.footprint_radius_m}) must be the footprint "
+                              f"({self.base.footprint_radius_m})", path="sim.body")
         for name in ("physics_hz", "lidar_hz", "imu_hz", "cliff_hz"):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0 < value <= 10_000):
                 raise ConfigError(f"must be within (0, 10000] Hz, got {value!r}", path=f"sim.{name}")
         if not (math.isfinite(self.camera_hz) and 0 <= self.camera_hz <= 120):
             raise ConfigError(f"must be within [0, 120] Hz (0: off), got {self.camera_hz!r}", path="sim.camera_hz")
+        if not (math.isfinite(self.depth_hz) and 0 <= self.depth_hz <= 90):
+            raise ConfigError(f"must be within [0, 90] Hz (0: off), got {self.depth_hz!r}", path="sim.depth_hz")
 
 
 @dataclass(frozen=True)
@@ -148,6 +161,8 @@ class Simulation:
         self.imu = Imu(p.imu, imu_rng)
         self.cliff = CliffSensors(p.cliff, self.scene, cliff_rng)
         self.camera = Camera(p.camera)
+        # Spawned after the others, so adding the depth camera changed none of their random streams.
+        self.depth_camera = DepthCamera(p.depth, rng.spawn(1)[0])
         self.falls: list[Fall] = []
         self._submitted: deque[tuple[Callable[[], Any], Future[Any]]] = deque()  # deque: thread-safe appends
         self._last_t: float | None = None
@@ -157,10 +172,11 @@ class Simulation:
         self.imu_source = PeriodicSource[ImuSample]("sim.imu", self.read_imu)
         self.cliff_source = PeriodicSource[CliffReadings]("sim.cliff", self.read_cliff)
         self.camera_source = PeriodicSource[NDArray[np.uint8]]("sim.camera", self.render_camera)
+        self.depth_source = PeriodicSource[DepthImage]("sim.depth", self.render_depth)
 
     # -- wiring --------------------------------------------------------------------------------
     def components(self) -> list[tuple[PeriodicSource[Any], float]]:
-        """(component, rate) pairs to schedule; the camera only when ``camera_hz > 0``."""
+        """(component, rate) pairs to schedule; the cameras only when their rates are above 0."""
         p = self.params
         out: list[tuple[PeriodicSource[Any], float]] = [
             (self.physics, p.physics_hz), (self.lidar_source, p.lidar_hz), (self.imu_source, p.imu_hz),
@@ -168,6 +184,8 @@ class Simulation:
         ]
         if p.camera_hz > 0:
             out.append((self.camera_source, p.camera_hz))
+        if p.depth_hz > 0:
+            out.append((self.depth_source, p.depth_hz))
         return out
 
     def attach(self, scheduler: Scheduler) -> None:
@@ -177,13 +195,14 @@ class Simulation:
 
     # -- physics -------------------------------------------------------------------------------
     def clearance_at(self, x: float, y: float) -> Contact:
-        """Signed clearance of the robot's footprint at (x, y) to walls, objects and moving obstacles."""
+        """Signed clearance of the robot's volume at (x, y) to walls, objects and moving obstacles, each part
+        against what is at its heights (people and pets stand on the floor: the base meets them first)."""
         r = self.params.base.footprint_radius_m
-        contact = self.scene.clearance(x, y, r)
+        contact = self.scene.body_clearance(x, y, self.params.body)
         for m in self.movers.items:
             gap = math.hypot(m.x_m - x, m.y_m - y) - m.spec.radius_m - r
             if gap < contact.clearance_m:
-                contact = Contact(gap, m.name)
+                contact = Contact(gap, m.name, "base")
         return contact
 
     def step_to(self, now: float) -> TruePose:
@@ -214,8 +233,8 @@ class Simulation:
             return
         event = self.base.step(t, dt)
         if event is not None:
-            log.info("collision at t=%.2f s with %s at (%.2f, %.2f)", event.t, event.what,
-                     event.pose.x_m, event.pose.y_m)
+            log.info("collision at t=%.2f s: the %s hit %s at (%.2f, %.2f)", event.t, event.part or "base",
+                     event.what, event.pose.x_m, event.pose.y_m)
         self._check_fall(t)
 
     def _check_fall(self, now: float) -> None:
@@ -240,6 +259,9 @@ class Simulation:
 
     def render_camera(self, now: float) -> NDArray[np.uint8]:
         return self.camera.render(self.base.pose, self.scene, self.movers)
+
+    def render_depth(self, now: float) -> DepthImage:
+        return self.depth_camera.render(now, self.base.pose, self.scene, self.movers)
 
     # -- truth and events ----------------------------------------------------------------------
     @property
@@ -336,14 +358,17 @@ class Simulation:
         self.command_wheels(*self.wheel_speeds_for(linear_mps, angular_radps))
 
 
-def params_from_config(cfg: SimConfig) -> SimParams:
-    """The simulation parameters named in the robot's configuration (``sim.*``); the rest keep defaults."""
+def params_from_config(cfg: SimConfig, body: RobotBody = KAY, depth_mount: CameraMount | None = None) -> SimParams:
+    """The simulation parameters named in the robot's configuration (``sim.*``, the robot's ``body`` and where
+    its depth camera is mounted); the rest keep defaults."""
     return SimParams(
-        base=BaseParams(slip_std=cfg.wheel_slip, odom_noise_std=cfg.odom_noise),
+        base=BaseParams(slip_std=cfg.wheel_slip, odom_noise_std=cfg.odom_noise,
+                        footprint_radius_m=body.footprint_radius_m),
         lidar=LidarParams(beams=cfg.lidar_beams, noise_std_m=cfg.lidar_noise_m, dropout_prob=cfg.lidar_dropout),
         camera=CameraParams(width=cfg.camera_width, height=cfg.camera_height),
         physics_hz=cfg.physics_hz, lidar_hz=cfg.lidar_hz, imu_hz=cfg.imu_hz, cliff_hz=cfg.cliff_hz,
-        camera_hz=cfg.camera_hz,
+        depth=DepthCameraParams() if depth_mount is None else DepthCameraParams(mount=depth_mount),
+        camera_hz=cfg.camera_hz, depth_hz=cfg.depth_hz, body=body,
     )
 
 

@@ -10,12 +10,18 @@ obstacles (a person walking a path, a pet wandering an area) and the robot's sta
     furniture:
       - {name: sofa, box: [0.2, 1.0, 1.1, 3.0], height_m: 0.8, color: [90, 110, 160], mapped: true}
       - {name: basket, circle: [3.6, 1.2, 0.25], height_m: 0.5, color: [200, 170, 90]}
+      - {name: shelf, box: [2.0, 0.0, 2.8, 0.3], clearance_m: 0.9, height_m: 0.95}   # floats: free below 0.9 m
     drop_zones:
       - {name: balcony edge, box: [3.2, -1.6, 5.3, -1.2], depth_m: 2.5}
       - {name: stairs, polygon: [[0, 0], [1, 0], [1, 1]], depth_m: 0.18}
     moving:
       - {name: carer, kind: person, path: [[0.9, 4.2], [4.8, 4.2]], speed_mps: 0.6}
       - {name: cat, kind: pet, area: [5.8, 2.8, 8.7, 4.3], speed_mps: 0.4}
+
+An object spans the heights from ``clearance_m`` (the free space under it, 0 by default: standing on the
+floor) to ``height_m``: a table top from 0.70 to 0.75 m (its legs are objects of their own), a wall shelf, a
+drawer left open. The lidar sees only what crosses its scan plane; the depth camera and the robot's volume
+(`atemr.skills.body`) meet everything.
 
 ``mapped: true`` furniture is also drawn into the map by the world's generator script (as a SLAM map
 would show it); the simulator treats all furniture alike. A plain map YAML is also a world: no extras,
@@ -47,7 +53,8 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Furniture:
-    """A static obstacle: an axis-aligned box ``[x0, y0, x1, y1]`` or a circle ``[x, y, r]``."""
+    """A static obstacle: an axis-aligned box ``[x0, y0, x1, y1]`` or a circle ``[x, y, r]``, spanning the
+    heights ``clearance_m`` (free space under it) to ``height_m``."""
 
     name: str
     shape: Literal["box", "circle"]
@@ -55,6 +62,11 @@ class Furniture:
     height_m: float = 0.8
     color: Color = (150, 120, 90)
     mapped: bool = False
+    clearance_m: float = 0.0
+
+    def spans(self, bottom_m: float, top_m: float) -> bool:
+        """Whether the object is somewhere between the heights ``bottom_m`` and ``top_m`` (a plane when equal)."""
+        return self.clearance_m <= top_m and self.height_m >= bottom_m
 
     def contains(self, x: FloatArray, y: FloatArray) -> NDArray[np.bool_]:
         """Which points lie inside (used to rasterise it on the grid)."""
@@ -119,7 +131,7 @@ class World:
 
 # -- loading ---------------------------------------------------------------------------------
 _WORLD_KEYS = ("name", "map", "start", "furniture", "drop_zones", "moving", "wall_height_m")
-_FURNITURE_KEYS = ("name", "box", "circle", "height_m", "color", "mapped")
+_FURNITURE_KEYS = ("name", "box", "circle", "height_m", "clearance_m", "color", "mapped")
 _DROP_KEYS = ("name", "box", "polygon", "depth_m")
 _MOVER_KEYS = ("name", "kind", "radius_m", "height_m", "speed_mps", "color", "path", "loop", "area")
 _MOVER_DEFAULTS: dict[str, dict[str, Any]] = {
@@ -272,10 +284,14 @@ def _parse_world(doc: Any, path: Path) -> World:  # noqa: PLR0912, PLR0915  one 
         mapped = item.get("mapped", False)
         if not isinstance(mapped, bool):
             raise d.error(f"expected true or false, got {mapped!r}", item, "mapped", f"{p}.mapped")
+        height = d.number(item, "height_m", f"{p}.height_m", 0.8)
+        clearance = d.number(item, "clearance_m", f"{p}.clearance_m", 0.0, positive=False)
+        if not 0 <= clearance < height:
+            raise d.error(f"clearance_m must be within [0, height_m), got {clearance!r} (height_m {height!r})",
+                          item, "clearance_m", f"{p}.clearance_m")
         furniture.append(Furniture(
             d.name(item, p, f"furniture{i}"), shapes[0], params,  # type: ignore[arg-type]
-            d.number(item, "height_m", f"{p}.height_m", 0.8), d.color(item, "color", f"{p}.color", (150, 120, 90)),
-            mapped,
+            height, d.color(item, "color", f"{p}.color", (150, 120, 90)), mapped, clearance,
         ))
 
     zones: list[DropZone] = []

@@ -38,6 +38,9 @@ class NavConfig:
     obstacle_wait_s: float = field(default=60.0, metadata={"min": 1.0, "max": 3600.0,
                                                            "help": "wait for a blocked way after the recoveries"})
     timeout_s: float = field(default=600.0, metadata={"min": 1.0, "max": 86_400.0, "help": "per goal"})
+    depth_layer: bool = field(default=True, metadata={
+        "help": "fold the depth camera's frames into a voxel obstacle layer (what is between the floor and the "
+                "robot's height: table tops, shelves, things under the lidar) for the costmap and the stop zone"})
     planner: str = field(default="astar", metadata={"choices": ("astar", "dijkstra"),
                                                     "help": "global planner: the same paths, A* searches less"})
 

@@ -13,6 +13,9 @@ Layers. The static layer is the `OccupancyMap` (occupied cells lethal; unknown c
 unknown as configured). The obstacle layer holds what the lidar sees that the map does not: each scan
 first *clears* the cells its beams pass through (ray tracing, all beams and samples at once) and then
 *marks* the cells its returns end in, so a person who walked away disappears and a new box appears.
+A third layer, ``voxels``, holds what the depth camera sees between the floor and the robot's height
+(`atemr.skills.nav.voxel_layer` marks and clears it); the lidar's clearing never touches it, since its beams
+pass under a table top the camera sees. Both count as obstacles alike.
 Inflation is a Euclidean distance transform (scipy.ndimage) to the nearest lethal cell of either layer;
 the static layer's transform is computed once, the obstacle layer's only over the bounding box of its
 marks, so a 10 Hz update stays cheap on big maps.
@@ -119,6 +122,11 @@ class Costmap:
         self.static_unknown: NDArray[np.bool_] = unknown & (p.unknown == "unknown")
         self._static_distance = self._distance(lethal)
         self.obstacles: NDArray[np.bool_] = np.zeros(self.shape, dtype=bool)
+        #: Cells with something between the floor and the robot's height that the depth camera saw
+        #: (`set_voxel_columns`); obstacles like the lidar's, but cleared only by the depth layer.
+        self.voxels: NDArray[np.bool_] = np.zeros(self.shape, dtype=bool)
+        #: How often `clear_obstacles` ran: the depth layer forgets its voxels when it changes.
+        self.clears = 0
         #: Where moving obstacles are going (`set_predicted`), replaced at every scan; treated as obstacles.
         self.predicted: NDArray[np.bool_] = np.zeros(self.shape, dtype=bool)
         #: The last scan's returns the map does not explain, world (x, y) in beam order (for the tracker).
@@ -167,8 +175,9 @@ class Costmap:
         if self._static_cost is None:
             self._static_cost = self._costs(self._static_distance, self.static_unknown)
             self._static_cost.setflags(write=False)
-        hard = self._with_layer(self._static_distance, self.obstacles, self._window(self.obstacles))
-        layer = self.obstacles | self.predicted
+        seen = self.obstacles | self.voxels if self.voxels.any() else self.obstacles
+        hard = self._with_layer(self._static_distance, seen, self._window(seen))
+        layer = seen | self.predicted
         box = self._window(layer)
         dist = self._with_layer(hard, self.predicted, self._window(self.predicted)) if self.predicted.any() else hard
         cost = self._static_cost
@@ -240,10 +249,20 @@ class Costmap:
 
     # -- obstacle layer ------------------------------------------------------------------------------
     def clear_obstacles(self) -> None:
-        """Forget everything the obstacle layer holds (the first recovery behaviour)."""
-        if self.obstacles.any() or self.predicted.any():
+        """Forget everything the obstacle layers hold (the first recovery behaviour)."""
+        self.clears += 1
+        if self.obstacles.any() or self.predicted.any() or self.voxels.any():
             self.obstacles[:] = False
             self.predicted[:] = False
+            self.voxels[:] = False
+            self.version += 1
+
+    def set_voxel_columns(self, columns: NDArray[np.bool_]) -> None:
+        """Replace the depth layer's cells (the columns of its voxel grid that hold an obstacle)."""
+        if columns.shape != self.shape:
+            raise NavigationError(f"costmap: voxel columns of shape {columns.shape}, the grid is {self.shape}")
+        if not np.array_equal(columns, self.voxels):
+            self.voxels = columns.copy()
             self.version += 1
 
     def set_predicted(self, points: NDArray[np.float64]) -> None:

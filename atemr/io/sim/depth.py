@@ -1,0 +1,277 @@
+"""A simulated depth camera like KAY's RealSense D415: depth of the same scene the lidar and the colour camera see.
+
+Defaults follow the D415 at its 424 x 240 mode: about 65° x 40° field of view, 0.3 to 3 m, 10 frames per
+second. Every pixel's ray (from `atemr.skills.depth_cloud.pixel_rays` and the mount, the very model the
+obstacle layer reads the image back with) is intersected with everything at once, vectorised over pixels:
+
+* the floor (z = 0) and the ceiling (at the wall height);
+* the walls, extruded from the floor to the wall height: one 2-D grid cast per azimuth bin (twice as many
+  bins as columns), and each pixel takes the horizontal distance of its bin, divided by how much of its ray
+  is horizontal;
+* every object as a 3-D box or a vertical cylinder from its ``clearance_m`` to its ``height_m`` (slab and
+  quadratic tests), skipping those out of reach; people and pets as cylinders from the floor.
+
+The image holds z-depth (along the optical axis), 0 where nothing is within range, like the SDK's. The noise
+is a stereo camera's: its standard deviation grows with the square of the depth,
+``sigma = subpixel · z² / (fx · baseline)`` (the D415: 55 mm baseline, about 0.08 px subpixel accuracy, so
+4 mm at 1 m and 4 cm at 3 m), plus a small fraction of pixels without data. Seeded: the simulation's own
+generator draws it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from atemr.errors import ConfigError
+from atemr.io.sim.movers import Movers
+from atemr.io.sim.scene import Scene
+from atemr.msgs import CameraMount, DepthImage, Pose2D
+from atemr.skills.depth_cloud import mount_rotation, pixel_rays
+
+F32 = NDArray[np.float32]
+#: KAY's D415 on the mast under the tablet, 0.85 m up and 10 cm ahead of the axle, tilted 12° down (its view
+#: spans 32° down to 8° up): it sees the floor from 1.4 m ahead, a shoe from 1.2 m, a table top at 0.72 m from
+#: 0.3 m, and a shelf at the tablet's height; what it saw it remembers when it is too close to see.
+D415_MOUNT = CameraMount(x_m=0.10, y_m=0.0, z_m=0.85, pitch_rad=math.radians(12.0))
+
+
+@dataclass(frozen=True)
+class DepthCameraParams:
+    """The depth camera's geometry, range and noise (defaults: a D415 at 424 x 240)."""
+
+    width: int = 424
+    height: int = 240
+    hfov_deg: float = 65.0
+    vfov_deg: float = 40.0
+    range_min_m: float = 0.3
+    range_max_m: float = 3.0
+    baseline_m: float = 0.055
+    subpixel_px: float = 0.08
+    dropout_prob: float = 0.002
+    mount: CameraMount = field(default_factory=lambda: D415_MOUNT)
+
+    def __post_init__(self) -> None:
+        if not (16 <= self.width <= 2048 and 16 <= self.height <= 2048):
+            raise ConfigError(f"image size must be within 16..2048, got {self.width}x{self.height}", path="depth")
+        if not (10.0 <= self.hfov_deg <= 170.0 and 10.0 <= self.vfov_deg <= 170.0):
+            raise ConfigError("fields of view must be within 10..170 degrees", path="depth")
+        if not 0 < self.range_min_m < self.range_max_m <= 50:
+            raise ConfigError(f"need 0 < range_min_m < range_max_m <= 50, got {self.range_min_m}, "
+                              f"{self.range_max_m}", path="depth")
+        if not (0 <= self.subpixel_px < 5 and 0 <= self.dropout_prob < 1 and self.baseline_m > 0):
+            raise ConfigError("subpixel_px within [0, 5), dropout_prob within [0, 1), baseline_m > 0", path="depth")
+
+    @property
+    def fx(self) -> float:
+        return (self.width / 2) / math.tan(math.radians(self.hfov_deg) / 2)
+
+    @property
+    def fy(self) -> float:
+        return (self.height / 2) / math.tan(math.radians(self.vfov_deg) / 2)
+
+    @property
+    def cx(self) -> float:
+        return self.width / 2 - 0.5
+
+    @property
+    def cy(self) -> float:
+        return self.height / 2 - 0.5
+
+    def noise_std_m(self, depth_m: F32) -> F32:
+        """Depth noise of a stereo camera: grows with the square of the depth."""
+        k = np.float32(self.subpixel_px / (self.fx * self.baseline_m))
+        out: F32 = k * depth_m * depth_m
+        return out
+
+
+class DepthCamera:
+    """Renders `DepthImage`s of the scene from a robot pose; ``rng`` draws the noise and the dropouts.
+
+    The pixels are kept sorted by the azimuth of their rays, so an object is tested only against the slice of
+    pixels whose azimuths its plan-view outline spans (a chair at the image's edge costs a tenth of the image).
+    """
+
+    def __init__(self, params: DepthCameraParams, rng: np.random.Generator) -> None:
+        self.params = params
+        self.rng = rng
+        p = params
+        optical = pixel_rays((p.width, p.height), (p.fx, p.fy, p.cx, p.cy))
+        norm = np.linalg.norm(optical, axis=1)
+        base = (optical / norm[:, None]) @ mount_rotation(p.mount).T
+        azimuth = np.arctan2(base[:, 1], base[:, 0])
+        bins = 2 * p.width
+        lo, hi = float(azimuth.min()), float(azimuth.max())
+        step = max(hi - lo, 1e-9) / (bins - 1)
+        pixel_bin = np.clip(np.rint((azimuth - lo) / step), 0, bins - 1).astype(np.intp)
+        order = np.argsort(pixel_bin, kind="stable")
+        #: Pixel index (row-major) of each sorted position, and where each azimuth bin's pixels start.
+        self._order = order
+        self._bin_start = np.searchsorted(pixel_bin[order], np.arange(bins + 1))
+        self._bin = pixel_bin[order]
+        self._lo, self._step, self._bins = lo, step, bins
+        #: Azimuths (base frame) of the wall casts.
+        self._bin_azimuth: NDArray[np.float64] = lo + step * np.arange(bins, dtype=np.float64)
+        base = base[order]
+        self._dir = base.astype(np.float32)  # unit rays in the base frame, sorted, (N, 3)
+        self._inv_horizontal = (1.0 / np.maximum(np.hypot(base[:, 0], base[:, 1]), 1e-6)).astype(np.float32)
+        #: z-depth per metre along each (unit) ray.
+        self._depth_per_t = (1.0 / norm[order]).astype(np.float32)
+        # Floor and ceiling do not turn with the robot: where each ray meets them is fixed by the mount.
+        dz = self._dir[:, 2]
+        self._dz_safe = np.where(np.abs(dz) < 1e-6, np.float32(1e-6), dz).astype(np.float32)
+        self._inv_dz = (1.0 / self._dz_safe).astype(np.float32)
+        self._floor_t = np.where(dz < 0, -p.mount.z_m * self._inv_dz, np.inf).astype(np.float32)
+        self._ceiling_t: dict[float, F32] = {}
+        self._reach = math.hypot(p.range_max_m, p.mount.z_m) + 0.5
+
+    def render(self, t: float, pose: Pose2D, scene: Scene, movers: Movers | None = None) -> DepthImage:
+        """The depth image seen from the robot at ``pose`` (true pose: the simulator's)."""
+        p = self.params
+        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+        m = p.mount
+        ox = pose.x_m + c * m.x_m - s * m.y_m
+        oy = pose.y_m + s * m.x_m + c * m.y_m
+        oz = m.z_m
+        d = self._dir
+        dx = np.float32(c) * d[:, 0] - np.float32(s) * d[:, 1]
+        dy = np.float32(s) * d[:, 0] + np.float32(c) * d[:, 1]
+        dz = self._dz_safe
+        # Inverse directions once per frame for every object's slab test (no component exactly 0).
+        inv = (_inverse(dx), _inverse(dy), self._inv_dz)
+        t_hit = np.minimum(self._floor_t, self._ceiling(scene.world.wall_height_m))
+        # Walls: one grid cast per azimuth bin, in the grid frame.
+        gx, gy, gyaw = scene.to_grid_frame(ox, oy, pose.yaw_rad)
+        flat = scene.walls_caster.cast((gx, gy), gyaw + self._bin_azimuth, self._reach).distance_m
+        np.minimum(t_hit, flat.astype(np.float32)[self._bin] * self._inv_horizontal, out=t_hit)
+        ray = (ox, oy, oz)
+        for item in scene.objects.values():
+            span = self._slice(_outline_azimuths(item.shape, item.params, ox, oy), pose.yaw_rad)
+            if span is None:
+                continue
+            a, b = span
+            if item.shape == "box":
+                x0, y0, x1, y1 = item.params
+                hit = _box_hits(ray, (inv[0][a:b], inv[1][a:b], inv[2][a:b]), (x0, y0, item.clearance_m),
+                                (x1, y1, item.height_m))
+            else:
+                hit = _cylinder_hits(ray, (dx[a:b], dy[a:b], dz[a:b]), item.params, (item.clearance_m, item.height_m))
+            np.minimum(t_hit[a:b], hit, out=t_hit[a:b])
+        for mover in movers.items if movers is not None else ():
+            circle = (mover.x_m, mover.y_m, mover.spec.radius_m)
+            span = self._slice(_outline_azimuths("circle", circle, ox, oy), pose.yaw_rad)
+            if span is not None:
+                a, b = span
+                hit = _cylinder_hits(ray, (dx[a:b], dy[a:b], dz[a:b]), circle, (0.0, mover.spec.height_m))
+                np.minimum(t_hit[a:b], hit, out=t_hit[a:b])
+        sorted_depth = np.minimum(t_hit, np.float32(1e3)) * self._depth_per_t  # nothing hit: far beyond range
+        depth = np.empty_like(sorted_depth)
+        depth[self._order] = sorted_depth
+        if p.subpixel_px:
+            depth += p.noise_std_m(depth) * self.rng.standard_normal(depth.shape, dtype=np.float32)
+        out_of_range = ~((depth >= p.range_min_m) & (depth <= p.range_max_m))
+        if p.dropout_prob:
+            out_of_range |= self.rng.random(depth.shape, dtype=np.float32) < p.dropout_prob
+        depth[out_of_range] = 0.0
+        return DepthImage(t, depth.reshape(p.height, p.width), p.fx, p.fy, p.cx, p.cy, p.range_min_m,
+                          p.range_max_m, m)
+
+    def _ceiling(self, height_m: float) -> F32:
+        t = self._ceiling_t.get(height_m)
+        if t is None:
+            dz = self._dir[:, 2]
+            t = np.where(dz > 0, (height_m - self.params.mount.z_m) * self._inv_dz, np.inf).astype(np.float32)
+            self._ceiling_t[height_m] = t
+        return t
+
+    def _slice(self, outline: tuple[float, float, float] | None, yaw: float) -> tuple[int, int] | None:
+        """The sorted pixels whose azimuths an outline spans (None: out of view or out of reach); an outline
+        the camera stands inside (None from `_outline_azimuths`) spans every pixel."""
+        if outline is None:
+            return 0, len(self._bin)
+        centre, half, gap = outline
+        if gap > self._reach:
+            return None
+        rel = math.atan2(math.sin(centre - yaw), math.cos(centre - yaw))
+        b0 = math.floor((rel - half - self._lo) / self._step) - 1
+        b1 = math.ceil((rel + half - self._lo) / self._step) + 1
+        if b1 < 0 or b0 > self._bins - 1:
+            return None
+        a = int(self._bin_start[max(b0, 0)])
+        b = int(self._bin_start[min(b1, self._bins - 1) + 1])
+        return (a, b) if b > a else None
+
+
+def _inverse(d: F32) -> F32:
+    """1 / d with no component exactly 0 (a ray parallel to a slab then meets it only at infinity)."""
+    out: F32 = (np.float32(1.0) / np.where(np.abs(d) < 1e-6, np.float32(1e-6), d)).astype(np.float32)
+    return out
+
+
+def _outline_azimuths(shape: str, params: tuple[float, ...], ox: float, oy: float
+                      ) -> tuple[float, float, float] | None:
+    """(world azimuth of the outline's middle, half its angular width, nearest plan distance) as seen from
+    (ox, oy); None when (ox, oy) is inside it."""
+    if shape == "box":
+        x0, y0, x1, y1 = params
+        if x0 <= ox <= x1 and y0 <= oy <= y1:
+            return None
+        gap = math.hypot(max(x0 - ox, 0.0, ox - x1), max(y0 - oy, 0.0, oy - y1))
+        centre = math.atan2((y0 + y1) / 2 - oy, (x0 + x1) / 2 - ox)
+        rel = [math.atan2(math.sin(a - centre), math.cos(a - centre))
+               for a in (math.atan2(y - oy, x - ox) for x in (x0, x1) for y in (y0, y1))]
+        lo, hi = min(rel), max(rel)
+        return centre + (lo + hi) / 2, (hi - lo) / 2, gap
+    cx, cy, r = params
+    dist = math.hypot(cx - ox, cy - oy)
+    if dist <= r:
+        return None
+    return math.atan2(cy - oy, cx - ox), math.asin(r / dist), dist - r
+
+
+def _box_hits(origin: tuple[float, float, float], inv: tuple[F32, F32, F32], lo: tuple[float, float, float],
+              hi: tuple[float, float, float]) -> F32:
+    """Distance along each ray (given by its inverse direction, no component 0) to an axis-aligned box (slab
+    test); inf where it misses or lies behind."""
+    t_enter: F32 | None = None
+    t_exit: F32 | None = None
+    for o, inv_d, a, b in zip(origin, inv, lo, hi, strict=True):
+        t1 = np.float32(a - o) * inv_d
+        t2 = np.float32(b - o) * inv_d
+        near, far = np.minimum(t1, t2), np.maximum(t1, t2)
+        t_enter = near if t_enter is None else np.maximum(t_enter, near, out=t_enter)
+        t_exit = far if t_exit is None else np.minimum(t_exit, far, out=t_exit)
+    assert t_enter is not None and t_exit is not None
+    out: F32 = np.where((t_exit >= t_enter) & (t_enter > 0), t_enter, np.float32(np.inf))
+    return out
+
+
+def _cylinder_hits(origin: tuple[float, float, float], rays: tuple[F32, F32, F32], circle: tuple[float, ...],
+                   heights: tuple[float, float]) -> F32:
+    """Distance along each ray to a vertical cylinder spanning ``heights`` (bottom, top), its side or its caps."""
+    ox, oy, oz = origin
+    dx, dy, dz = rays
+    bottom_m, top_m = heights
+    cx, cy, r = circle
+    fx, fy = np.float32(ox - cx), np.float32(oy - cy)
+    a = dx * dx + dy * dy
+    b = fx * dx + fy * dy
+    c = np.float32(fx * fx + fy * fy - r * r)
+    disc = b * b - a * c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_side = (-b - np.sqrt(np.maximum(disc, 0.0))) / a
+        z = oz + t_side * dz
+        side = np.where((disc >= 0) & (t_side >= 0) & (z >= bottom_m) & (z <= top_m), t_side, np.inf)
+        # the caps: the top seen from above, the bottom from below
+        cap_z = np.where(dz < 0, np.float32(top_m), np.float32(bottom_m))
+        t_cap = (cap_z - np.float32(oz)) / dz
+        hx, hy = fx + t_cap * dx, fy + t_cap * dy
+        cap = np.where((t_cap >= 0) & (hx * hx + hy * hy <= r * r) & (dz != 0), t_cap, np.inf)
+    out: F32 = np.minimum(side, cap).astype(np.float32)
+    return out
+
+
+__all__ = ["D415_MOUNT", "DepthCamera", "DepthCameraParams"]
