@@ -17,6 +17,10 @@ from atemr.io.sim.world import MoverSpec
 
 #: How close a moving person or pet comes to the robot before it stops and waits, in metres.
 PERSONAL_SPACE_M = 0.15
+#: How long a pet waits for the robot to get out of its way before it wanders off elsewhere, in seconds. A
+#: cat does not queue: without this a robot waiting for the pet and the pet waiting for the robot stand in a
+#: doorway for ever, which no home shows.
+PET_PATIENCE_S = 2.0
 
 
 @dataclass
@@ -30,6 +34,7 @@ class Mover:
     direction: int = 1  # +1 forwards along the path, -1 backwards (back-and-forth paths)
     goal: tuple[float, float] | None = None  # a pet's current target
     pause_s: float = 0.0
+    blocked_s: float = 0.0  # how long the robot has been in its way
 
     @property
     def name(self) -> str:
@@ -65,16 +70,25 @@ class Movers:
             self._centres = np.array([(m.x_m, m.y_m) for m in self.items], dtype=np.float64).reshape(-1, 2)
         return self._centres
 
-    def _random_point(self, spec: MoverSpec) -> tuple[float, float]:
-        """A point of the area with room for the pet (tries a few, falls back to the area's centre)."""
+    def _random_point(self, spec: MoverSpec, away: tuple[float, float, float, float] | None = None,
+                      ) -> tuple[float, float]:
+        """A point of the area with room for the pet (tries a few, falls back to the area's centre).
+
+        ``away`` (pet x, y, robot x, y) asks for a point on the pet's side, not past the robot it gave way to;
+        without one the pet stays where it is.
+        """
         assert spec.area is not None
         x0, y0, x1, y1 = spec.area
         for _ in range(20):
             x = float(self.rng.uniform(x0, x1))
             y = float(self.rng.uniform(y0, y1))
+            if away is not None:
+                px, py, rx, ry = away
+                if (x - px) * (rx - px) + (y - py) * (ry - py) > 0:
+                    continue
             if self.scene.clearance(x, y, spec.radius_m).clearance_m > 0.02:
                 return x, y
-        return (x0 + x1) / 2, (y0 + y1) / 2
+        return (away[0], away[1]) if away is not None else ((x0 + x1) / 2, (y0 + y1) / 2)
 
     def step(self, dt_s: float, robot_xy: tuple[float, float], robot_radius_m: float) -> None:
         """Move every obstacle by ``dt_s`` seconds, waiting where the robot is in the way.
@@ -87,7 +101,13 @@ class Movers:
             gap = math.hypot(nx - robot_xy[0], ny - robot_xy[1]) - robot_radius_m - m.spec.radius_m
             now_gap = math.hypot(m.x_m - robot_xy[0], m.y_m - robot_xy[1]) - robot_radius_m - m.spec.radius_m
             if gap < PERSONAL_SPACE_M and gap < now_gap:
-                continue  # wait for the robot to get out of the way, as a person (or pet) would
+                # wait for the robot to get out of the way, as a person would; a pet soon goes elsewhere
+                m.blocked_s += dt_s
+                if m.spec.kind == "pet" and m.blocked_s >= PET_PATIENCE_S:
+                    m.goal = self._random_point(m.spec, away=(m.x_m, m.y_m, *robot_xy))
+                    m.blocked_s = 0.0
+                continue
+            m.blocked_s = 0.0
             m.x_m, m.y_m = nx, ny
         self._centres = None
 

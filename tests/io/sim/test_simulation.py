@@ -1,6 +1,7 @@
 """The simulation as scheduler components: rates, determinism, default RMD wheels, subscribers."""
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -126,6 +127,28 @@ def test_people_walk_and_pets_wander():
     moved = np.hypot(*(sim.movers.centres - start).T)
     assert moved[0] > 1.0  # the carer walks 0.6 m/s along the path
     assert moved[1] > 0.0  # the cat has wandered
+
+
+def test_a_pet_blocked_by_the_robot_wanders_elsewhere_and_a_person_waits():
+    """A robot waiting for the cat and a cat waiting for the robot would stand in the doorway for ever."""
+    from atemr.io.sim.movers import PET_PATIENCE_S
+
+    sim = build_simulation("studio", 4)
+    person, cat = sim.movers.items
+    cat.x_m, cat.y_m, cat.goal, cat.pause_s = 6.2, 3.1, (8.2, 3.1), 0.0
+    robot, radius = (6.7, 3.1), 0.3  # right in the cat's way, inside its personal space
+    for _ in range(int(PET_PATIENCE_S / 0.05) - 2):
+        sim.movers.step(0.05, robot, radius)
+    assert cat.goal == (8.2, 3.1) and (cat.x_m, cat.y_m) == (6.2, 3.1)  # it waits a moment
+    for _ in range(200):  # 10 s
+        sim.movers.step(0.05, robot, radius)
+    assert cat.goal != (8.2, 3.1) and math.dist((6.2, 3.1), (cat.x_m, cat.y_m)) > 0.3  # then goes elsewhere
+    # a person whose path runs through the robot waits as long as it takes
+    person.spec = dataclasses.replace(person.spec, path=((6.2, 3.1), (8.2, 3.1)))
+    person.x_m, person.y_m, person.target, person.direction = 6.2, 3.1, 1, 1
+    for _ in range(400):  # 20 s
+        sim.movers.step(0.05, robot, radius)
+    assert (person.x_m, person.y_m) == (6.2, 3.1)
 
 
 def test_config_becomes_params():

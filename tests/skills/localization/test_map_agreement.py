@@ -15,6 +15,7 @@ from atemr.io.sim.maps import OccupancyMap
 from atemr.io.sim.scene import Scene
 from atemr.io.sim.world import load_world
 from atemr.msgs import Pose2D
+from atemr.skills.localization.global_search import GlobalSearchParams
 from atemr.skills.localization.likelihood_field import LikelihoodField
 from atemr.skills.localization.map_agreement import HIT, THROUGH, UNEXPLAINED, AgreementParams, MapAgreement
 from atemr.skills.localization.scan import scan_points, sensor_origin
@@ -66,8 +67,11 @@ def test_a_wrong_room_no_longer_scores_as_the_right_one() -> None:
     old = field.agreement(poses, points[::6])
     wrong = poses[int(np.argmax(old))]
     honest = agreement.measure(np.vstack([[truth.x_m, truth.y_m, truth.yaw_rad], wrong]), points, sensor)
-    assert old.max() >= 0.8  # the old measure found most of the scan "on the map" in another room
-    assert honest.agreement[0] > 0.9 and honest.agreement[1] < 0.7  # below the localization limit
+    limit = GlobalSearchParams().min_agreement
+    # the old measure found most of the scan "on the map" in another room, well over the localization limit
+    # (0.78 since the dining table stands on legs: its top no longer answers the lidar)
+    assert old.max() >= limit + 0.05
+    assert honest.agreement[0] > 0.9 and honest.agreement[1] < limit
     assert honest.through[1] > 0.3 * honest.beams[1]
 
 
