@@ -50,6 +50,9 @@ from atemr.skills.localization.scan_to_map import ScanToMapMatcher
 
 #: Fewest points (scan returns, or mapped cells) a match is tried with.
 MIN_POINTS = 20
+#: A mapped cell's surface line is fitted only from cells within this many cells of it (`IcpParams.normal_radius_m`):
+#: a wall's ten nearest cells lie within five; a table leg's reach the next leg.
+NORMAL_RADIUS_CELLS = 6
 
 
 def logodds(p: float) -> float:
@@ -184,7 +187,9 @@ class OccupancyGridSlam:
         target = self.occupied_points()
         if points.shape[0] < MIN_POINTS or target.shape[0] < MIN_POINTS:
             return predicted
-        result = icp(points, IcpTarget(target, IcpParams(max_correspondence_m=0.3)), as_pose(predicted))
+        # the map's own cells: a line only where neighbouring cells form one (not a line from leg to leg)
+        target_params = IcpParams(max_correspondence_m=0.3, normal_radius_m=NORMAL_RADIUS_CELLS * p.resolution_m)
+        result = icp(points, IcpTarget(target, target_params), as_pose(predicted))
         pose = as_array(result.pose)
         ok = result.ok and result.inlier_fraction >= p.min_inlier_fraction and self._plausible(pose, predicted)
         if not ok:

@@ -51,6 +51,10 @@ class IcpParams:
     normal_neighbours: int = 10
     #: A target neighbourhood is a line when its smaller spread is below this fraction of the larger.
     max_planarity: float = 0.5
+    #: A target point gets a line only when all its neighbours lie this close (m). On a dense target (a grid's
+    #: occupied cells) a farther neighbour means no surface runs there: a table leg's ten nearest cells reach
+    #: the next leg, and the "line" through both would pull the match. Scans (sparse far away) keep no limit.
+    normal_radius_m: float = math.inf
     translation_tol_m: float = 5e-4
     rotation_tol_rad: float = 5e-4
     #: Fewer inliers than this and the result is not trusted.
@@ -64,6 +68,8 @@ class IcpParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"must be a finite number > 0, got {value!r}", path=f"localization.icp.{name}")
+        if not self.normal_radius_m > 0:  # inf: no limit; NaN fails too
+            raise ConfigError(f"must be > 0, got {self.normal_radius_m!r}", path="localization.icp.normal_radius_m")
 
 
 @dataclass(frozen=True)
@@ -105,8 +111,8 @@ class IcpTarget:
         self.tree = cKDTree(self.points) if n else None
         self.normals = np.full((n, 2), np.nan)
         if n >= p.normal_neighbours:
-            _, nbr = self.tree.query(self.points, k=p.normal_neighbours)  # type: ignore[union-attr]
-            found = (nbr < n).all(axis=1)
+            dist, nbr = self.tree.query(self.points, k=p.normal_neighbours)  # type: ignore[union-attr]
+            found = (nbr < n).all(axis=1) & (dist[:, -1] <= p.normal_radius_m)
             nb = self.points[np.minimum(nbr, n - 1)]  # (n, k, 2)
             d = nb - nb.mean(axis=1, keepdims=True)
             cxx = (d[..., 0] ** 2).mean(axis=1)

@@ -77,6 +77,23 @@ def test_too_few_points_is_not_converged_and_nan_points_are_dropped() -> None:
         IcpParams(max_correspondence_m=float("nan"))
 
 
+def test_a_line_is_fitted_only_where_the_neighbours_are_near() -> None:
+    """A map's cells: a wall, and two table legs 0.75 m apart. Without a radius the legs' ten nearest cells
+    include the other leg, and a "surface" from leg to leg gets a normal; within 0.3 m only the wall does."""
+    wall = np.column_stack([np.arange(0.0, 2.0, 0.05), np.zeros(40)])
+    legs = np.array([[1.0, 1.0], [1.05, 1.0], [1.0, 1.05], [1.05, 1.05],
+                     [1.0, 1.8], [1.05, 1.8], [1.0, 1.85], [1.05, 1.85]])
+    points = np.vstack([wall, legs])
+    unlimited = IcpTarget(points)
+    near = IcpTarget(points, IcpParams(normal_radius_m=0.3))
+    assert np.isfinite(unlimited.normals[40:, 0]).all()  # leg to leg: a line that is not there
+    assert np.isnan(near.normals[40:, 0]).all()
+    inner = near.normals[5:35]  # the wall away from its ends (whose nearest cells all lie on one side)
+    assert np.isfinite(inner[:, 0]).all() and np.allclose(np.abs(inner[:, 1]), 1.0)
+    with pytest.raises(ConfigError, match="normal_radius_m"):
+        IcpParams(normal_radius_m=0.0)
+
+
 def test_target_reuse_gives_same_answer() -> None:
     src = room()
     tgt = transform_points((0.1, -0.05, 0.05), src)
