@@ -66,6 +66,9 @@ class SimConfig:
     camera_hz: float = field(default=10.0, metadata={"min": 0.0, "max": 60.0, "help": "camera frames/s (0: off)"})
     camera_width: int = field(default=640, metadata={"min": 16, "max": 4096})
     camera_height: int = field(default=480, metadata={"min": 16, "max": 4096})
+    camera_counter: bool = field(default=False, metadata={
+        "help": "draw each camera frame's number as black/white blocks in its top-left corner (to measure video "
+                "latency from capture to display: benchmarks/bench_drive_video.py)"})
     wheel_slip: float = field(default=0.02, metadata={"min": 0.0, "max": 0.4, "help": "typical wheel slip fraction"})
     odom_noise: float = field(
         default=0.01, metadata={"min": 0.0, "max": 0.4, "help": "encoder speed noise (fraction, std)"}
