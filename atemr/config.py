@@ -165,6 +165,12 @@ class UiConfig:
                 "host candidates only, enough on one LAN; comma-separated in the environment"})
     ice_username: str | None = field(default=None, metadata={"help": "username for the turn:/turns: servers"})
     ice_credential: str | None = field(default=None, metadata={"help": "credential for the turn:/turns: servers"})
+    drive_video: Literal["webrtc", "mjpeg"] = field(default="webrtc", metadata={
+        "help": "how the Control page gets the drive camera: webrtc (lower latency; needs aiortc, the webrtc extra; "
+                "MJPEG whenever WebRTC cannot be had) or mjpeg only"})
+    drive_video_max_peers: int = field(default=3, metadata={
+        "min": 1, "max": 32, "help": "pages the robot sends WebRTC drive video to at once (each costs an encoder; "
+                                     "more get MJPEG)"})
     foxglove: FoxgloveConfig = field(default_factory=FoxgloveConfig)
 
     def __post_init__(self) -> None:

@@ -358,6 +358,9 @@ class RobotGatewayImpl:
         frame = self._camera_frame()
         return None if frame is None else frame[1]
 
+    def camera_frame(self) -> NDArray[np.uint8] | None:
+        return None if self.camera is None else self.camera.latest
+
     def secondary_screen_png(self) -> bytes | None:
         board = self.robot.parts.secondary_board
         return None if board is None else board.screen_png(scale=2, color=True)
