@@ -263,7 +263,8 @@ class Site:
     def __init__(self, data_dir: Path, clock: RealTimeSimClock) -> None:
         self.data_dir = data_dir
         self.robot = KinematicGateway(clock)
-        config = Config(data_dir=data_dir, ui=UiConfig(port=0))
+        # MJPEG: the pages' tests watch the stream (WebRTC drive video has its own, test_drive_video.py)
+        config = Config(data_dir=data_dir, ui=UiConfig(port=0, drive_video="mjpeg"))
         self.server = DashboardServer(config, self.robot, clock=clock, hash_method=FAST_SCRYPT)
         self.scheduler = Scheduler(clock)
         self.scheduler.add(self.robot, PUSH_RATE_HZ)
@@ -326,14 +327,17 @@ BOOT_S = 4.0
 class RobotSite:
     """The whole simulated robot with its dashboard, run in a background thread."""
 
-    def __init__(self, data_dir: Path, speed: float = 1.0) -> None:
+    def __init__(self, data_dir: Path, speed: float = 1.0, **overrides: Any) -> None:
+        """``overrides`` are configuration keys (``{"sim.camera_counter": True}``); the drive camera is MJPEG
+        unless they say ``ui.drive_video`` (the pages' tests watch the stream)."""
         from atemr.robot import build_robot
         from atemr.robot.dashboard import add_dashboard
 
         self.data_dir = data_dir
         config = load_config(environ={}, overrides={
             "data_dir": str(data_dir), "can.channel": unique_channel("e2e"), "sim.seed": 5,
-            "secondary.portal_serve": False, "ui.enabled": False, "ui.port": 0,
+            "secondary.portal_serve": False, "ui.enabled": False, "ui.port": 0, "ui.drive_video": "mjpeg",
+            **overrides,
         })
         self.clock = BootThenRealTime(BOOT_S, speed)
         self.robot = build_robot(config, realtime=True, clock=self.clock)

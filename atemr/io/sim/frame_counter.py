@@ -67,3 +67,31 @@ def read_counter(image: NDArray[np.uint8]) -> int | None:
         return None
     bits = (levels[1:-1] >= THRESHOLD).astype(np.int64)
     return int((bits << np.arange(BITS - 1, -1, -1)).sum())
+
+
+def read_counter_js() -> str:
+    """`read_counter` as a JavaScript function ``(element) => number | null`` over an ``<img>`` or ``<video>``
+    (drawn to a canvas), for a browser test or benchmark to pass to Playwright's ``evaluate``: the page
+    shows the picture, and this reads which frame it is, with the same layout and thresholds."""
+    q = BLOCK_PX // 4
+    return f"""(el) => {{
+  const B = {BLOCK_PX}, N = {BLOCKS}, Q = {q};
+  const w = el.videoWidth || el.naturalWidth, h = el.videoHeight || el.naturalHeight;
+  if (!w || !h || w < B * N || h < B) return null;
+  const c = document.createElement("canvas");
+  c.width = B * N; c.height = B;
+  const g = c.getContext("2d", {{ willReadFrequently: true }});
+  g.drawImage(el, 0, 0, B * N, B, 0, 0, B * N, B);
+  const d = g.getImageData(0, 0, B * N, B).data;
+  const level = (i) => {{
+    let sum = 0, n = 0;
+    for (let y = Q; y < B - Q; y++) for (let x = i * B + Q; x < (i + 1) * B - Q; x++) {{
+      const p = (y * B * N + x) * 4; sum += (d[p] + d[p + 1] + d[p + 2]) / 3; n++;
+    }}
+    return sum / n;
+  }};
+  if (level(0) < {THRESHOLD + GUARD_MARGIN} || level(N - 1) > {THRESHOLD - GUARD_MARGIN}) return null;
+  let v = 0;
+  for (let i = 1; i < N - 1; i++) v = v * 2 + (level(i) >= {THRESHOLD} ? 1 : 0);
+  return v;
+}}"""
