@@ -135,7 +135,8 @@
       const d = await r.json();
       iceServers = d.ice_servers || [];
       whyNot = d.webrtc ? "" : d.reason;
-      return d.webrtc && window.RTCPeerConnection ? "webrtc" : "mjpeg";
+      if (d.webrtc && !window.RTCPeerConnection) whyNot = "this browser has no WebRTC";
+      return d.webrtc && !whyNot ? "webrtc" : "mjpeg";
     } catch (err) {
       whyNot = `the robot did not say whether it sends WebRTC (${err.message})`;
       return "mjpeg";
