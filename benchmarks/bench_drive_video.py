@@ -24,8 +24,6 @@ for both. Figures depend on the machine's load (a wall-clock measure); benchmark
 
 from __future__ import annotations
 
-import contextlib
-import logging
 import os
 import statistics
 import sys
@@ -42,6 +40,7 @@ from atemr.clock import RealTimeSimClock
 from atemr.config import load_config
 from atemr.io.can.bus import unique_channel
 from atemr.io.sim.frame_counter import read_counter, read_counter_js
+from atemr.logsetup import quieted
 from atemr.robot import build_robot
 from atemr.robot.dashboard import add_dashboard
 
@@ -90,20 +89,6 @@ class Captures:
             return {n: t for n, t in self.at_unix_s.items() if start_s <= t <= end_s}
 
 
-@contextlib.contextmanager
-def _quiet() -> Any:
-    """Scheduler overruns and werkzeug's complaints would flood the table; the figures say what matters."""
-    loggers = [logging.getLogger(name) for name in ("atemr", "werkzeug", "aiortc", "aioice")]
-    levels = [lg.level for lg in loggers]
-    for lg in loggers:
-        lg.setLevel(logging.ERROR)
-    try:
-        yield
-    finally:
-        for lg, level in zip(loggers, levels, strict=True):
-            lg.setLevel(level)
-
-
 def _page(browser: Any, url: str, *, webrtc: bool) -> Any:
     """A Control page logged in as admin, getting the camera over WebRTC or (``webrtc`` False) MJPEG."""
     context = browser.new_context(viewport={"width": 1280, "height": 860})
@@ -132,7 +117,8 @@ def measure(window_s: float) -> dict[str, Any]:
         raise RuntimeError(f"{CHROMIUM} is missing (./test installs Debian's chromium when run as root)")
     from playwright.sync_api import sync_playwright
 
-    with _quiet(), tempfile.TemporaryDirectory(prefix="atemr-bench-video-") as data_dir:
+    quiet = quieted("atemr", "werkzeug", "aiortc", "aioice")
+    with quiet, tempfile.TemporaryDirectory(prefix="atemr-bench-video-") as data_dir:
         config = load_config(environ={}, overrides={
             "data_dir": data_dir, "can.channel": unique_channel("bench-video"), "sim.seed": 3,
             "secondary.portal_serve": False, "ui.enabled": False, "ui.port": 0, "log_level": "WARNING",

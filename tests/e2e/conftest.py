@@ -20,6 +20,7 @@ import math
 import os
 import shutil
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -379,6 +380,18 @@ def robot_site(tmp_path: Path) -> Iterator[RobotSite]:
 
 
 @pytest.fixture
+def webrtc_robot_site(tmp_path: Path) -> Iterator[RobotSite]:
+    """The robot site sending its drive camera over WebRTC, its camera numbering its frames
+    (``sim.camera_counter``); skips without aiortc (the webrtc extra)."""
+    pytest.importorskip("aiortc", reason="aiortc (the webrtc extra) is not installed")
+    site = RobotSite(tmp_path / "data", **{"ui.drive_video": "webrtc", "sim.camera_counter": True})
+    site.users.set_password("admin", ADMIN_PW)
+    site.start()
+    yield site
+    site.stop()
+
+
+@pytest.fixture
 def fast_robot_site(tmp_path: Path) -> Iterator[RobotSite]:
     """The robot site paced at 4× real time (a whole mission in a few seconds)."""
     site = RobotSite(tmp_path / "data", speed=4.0)
@@ -478,10 +491,24 @@ def login(page: Any, url: str, username: str, password: str) -> None:
     page.click("#login-button")
 
 
+def wait_for(page: Any, js: str, timeout_s: float = 15.0) -> Any:
+    """Poll the function ``js`` (evaluated by Playwright, not by the page: its CSP forbids eval) until it
+    returns something truthy, and return that."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = page.evaluate(js)
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"still false after {timeout_s:.0f} s: {js} → {value!r}")
+        page.wait_for_timeout(100)
+
+
 @pytest.fixture
 def helpers() -> Any:
     class Helpers:
         ADMIN_PW = ADMIN_PW
         login = staticmethod(login)
+        wait_for = staticmethod(wait_for)
 
     return Helpers

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -22,37 +20,13 @@ pytestmark = pytest.mark.e2e
 WAIT_S = 30.0
 
 
-@pytest.fixture
-def webrtc_site(tmp_path: Path, helpers: Any) -> Iterator[Any]:
-    pytest.importorskip("aiortc", reason="aiortc (the webrtc extra) is not installed")
-    from tests.e2e.conftest import RobotSite
-
-    site = RobotSite(tmp_path / "data", **{"ui.drive_video": "webrtc", "sim.camera_counter": True})
-    site.users.set_password("admin", helpers.ADMIN_PW)
-    site.start()
-    yield site
-    site.stop()
-
-
-def wait_for(page: Any, js: str, timeout_s: float = WAIT_S) -> Any:
-    """Poll the function ``js`` (evaluated by Playwright, not by the page: its CSP forbids eval) until truthy."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = page.evaluate(js)
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"still false after {timeout_s:.0f} s: {js} → {value!r}")
-        page.wait_for_timeout(100)
-
-
 def frame_number(page: Any, selector: str) -> int | None:
     return page.evaluate(f"() => ({read_counter_js()})(document.querySelector('{selector}'))")
 
 
-def numbers_rise(page: Any, selector: str) -> tuple[int, int]:
+def numbers_rise(page: Any, selector: str, helpers: Any) -> tuple[int, int]:
     """Two frame numbers read from the picture a moment apart, the second higher: the picture updates."""
-    first = wait_for(page, f"() => ({read_counter_js()})(document.querySelector('{selector}'))")
+    first = helpers.wait_for(page, f"() => ({read_counter_js()})(document.querySelector('{selector}'))", WAIT_S)
     deadline = time.monotonic() + WAIT_S
     while (later := frame_number(page, selector)) is None or later <= first:
         assert time.monotonic() < deadline, f"the picture stayed at frame {first} ({later})"
@@ -65,31 +39,32 @@ def open_control(page: Any, site: Any, helpers: Any) -> None:
     page.wait_for_url(re.compile(r"/control$"))
 
 
-def test_the_drive_camera_plays_over_webrtc(webrtc_site, page, shots, helpers):
-    video = webrtc_site.server.app.extensions["atemr.drive_video"]
-    open_control(page, webrtc_site, helpers)
-    wait_for(page, "() => window.atemrDriveVideo && atemrDriveVideo.transport === 'webrtc'")
-    stats = wait_for(page, "async () => { const s = await atemrDriveVideo.stats(); "
-                           "return s && s.framesDecoded > 0 && s.bytesReceived > 0 ? s : null; }")
+def test_the_drive_camera_plays_over_webrtc(webrtc_robot_site, page, shots, helpers):
+    video = webrtc_robot_site.server.app.extensions["atemr.drive_video"]
+    open_control(page, webrtc_robot_site, helpers)
+    helpers.wait_for(page, "() => window.atemrDriveVideo && atemrDriveVideo.transport === 'webrtc'", WAIT_S)
+    stats = helpers.wait_for(page, "async () => { const s = await atemrDriveVideo.stats(); "
+                                   "return s && s.framesDecoded > 0 && s.bytesReceived > 0 ? s : null; }", WAIT_S)
     assert stats["state"] == "connected", stats
-    _, later = numbers_rise(page, "#camera-video")
+    _, later = numbers_rise(page, "#camera-video", helpers)
     assert page.locator("#camera-video").is_visible() and page.locator("#camera").is_hidden()
     assert page.text_content("#camera-transport") == "WebRTC"
     assert page.evaluate("document.body.dataset.driveVideo") == "webrtc"
     assert video.peers == 1
-    assert webrtc_site.server.app.extensions["atemr.camera_streams"].open == 0  # no MJPEG beside it
+    assert webrtc_robot_site.server.app.extensions["atemr.camera_streams"].open == 0  # no MJPEG beside it
     page.screenshot(path=str(shots / "drive-video-webrtc.png"))
 
     page.click("#cam-toggle")  # CAM-OFF: the robot stops sending
-    wait_for(page, "() => document.getElementById('cam-toggle').textContent === 'CAM-OFF'")
+    helpers.wait_for(page, "() => document.getElementById('cam-toggle').textContent === 'CAM-OFF'")
     deadline = time.monotonic() + 10
     while video.peers:
         assert time.monotonic() < deadline, "the robot still sends after CAM-OFF"
         page.wait_for_timeout(50)
     assert page.locator("#camera-video").is_hidden()
     page.click("#cam-toggle")  # CAM-ON: a new connection, the numbers go on from where the camera is
-    wait_for(page, "async () => { const s = await atemrDriveVideo.stats(); return s && s.framesDecoded > 0; }")
-    again, _ = numbers_rise(page, "#camera-video")
+    helpers.wait_for(page, "async () => { const s = await atemrDriveVideo.stats(); return s && s.framesDecoded > 0; }",
+                     WAIT_S)
+    again, _ = numbers_rise(page, "#camera-video", helpers)
     assert again > later
 
 
@@ -104,16 +79,16 @@ NO_DIRECT_PATH = """(() => {
 })();"""
 
 
-def test_the_page_falls_back_to_mjpeg_when_webrtc_fails(webrtc_site, page, shots, helpers):
+def test_the_page_falls_back_to_mjpeg_when_webrtc_fails(webrtc_robot_site, page, shots, helpers):
     page.context.add_init_script(script=NO_DIRECT_PATH)
-    open_control(page, webrtc_site, helpers)
-    wait_for(page, "() => window.atemrDriveVideo && atemrDriveVideo.transport === 'mjpeg'")
+    open_control(page, webrtc_robot_site, helpers)
+    helpers.wait_for(page, "() => window.atemrDriveVideo && atemrDriveVideo.transport === 'mjpeg'", WAIT_S)
     assert page.text_content("#camera-transport") == "MJPEG"
     why = page.get_attribute("#camera-transport", "data-why") or ""
     assert "no picture within" in why or "connection failed" in why, why
     assert why in (page.get_attribute("#camera-transport", "title") or "")
     assert "/api/camera.mjpeg" in (page.get_attribute("#camera", "src") or "")
-    numbers_rise(page, "#camera")  # the MJPEG picture updates
+    numbers_rise(page, "#camera", helpers)  # the MJPEG picture updates
     assert page.locator("#camera").is_visible() and page.locator("#camera-video").is_hidden()
-    assert webrtc_site.server.app.extensions["atemr.drive_video"].peers == 0  # the page let its offer go
+    assert webrtc_robot_site.server.app.extensions["atemr.drive_video"].peers == 0  # the page let its offer go
     page.screenshot(path=str(shots / "drive-video-mjpeg-fallback.png"))

@@ -241,6 +241,8 @@ def test_camera_jpeg_capture_and_video(booted):
     data = gateway.camera_jpeg()
     assert data is not None and Image.open(io.BytesIO(data)).size == (640, 480)
     assert gateway.camera_jpeg() is data  # encoded once per frame, whoever asks
+    frame = gateway.camera_frame()  # the same frame raw, for the WebRTC drive video
+    assert frame is robot.parts.devices.camera.latest and frame.shape == (480, 640, 3)
     assert gateway.capture_image().ok
     images = list((robot.config.data_dir / "media" / "images").glob("*.jpg"))
     assert len(images) == 1
