@@ -153,7 +153,11 @@
     if (transport === "webrtc") {
       if (!on) { stopWebrtc(); show(false); return; }
       show(true);
-      startWebrtc().catch((err) => { if (err.message !== "stopped") fallBack(err.message); });
+      startWebrtc().catch((err) => {
+        if (err.message === "stopped") return;
+        if (A.socket.status !== "ONLINE") { closePeer(); return; } // offered again once the socket is back
+        fallBack(err.message);
+      });
       return;
     }
     if (transport === "mjpeg") {
