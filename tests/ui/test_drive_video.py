@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 import sys
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -182,10 +183,42 @@ def test_without_aiortc_the_page_is_told_why(app, alice, monkeypatch):
 
 
 def test_only_an_operator_with_access_may_ask(app, client, ui):
-    assert client.get("/api/drive-video").status_code in (302, 401, 403)  # not logged in
+    assert client.get("/api/drive-video").status_code == 401  # not logged in
     token = app.extensions["atemr.screens"].add("tablet")
     tablet = app.test_client()
     tablet.get(f"/screen?token={token}")
     ack = sio(app, tablet).emit("drive_video_offer", OFFER, callback=True)
     assert not ack["ok"] and ack.get("status") == 403
     assert tablet.get("/api/drive-video").status_code == 403
+
+
+def test_a_dashboard_without_a_robot_offers_no_webrtc(tmp_path, clock, ui):
+    from atemr.ui.app import create_app
+
+    app = create_app(ui.make_config(tmp_path), None, clock=clock, hash_method=ui.FAST_SCRYPT)
+    app.extensions["atemr.users"].set_password("admin", ui.ADMIN_PW)
+    client = app.test_client()
+    ui.login(client, "admin", ui.ADMIN_PW)
+    assert client.get("/api/drive-video").get_json() == {
+        "webrtc": False, "reason": "no robot is connected: no camera", "ice_servers": []}
+
+
+def test_an_offer_the_stuck_loop_cannot_answer_is_refused_in_time(video_app, gateway, ui, monkeypatch):
+    """The offer waits on the web request's thread, up to its deadline, then is refused and frees its place."""
+    from atemr.ui.drive_video import sender
+
+    monkeypatch.setattr(sender, "NEGOTIATE_TIMEOUT_S", 0.3)
+    gateway.frame = camera_image(1)
+    video = video_app.extensions["atemr.drive_video"]
+
+    async def stuck() -> None:
+        time.sleep(1.0)  # blocks the loop's thread, as a hung peer connection would
+
+    blocking = video._loop.submit(stuck())
+    client = video_app.test_client()
+    ui.login(client, "alice", ui.USER_PW)
+    started = time.monotonic()
+    ack = sio(video_app, client).emit("drive_video_offer", OFFER, callback=True)
+    assert not ack["ok"] and "did not answer the video offer within 0.3 s" in ack["reason"]
+    assert time.monotonic() - started < 1.0 and video.peers == 0
+    blocking.result(timeout=5)
