@@ -76,5 +76,8 @@ class EventLoopThread:
             self._loop = self._thread = None
         if loop is None or thread is None:
             return
-        loop.call_soon_threadsafe(loop.stop)
+        try:
+            loop.call_soon_threadsafe(loop.stop)
+        except RuntimeError:  # the loop is closed already (its thread ended)
+            return
         thread.join(timeout=STOP_TIMEOUT_S)
