@@ -84,9 +84,11 @@
     if (kind === "refused") return [e.text, "warning"];
     if (kind === "battery") return [e.text, /critical/.test(e.text) ? "error" : "warning"];
     if (kind === "routine") return [`Routine ${e.text}`, /skipped|missed|failed|refused|cancelled/.test(e.text) ? "warning" : "ok"];
-    if (kind === "heartbeat" || kind === "motor fault" || kind === "can bus" || kind === "component error") {
-      return [e.text, /restored|cleared/.test(e.text) ? "ok" : "error"];
-    }
+    // The heartbeat, a motor and the CAN bus stop the robot: the carer reads that once, in plain words, from the
+    // state's stop_cause (below), and "may move again" when it clears. These events' own text ("0x157 heartbeat
+    // lost", "left_motor ...") is the engineer's, kept in the Events list.
+    if (kind === "heartbeat" || kind === "motor fault" || kind === "can bus") return null;
+    if (kind === "component error") return [e.text, "error"];
     return null; // settings, media, maps, autonomy: in the Events list, not worth interrupting for
   }
   A.onState((s) => {
