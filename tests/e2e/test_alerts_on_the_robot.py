@@ -11,6 +11,8 @@ robot in sequence, since each robot costs a boot.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import can
@@ -18,7 +20,7 @@ import pytest
 
 from atemr.msgs import Pose2D
 
-from .conftest import RobotSite
+from .conftest import RobotSite, running
 from .test_dashboard import screen_point, wait_for
 
 pytestmark = pytest.mark.e2e
@@ -164,3 +166,87 @@ def test_every_stop_is_said_with_its_cause_and_what_to_do(robot_site, page, help
     alerts.said("The robot may move again.")
     page.keyboard.up("ArrowDown")
     alerts.plain()
+
+
+#: A robot whose goals give up after 12 s (the default is 10 minutes) and whose pack is nearly at its warning
+#: level (20 %) with no charger, so a goal fails and the battery runs low within the test.
+TIRED = {"nav.timeout_s": 12.0, "sim.battery_percent": 21.0, "sim.battery_charge_w": 0.0,
+         "sim.camera_hz": 2.0}  # a camera that renders less often: the robot keeps its pace on a busy machine
+
+
+@pytest.fixture
+def tired_robot_site(tmp_path: Path) -> Iterator[RobotSite]:
+    """`TIRED`, paced at 4× real time."""
+    yield from running(RobotSite(tmp_path / "data", speed=4.0, overrides=TIRED))
+
+
+def go_here(page: Any, pose: Pose2D) -> None:
+    """GO HERE: tap ``pose`` on the map, CONFIRM (switches to AUTO when needed)."""
+    page.click("#go-here")
+    x, y = screen_point(page, pose.x_m, pose.y_m)
+    page.mouse.click(x, y)
+    page.click("#goal-go")
+
+
+def test_goals_missions_refusals_localization_battery_and_offline_are_said(tired_robot_site, page, helpers, shots):
+    """What a carer meets while the robot works: a refusal, a mission finished, a goal reached and one failed, the
+    robot lost and found, the battery low, and the robot gone offline, each provoked on the running robot."""
+    site = tired_robot_site
+    alerts = open_control(page, site, helpers)
+
+    # a refusal: a mission started in MANUAL
+    alerts.start()
+    page.select_option("#mission-select", "look-around")
+    page.click("#mission-start")
+    alerts.said("Start mission: switch to AUTO first")
+    assert site.agent_state == "IDLE.MANUAL"
+
+    # a mission finished: in AUTO, the same mission (four photos, turning on the spot)
+    page.click("#mode-toggle")
+    wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
+    alerts.start()
+    page.click("#mission-start")
+    alerts.said("Mission 'look-around' finished.", timeout=40_000)
+
+    # a goal reached: GO HERE 1 m ahead
+    start = site.sim.pose
+    alerts.start()
+    go_here(page, Pose2D(start.x_m + 1.0, start.y_m, 0.0))
+    alerts.said("Goal reached.", timeout=30_000)
+
+    # a goal that fails: something stands on the spot (not on the map, so the goal is taken), the goal times out
+    spot = Pose2D(2.4, 3.4, math.pi / 2)  # the living room's place, free on the map
+    on_map(page, "#sim-obstacle", spot)
+    alerts.start()
+    go_here(page, spot)
+    alerts.said("Goal failed: ", timeout=40_000)
+    assert any("not reached within 12 s" in t for t in alerts.since_mark()), alerts.since_mark()  # and why
+    page.screenshot(path=str(shots / "alerts-goal-failed.png"))
+    alerts.plain()
+
+    # lost and found: carried off to the bedroom (the simulation panel), then FIND POSITION
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=15_000)
+    alerts.start()
+    on_map(page, "#sim-kidnap", Pose2D(6.3, 1.5, 0.0))
+    alerts.said("The robot is no longer sure where it is.", timeout=20_000)
+    alerts.plain()
+    alerts.start()
+    page.click("#localize-global")
+    alerts.said("The robot knows where it is", timeout=20_000)
+    truth = site.sim.pose
+    wait_for(page, f"Math.hypot(ATEMR.state.pose.x_m - {truth.x_m}, ATEMR.state.pose.y_m - {truth.y_m}) < 0.3")
+
+    # the battery runs low: the pack loses a few percent (as a while of driving would)
+    pack = site.robot.parts.sim_battery
+    assert pack is not None
+    alerts.start()
+    site.sim.submit(lambda: setattr(pack, "energy_wh", pack.capacity_wh * 0.17))
+    alerts.said("battery low", timeout=30_000)
+    wait_for(page, "document.getElementById('battery').classList.contains('warning')")
+    alerts.plain()
+
+    # offline: the robot's process ends, the page stays
+    alerts.start()
+    site.pause()
+    alerts.said("The robot is offline: no state is coming. Driving is off until it is back.", timeout=5_000)
+    page.screenshot(path=str(shots / "alerts-offline.png"))
