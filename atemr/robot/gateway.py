@@ -326,7 +326,8 @@ class RobotGatewayImpl:
     def _stop_cause(self) -> StopCause | None:
         """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge (or the floor
         sensors gone quiet, so a drop cannot be ruled out), an obstacle in the stop zone, the heartbeat between the
-        cores lost, a motor fault, a CAN bus fault."""
+        cores lost, a CAN bus fault, a motor fault. The bus before the motors: when it fails the motors fall silent
+        behind it and the driver latches that too, but what to mend is the bus (as the agent names it)."""
         parts = self.robot.parts
         last = parts.motion.last
         stops = self.inputs.safety_stops
@@ -335,8 +336,8 @@ class RobotGatewayImpl:
             (last is not None and last.cliff_stop, "cliff"),
             (last is not None and last.emergency, "obstacle"),
             (HEARTBEAT_STOP in stops, "heartbeat"),
-            (parts.driver.fault is not None, "motor"),
             (CAN_BUS_STOP in stops, "bus"),
+            (parts.driver.fault is not None, "motor"),
         ]
         return next((cause for held, cause in causes if held), None)
 

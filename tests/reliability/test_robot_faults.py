@@ -393,6 +393,7 @@ def test_a_dead_receive_side_stops_both_motors_and_enters_error_naming_the_bus(
     h.drive(fault_t + 1.5)
     # nothing is received, so the motors went silent too: the driver latched that as well, the bus stays the cause
     assert h.agent.state == "ERROR" and h.robot.parts.driver.fault is not None and h.stopped()
+    assert h.stop_cause() == "bus"  # what the carer reads: the bus to mend, not a motor
     monkeypatch.undo()
     back_t = h.robot.clock.now()
     h.drive(back_t + 2.5)
