@@ -139,18 +139,29 @@ def test_every_stop_is_said_with_its_cause_and_what_to_do(robot_site, page, help
     alerts.said("The robot may move again.", timeout=15_000)
     alerts.plain()
 
-    # the CAN bus: its controller reports bus-off, then recovers
+    # the CAN bus: its controller goes bus-off (it says so, and nothing more is received), then recovers
     supervised = site.robot.components["can_bus"].bus  # type: ignore[attr-defined]
     off = [True]
     monkeypatch.setattr(type(supervised), "state", property(
         lambda bus: can.BusState.ERROR if bus is supervised and off[0] else can.BusState.ACTIVE))
+
+    def nothing(timeout: float | None = None) -> can.Message | None:
+        raise can.CanOperationError("bus-off (simulated)")
+
+    monkeypatch.setattr(supervised, "recv", nothing)
     alerts.start()
     stop_shown(page, "BUS")
     alerts.said("Stopped: the motors' connection (CAN bus) failed. The robot moves again when it works again.")
+    # the motors fall silent behind the bus and the driver latches that too: the cause to mend stays the bus
+    wait_for(page, "ATEMR.state.agent_state === 'ERROR' && !ATEMR.state.level2.left_motor "
+                   "&& !ATEMR.state.level2.right_motor", timeout=15_000)
+    assert site.robot.parts.driver.fault is not None
+    assert page.inner_text("#emergency") == "STOPPED: BUS"
+    assert not [t for t in alerts.since_mark() if "motor reports a fault" in t], alerts.since_mark()
     off[0] = False
+    monkeypatch.undo()
     alerts.said("The robot may move again.", timeout=15_000)
     alerts.plain()
-    monkeypatch.undo()
 
     # a drop: carried onto the balcony facing its open edge (the simulation panel), the carer drives on
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=15_000)
