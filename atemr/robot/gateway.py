@@ -45,7 +45,7 @@ from atemr.robot.core import Robot
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
 from atemr.robot.places import PlaceEditor
-from atemr.robot.plain_words import plain_guard_refusal, plain_outcome, plain_refusal
+from atemr.robot.plain_words import plain_goal_refusal, plain_guard_refusal, plain_outcome, plain_refusal
 from atemr.robot.port import jpeg
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
@@ -188,7 +188,7 @@ class RobotGatewayImpl:
         reports = self.agent.task_reports
         if reports and reports[-1] is not self._last_report:
             self._last_report = reports[-1]
-            self.robot.event(*plain_outcome(reports[-1]))
+            self.robot.event(*plain_outcome(reports[-1], self.robot.parts.navigation.last_status))
 
     def _queue(self, what: str, action: Callable[[float], object]) -> CommandResult:
         """Queue ``action(now)`` for the robot's thread; refused when `MAX_QUEUED_ACTIONS` wait already."""
@@ -393,13 +393,12 @@ class RobotGatewayImpl:
             return CommandResult.refused(why)
         if self.agent.state == "IDLE.MANUAL":
             return CommandResult.refused("switch to AUTO first")
-        navigation = self.agent.context.navigation
         if self.agent.precheck("goal") is None:
-            if navigation is None:
+            if self.agent.context.navigation is None:
                 return CommandResult.refused("navigation is not available on this robot")
-            verdict = navigation.check_goal(goal)
-            if verdict is not None:
-                return CommandResult.refused(verdict)
+            verdict = self.robot.parts.navigation.goal_check(goal)  # the agent's navigation, with the refusal's code
+            if not verdict.ok:
+                return CommandResult.refused(plain_goal_refusal(verdict, self.robot.parts.localization.status))
         return self._submit("goal", goal=goal)
 
     def set_initial_pose(self, pose: Pose2D) -> CommandResult:
