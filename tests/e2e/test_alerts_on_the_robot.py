@@ -76,8 +76,9 @@ def open_control(page: Any, site: RobotSite, helpers: Any) -> Alerts:
 
 
 def stop_shown(page: Any, cause: str) -> None:
-    """The emergency indicator names ``cause`` (as the state's ``stop_cause`` is shown)."""
-    wait_for(page, f"document.getElementById('emergency').textContent === {'STOPPED: ' + cause!r}")
+    """The emergency indicator names ``cause`` (as the state's ``stop_cause`` is shown). A generous wait: on a
+    busy machine the robot runs slower than real time, and the heartbeat alone takes 2 s of its time."""
+    wait_for(page, f"document.getElementById('emergency').textContent === {'STOPPED: ' + cause!r}", timeout=15_000)
 
 
 def hold(page: Any, key: str) -> None:
