@@ -328,9 +328,9 @@ BOOT_S = 4.0
 class RobotSite:
     """The whole simulated robot with its dashboard, run in a background thread."""
 
-    def __init__(self, data_dir: Path, speed: float = 1.0, **overrides: Any) -> None:
-        """``overrides`` are configuration keys (``{"sim.camera_counter": True}``); the drive camera is MJPEG
-        unless they say ``ui.drive_video`` (the pages' tests watch the stream)."""
+    def __init__(self, data_dir: Path, speed: float = 1.0, overrides: dict[str, Any] | None = None) -> None:
+        """``overrides``: configuration keys for this robot (``{"nav.timeout_s": 12.0}``) over the test defaults;
+        the drive camera is MJPEG unless they say ``ui.drive_video`` (the pages' tests watch the stream)."""
         from atemr.robot import build_robot
         from atemr.robot.dashboard import add_dashboard
 
@@ -338,7 +338,7 @@ class RobotSite:
         config = load_config(environ={}, overrides={
             "data_dir": str(data_dir), "can.channel": unique_channel("e2e"), "sim.seed": 5,
             "secondary.portal_serve": False, "ui.enabled": False, "ui.port": 0, "ui.drive_video": "mjpeg",
-            **overrides,
+            **(overrides or {}),
         })
         self.clock = BootThenRealTime(BOOT_S, speed)
         self.robot = build_robot(config, realtime=True, clock=self.clock)
@@ -363,20 +363,28 @@ class RobotSite:
         self.robot.start()
         self.thread.start()
 
-    def stop(self) -> None:
+    def pause(self) -> None:
+        """The robot's loop ends (as its process would) while its dashboard's web server stays up."""
         self.robot.stop()
         self.thread.join(timeout=10)
+
+    def stop(self) -> None:
+        self.pause()
         self.robot.shutdown()
         self.gateway.close()
 
 
-@pytest.fixture
-def robot_site(tmp_path: Path) -> Iterator[RobotSite]:
-    site = RobotSite(tmp_path / "data", speed=1.0)
+def running(site: RobotSite) -> Iterator[RobotSite]:
+    """``site`` with its admin password set, running for the test, stopped after it (a fixture's body)."""
     site.users.set_password("admin", ADMIN_PW)
     site.start()
     yield site
     site.stop()
+
+
+@pytest.fixture
+def robot_site(tmp_path: Path) -> Iterator[RobotSite]:
+    yield from running(RobotSite(tmp_path / "data", speed=1.0))
 
 
 @pytest.fixture
@@ -384,21 +392,13 @@ def webrtc_robot_site(tmp_path: Path) -> Iterator[RobotSite]:
     """The robot site sending its drive camera over WebRTC, its camera numbering its frames
     (``sim.camera_counter``); skips without aiortc (the webrtc extra)."""
     pytest.importorskip("aiortc", reason="aiortc (the webrtc extra) is not installed")
-    site = RobotSite(tmp_path / "data", **{"ui.drive_video": "webrtc", "sim.camera_counter": True})
-    site.users.set_password("admin", ADMIN_PW)
-    site.start()
-    yield site
-    site.stop()
+    yield from running(RobotSite(tmp_path / "data", overrides={"ui.drive_video": "webrtc", "sim.camera_counter": True}))
 
 
 @pytest.fixture
 def fast_robot_site(tmp_path: Path) -> Iterator[RobotSite]:
     """The robot site paced at 4× real time (a whole mission in a few seconds)."""
-    site = RobotSite(tmp_path / "data", speed=4.0)
-    site.users.set_password("admin", ADMIN_PW)
-    site.start()
-    yield site
-    site.stop()
+    yield from running(RobotSite(tmp_path / "data", speed=4.0))
 
 
 def _skip_reason() -> str | None:

@@ -180,7 +180,7 @@ def test_auto_goals_and_missions_wait_for_a_pose_after_a_map_switch(booted):
         "Cannot start a mission: the robot is not sure where it is (0% sure, it needs 70%). Set its position on "
         "the map (SET POSITION) or press FIND POSITION.")
     goal = gateway.set_goal(Pose2D(4.0, 2.0, 0.0))
-    assert not goal.ok and "not localized" in goal.reason
+    assert not goal.ok and goal.reason.startswith("Cannot drive to a goal: the robot is not sure where it is")
     assert gateway.set_mode("MANUAL").ok
     run(robot, 0.3)
     auto = gateway.set_mode("AUTO")
