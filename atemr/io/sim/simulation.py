@@ -33,6 +33,7 @@ from atemr.io.sim.base import BaseParams, Collision, DiffDriveBase, MountedWheel
 from atemr.io.sim.camera import Camera, CameraParams
 from atemr.io.sim.cliff import CliffParams, CliffSensors
 from atemr.io.sim.depth import DepthCamera, DepthCameraParams
+from atemr.io.sim.frame_counter import BLOCK_PX, counter_width_px, draw_counter
 from atemr.io.sim.imu import Imu, ImuParams
 from atemr.io.sim.lidar import Lidar, LidarParams
 from atemr.io.sim.movers import Movers
@@ -71,6 +72,8 @@ class SimParams:
     #: The robot's volume (base, mast, tablet): collisions are checked part by part against what is at each
     #: part's heights. Its base radius is the footprint and must be ``base.footprint_radius_m``.
     body: RobotBody = KAY
+    #: Draw each frame's number into the camera image (`atemr.io.sim.frame_counter`).
+    camera_counter: bool = False
 
     def __post_init__(self) -> None:
         if not math.isclose(self.body.footprint_radius_m, self.base.footprint_radius_m):
@@ -84,6 +87,9 @@ class SimParams:
             raise ConfigError(f"must be within [0, 120] Hz (0: off), got {self.camera_hz!r}", path="sim.camera_hz")
         if not (math.isfinite(self.depth_hz) and 0 <= self.depth_hz <= 90):
             raise ConfigError(f"must be within [0, 90] Hz (0: off), got {self.depth_hz!r}", path="sim.depth_hz")
+        if self.camera_counter and (self.camera.width < counter_width_px() or self.camera.height < BLOCK_PX):
+            raise ConfigError(f"the frame counter needs a camera image of at least {counter_width_px()}x{BLOCK_PX} "
+                              f"px, got {self.camera.width}x{self.camera.height}", path="sim.camera_counter")
 
 
 @dataclass(frozen=True)
@@ -258,7 +264,10 @@ class Simulation:
         return self.cliff.read(now, self.base.pose)
 
     def render_camera(self, now: float) -> NDArray[np.uint8]:
-        return self.camera.render(self.base.pose, self.scene, self.movers)
+        image = self.camera.render(self.base.pose, self.scene, self.movers)
+        if self.params.camera_counter:
+            draw_counter(image, self.camera_source.count + 1)  # the frame's number, from 1
+        return image
 
     def render_depth(self, now: float) -> DepthImage:
         return self.depth_camera.render(now, self.base.pose, self.scene, self.movers)
@@ -368,7 +377,7 @@ def params_from_config(cfg: SimConfig, body: RobotBody = KAY, depth_mount: Camer
         camera=CameraParams(width=cfg.camera_width, height=cfg.camera_height),
         physics_hz=cfg.physics_hz, lidar_hz=cfg.lidar_hz, imu_hz=cfg.imu_hz, cliff_hz=cfg.cliff_hz,
         depth=DepthCameraParams() if depth_mount is None else DepthCameraParams(mount=depth_mount),
-        camera_hz=cfg.camera_hz, depth_hz=cfg.depth_hz, body=body,
+        camera_hz=cfg.camera_hz, camera_counter=cfg.camera_counter, depth_hz=cfg.depth_hz, body=body,
     )
 
 
