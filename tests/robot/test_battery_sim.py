@@ -47,14 +47,15 @@ def to_auto(robot: Robot, gateway: Any) -> None:
 def test_the_estimate_follows_the_true_charge_while_driving(tmp_path):
     robot, gateway = boot(tmp_path, **{"sim.battery_wh": 2.0, "sim.battery_percent": 60.0, "sim.camera_hz": 0.0})
     try:
-        pack, watch = robot.parts.sim_battery, robot.parts.battery
-        assert pack is not None and watch is not None
+        pack, gauge = robot.parts.sim_battery, robot.parts.battery
+        assert pack is not None
         to_auto(robot, gateway)
         errors: list[float] = []
 
         def compare() -> None:  # while it drives: on the dock the charger lifts the voltage (the start is there)
-            if watch.percent is not None and robot.parts.sim.pose.distance_to(Pose2D(2.6, 2.6)) > 1.0:
-                errors.append(abs(watch.percent - pack.percent))
+            status = gauge.status()
+            if status is not None and robot.parts.sim.pose.distance_to(Pose2D(2.6, 2.6)) > 1.0:
+                errors.append(abs(status.percent - pack.percent))
 
         for place in ("kitchen", "bedroom"):  # away from the dock (the start), where it would charge
             drive_to(robot, gateway, place, compare)
@@ -62,7 +63,7 @@ def test_the_estimate_follows_the_true_charge_while_driving(tmp_path):
         assert max(errors) <= 5.0, max(errors)
         state = gateway.state()["battery"]
         assert state is not None and abs(state["percent"] - pack.percent) <= 5.0 and state["level"] == "ok"
-        assert watch.estimator.rejected == 0
+        assert gauge.estimator.rejected == 0
     finally:
         robot.stop()
         robot.shutdown()
@@ -73,7 +74,8 @@ def test_low_battery_warns_then_sends_the_robot_home_where_it_charges(tmp_path):
     robot, gateway = boot(tmp_path, **{"sim.battery_wh": 6.0, "sim.battery_percent": 11.5,
                                        "sim.battery_charge_w": 300.0, "sim.camera_hz": 0.0})
     try:
-        pack, watch = robot.parts.sim_battery, robot.parts.battery
+        pack, gauge = robot.parts.sim_battery, robot.parts.battery
+        assert pack is not None
         to_auto(robot, gateway)
         assert gateway.go_to_place("kitchen").ok  # away from the dock; the pack runs down there
         texts: list[str] = []
@@ -87,7 +89,8 @@ def test_low_battery_warns_then_sends_the_robot_home_where_it_charges(tmp_path):
         assert not any("critical" in t for t in texts), texts
         dock = robot.parts.maps.places["home"].pose
         assert robot.parts.sim.pose.distance_to(Pose2D(dock.x_m, dock.y_m)) < 0.3
-        assert pack.charging and pack.percent > 30.0 and watch.level == "ok"
+        status = gauge.status()
+        assert pack.charging and pack.percent > 30.0 and status is not None and status.level == "ok"
     finally:
         robot.stop()
         robot.shutdown()
