@@ -76,8 +76,8 @@ class SimConfig:
                                                             "help": "simulated pack's charge at start, %"})
     battery_base_load_w: float = field(default=15.0, metadata={"min": 0.0, "max": 1000.0,
                                                                "help": "what the electronics draw, W"})
-    battery_charge_w: float = field(default=60.0, metadata={"min": 0.0, "max": 10_000.0,
-                                                            "help": "charging power on the dock, W"})
+    battery_charge_s: float = field(default=10_800.0, metadata={
+        "min": 1.0, "max": 86_400.0, "help": "time on the dock that charges the simulated pack from empty to full, s"})
     start_time: str = field(default="", metadata={
         "help": "the calendar date and time the simulation starts at, for routines (ISO 8601 with its offset, "
                 "e.g. 2026-03-29T08:55+02:00; empty: the wall clock when it starts)"})

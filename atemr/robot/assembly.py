@@ -184,7 +184,7 @@ def _add_battery(robot: Robot, driver: RmdDriver, maps: MapService,
 
         pack = SimBattery(cfg.battery, motors, capacity_wh=cfg.sim.battery_wh,
                           percent=cfg.sim.battery_percent, base_load_w=cfg.sim.battery_base_load_w,
-                          charge_w=cfg.sim.battery_charge_w, pose=lambda: world.pose, dock=dock_pose)
+                          charge_s=cfg.sim.battery_charge_s, pose=lambda: world.pose, dock=dock_pose)
         robot.add(pack, 10.0)
     gauge = BatteryGauge(cfg.battery, driver, event=robot.event)
     robot.add(gauge, BATTERY_HZ)
