@@ -66,6 +66,9 @@ class SimConfig:
     camera_hz: float = field(default=10.0, metadata={"min": 0.0, "max": 60.0, "help": "camera frames/s (0: off)"})
     camera_width: int = field(default=640, metadata={"min": 16, "max": 4096})
     camera_height: int = field(default=480, metadata={"min": 16, "max": 4096})
+    camera_counter: bool = field(default=False, metadata={
+        "help": "draw each camera frame's number as black/white blocks in its top-left corner (to measure video "
+                "latency from capture to display: benchmarks/bench_drive_video.py)"})
     wheel_slip: float = field(default=0.02, metadata={"min": 0.0, "max": 0.4, "help": "typical wheel slip fraction"})
     odom_noise: float = field(
         default=0.01, metadata={"min": 0.0, "max": 0.4, "help": "encoder speed noise (fraction, std)"}
@@ -162,6 +165,12 @@ class UiConfig:
                 "host candidates only, enough on one LAN; comma-separated in the environment"})
     ice_username: str | None = field(default=None, metadata={"help": "username for the turn:/turns: servers"})
     ice_credential: str | None = field(default=None, metadata={"help": "credential for the turn:/turns: servers"})
+    drive_video: Literal["webrtc", "mjpeg"] = field(default="webrtc", metadata={
+        "help": "how the Control page gets the drive camera: webrtc (lower latency; needs aiortc, the webrtc extra; "
+                "MJPEG whenever WebRTC cannot be had) or mjpeg only"})
+    drive_video_max_peers: int = field(default=3, metadata={
+        "min": 1, "max": 32, "help": "pages the robot sends WebRTC drive video to at once (each costs an encoder; "
+                                     "more get MJPEG)"})
     foxglove: FoxgloveConfig = field(default_factory=FoxgloveConfig)
 
     def __post_init__(self) -> None:

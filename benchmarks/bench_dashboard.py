@@ -25,8 +25,6 @@ itself. Figures depend on the machine's load (wall-clock measure); benchmarks re
 
 from __future__ import annotations
 
-import contextlib
-import logging
 import statistics
 import sys
 import tempfile
@@ -37,6 +35,7 @@ from typing import Any
 from atemr.clock import RealTimeSimClock
 from atemr.config import load_config
 from atemr.io.can.bus import unique_channel
+from atemr.logsetup import quieted
 from atemr.robot import build_robot
 from atemr.robot.dashboard import add_dashboard
 from atemr.ui.server import PUSH_RATE_HZ
@@ -173,24 +172,9 @@ def _percentile(values: list[float], q: float) -> float:
     return statistics.quantiles(values, n=100, method="inclusive")[q - 1] if len(values) > 1 else values[0]
 
 
-@contextlib.contextmanager
-def _quiet() -> Any:
-    """Scheduler overruns and werkzeug's complaints about closing WebSocket frames would flood the table;
-    the figures below say what matters."""
-    loggers = [logging.getLogger(name) for name in ("atemr", "werkzeug")]
-    levels = [lg.level for lg in loggers]
-    for lg in loggers:
-        lg.setLevel(logging.ERROR)
-    try:
-        yield
-    finally:
-        for lg, level in zip(loggers, levels, strict=True):
-            lg.setLevel(level)
-
-
 def load_check(window_s: float, clients: int = CLIENTS) -> dict[str, Any]:
     """Run the check for ``window_s`` wall-clock seconds; returns the raw figures."""
-    with _quiet(), tempfile.TemporaryDirectory(prefix="atemr-bench-dashboard-") as data_dir:
+    with quieted("atemr", "werkzeug"), tempfile.TemporaryDirectory(prefix="atemr-bench-dashboard-") as data_dir:
         config = load_config(environ={}, overrides={
             "data_dir": data_dir, "can.channel": unique_channel("bench-dash"), "sim.seed": 3,
             "secondary.portal_serve": False, "ui.enabled": False, "ui.port": 0, "log_level": "WARNING",

@@ -19,7 +19,7 @@ atemr_find_python() {
     return 1
 }
 
-# atemr_bootstrap EXTRAS: EXTRAS is "" for the runtime or e.g. "test".
+# atemr_bootstrap EXTRAS: EXTRAS is "" for the bare runtime, "webrtc" for ./run, or "test".
 atemr_bootstrap() {
     local extras="$1" spec stamp want
     if [ ! -x "$atemr_venv/bin/python" ]; then
@@ -31,8 +31,8 @@ atemr_bootstrap() {
     if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
         return 0
     fi
-    # The test install includes everything the runtime needs.
-    if [ -z "$extras" ] && [ -f "$atemr_venv/.atemr-installed-test" ] &&
+    # The test install includes everything the runtime and its webrtc extra need.
+    if { [ -z "$extras" ] || [ "$extras" = "webrtc" ]; } && [ -f "$atemr_venv/.atemr-installed-test" ] &&
         [ "$(cat "$atemr_venv/.atemr-installed-test")" = "$want" ]; then
         return 0
     fi

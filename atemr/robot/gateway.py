@@ -45,7 +45,7 @@ from atemr.robot.core import Robot
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
 from atemr.robot.places import PlaceEditor
-from atemr.robot.plain_words import plain_guard_refusal, plain_outcome, plain_refusal
+from atemr.robot.plain_words import plain_goal_refusal, plain_guard_refusal, plain_outcome, plain_refusal
 from atemr.robot.port import jpeg
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
@@ -188,7 +188,7 @@ class RobotGatewayImpl:
         reports = self.agent.task_reports
         if reports and reports[-1] is not self._last_report:
             self._last_report = reports[-1]
-            self.robot.event(*plain_outcome(reports[-1]))
+            self.robot.event(*plain_outcome(reports[-1], self.robot.parts.navigation.last_status))
 
     def _queue(self, what: str, action: Callable[[float], object]) -> CommandResult:
         """Queue ``action(now)`` for the robot's thread; refused when `MAX_QUEUED_ACTIONS` wait already."""
@@ -325,7 +325,8 @@ class RobotGatewayImpl:
     def _stop_cause(self) -> StopCause | None:
         """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge (or the floor
         sensors gone quiet, so a drop cannot be ruled out), an obstacle in the stop zone, the heartbeat between the
-        cores lost, a motor fault, a CAN bus fault."""
+        cores lost, a CAN bus fault, a motor fault. The bus before the motors: when it fails the motors fall silent
+        behind it and the driver latches that too, but what to mend is the bus (as the agent names it)."""
         parts = self.robot.parts
         last = parts.motion.last
         stops = self.inputs.safety_stops
@@ -334,8 +335,8 @@ class RobotGatewayImpl:
             (last is not None and last.cliff_stop, "cliff"),
             (last is not None and last.emergency, "obstacle"),
             (HEARTBEAT_STOP in stops, "heartbeat"),
-            (parts.driver.fault is not None, "motor"),
             (CAN_BUS_STOP in stops, "bus"),
+            (parts.driver.fault is not None, "motor"),
         ]
         return next((cause for held, cause in causes if held), None)
 
@@ -356,6 +357,9 @@ class RobotGatewayImpl:
     def camera_jpeg(self) -> bytes | None:
         frame = self._camera_frame()
         return None if frame is None else frame[1]
+
+    def camera_frame(self) -> NDArray[np.uint8] | None:
+        return None if self.camera is None else self.camera.latest
 
     def secondary_screen_png(self) -> bytes | None:
         board = self.robot.parts.secondary_board
@@ -391,13 +395,12 @@ class RobotGatewayImpl:
             return CommandResult.refused(why)
         if self.agent.state == "IDLE.MANUAL":
             return CommandResult.refused("switch to AUTO first")
-        navigation = self.agent.context.navigation
         if self.agent.precheck("goal") is None:
-            if navigation is None:
+            if self.agent.context.navigation is None:
                 return CommandResult.refused("navigation is not available on this robot")
-            verdict = navigation.check_goal(goal)
-            if verdict is not None:
-                return CommandResult.refused(verdict)
+            verdict = self.robot.parts.navigation.goal_check(goal)  # the agent's navigation, with the refusal's code
+            if not verdict.ok:
+                return CommandResult.refused(plain_goal_refusal(verdict, self.robot.parts.localization.status))
         return self._submit("goal", goal=goal)
 
     def set_initial_pose(self, pose: Pose2D) -> CommandResult:

@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 from atemr.domain.places import NO_PLACES, Places
 from atemr.errors import NavigationError
 from atemr.msgs import LaserScan, Pose2D, Twist
+from atemr.skills.nav.goal_check import GoalCheck
 from atemr.skills.nav.navigator import Navigator, NavStatus
 from atemr.trees.ports import NavProgress
 
@@ -42,10 +43,15 @@ class NavigatorPort:
         self.last_status: NavStatus | None = None
 
     def check_goal(self, goal: Pose2D) -> str | None:
-        if self.navigator is None:
-            return NO_MAP
-        verdict = self.navigator.check(goal, localized=self._localized(), mode="AUTO")
+        verdict = self.goal_check(goal)
         return None if verdict.ok else verdict.reason
+
+    def goal_check(self, goal: Pose2D) -> GoalCheck:
+        """The navigator's whole verdict on ``goal``: with a refusal's code, which the dashboard says in plain
+        words (`atemr.robot.plain_words.plain_goal_refusal`)."""
+        if self.navigator is None:
+            return GoalCheck(False, None, NO_MAP)
+        return self.navigator.check(goal, localized=self._localized(), mode="AUTO")
 
     def start(self, goal: Pose2D, now: float, route: Sequence[Sequence[float]] | None = None) -> None:
         if self.navigator is None:

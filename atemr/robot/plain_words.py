@@ -7,9 +7,13 @@ what could not be done, why, and what to do instead. Pure functions, no I/O.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from atemr.domain.status import LocalizationStatus
+
+if TYPE_CHECKING:  # types only: the navigator's module loads the planners
+    from atemr.skills.nav.goal_check import GoalCheck, GoalRefusal
+    from atemr.skills.nav.navigator import FailReason, NavStatus
 
 #: What each trigger the dashboard sends asks the robot to do.
 ACTIONS = {
@@ -78,12 +82,49 @@ def plain_not_localized(status: LocalizationStatus) -> str:
             "position on the map (SET POSITION) or press FIND POSITION.")
 
 
-def plain_outcome(report: dict[str, Any]) -> tuple[str, str]:
-    """The event (kind, text) for a finished goal or mission (`atemr.trees.progress.TaskProgress.report`)."""
+#: What a goal refused by the navigator's checks (`atemr.skills.nav.goal_check`) means on the map, and what to do.
+GOAL_REFUSALS: dict[GoalRefusal, str] = {
+    "outside the map": "That spot is outside the map. Tap a spot on the map.",
+    "in an obstacle": "That spot is inside a wall or a piece of furniture on the map. Tap a free spot.",
+    "too close to an obstacle": "That spot is too close to a wall or a piece of furniture for the robot to stand "
+                                "there. Tap a spot further from it.",
+    "in unknown space": "That spot is not mapped (grey on the map). Tap a spot in the mapped part.",
+}
+
+#: Why the navigator gave a goal up (`atemr.skills.nav.navigator.FailReason`), and what to do.
+NAVIGATION_FAILURES: dict[FailReason, str] = {
+    "no path": "the way there is blocked. Clear the way, or send the robot somewhere else.",
+    "stuck": "the robot got stuck on the way. Look at the camera, drive it free in MANUAL, then send it again.",
+    "localization lost": "the robot lost track of where it is. Set its position (SET POSITION) or press FIND "
+                         "POSITION, then send it again.",
+    "timeout": "the robot did not get there in time; something may be in the way. Look at the camera, then send "
+               "it again.",
+}
+
+
+def plain_goal_refusal(check: GoalCheck, localization: LocalizationStatus) -> str:
+    """Why the goal ``check`` refused cannot be driven to, as a carer reads it (the page puts "Go here: " first).
+    Refusals without a code of their own (no map yet) are already a carer's sentence."""
+    if check.code == "not localized":
+        return f"Cannot drive to a goal: {plain_not_localized(localization)}"
+    said = GOAL_REFUSALS.get(check.code) if check.code is not None else None
+    return said or check.reason
+
+
+def plain_outcome(report: dict[str, Any], navigation: NavStatus | None = None) -> tuple[str, str]:
+    """The event (kind, text) for a finished goal or mission (`atemr.trees.progress.TaskProgress.report`).
+
+    ``navigation``: the navigator's last status; when it is the failure this goal ended with (its message is
+    in the report's reason), a failed goal is said by the navigator's `FailReason`, not in the task's words
+    ("goal 0: (2.40, 3.40, 0.00): navigation failed: timeout: ...")."""
     outcome = str(report.get("outcome") or "finished")
     reason = str(report.get("reason") or "")
     if report.get("mission") == "goal":  # a single goal from the dashboard (`atemr.trees.missions.goal_task`)
         text = {"reached": "Goal reached.", "cancelled": "Goal cancelled."}.get(outcome, f"Goal {outcome}")
+        failure = navigation.reason if navigation is not None and navigation.state == "FAILED" else None
+        if outcome == "failed" and failure is not None and navigation is not None and navigation.message \
+                and navigation.message in reason:
+            return "goal", f"Goal failed: {NAVIGATION_FAILURES[failure]}"
         if outcome not in ("reached", "cancelled"):
             text += f": {reason}." if reason else "."
         return "goal", text

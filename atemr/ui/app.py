@@ -161,10 +161,13 @@ def create_app(
     from atemr.ui.agent.events import events as agent_events
     from atemr.ui.call import events as call
     from atemr.ui.control.events import events as control_events
+    from atemr.ui.drive_video import events as drive_video
     from atemr.ui.mapping.events import events as mapping_events
 
-    sockets.init_app(app, socketio, groups=(control_events, mapping_events, agent_events, call.events))
+    sockets.init_app(app, socketio, groups=(control_events, mapping_events, agent_events, call.events,
+                                            drive_video.events))
     call.init_app(app)
+    drive_video.init_app(app, gateway)
     # Outermost: a foreign Host header (DNS rebinding) reaches neither the pages nor Socket.IO.
     app.wsgi_app = TrustedHostMiddleware(  # type: ignore[method-assign]
         app.wsgi_app, trusted_hosts(config.ui.host, config.ui.trusted_hosts)

@@ -1,7 +1,7 @@
 """The boundary between the dashboard and the robot: what the dashboard reads and what it commands.
 
 The dashboard never touches the agent, the skills or the bus. It reads one JSON-able snapshot
-(`RobotGateway.state`) at 10 Hz plus a few binary products (map image, camera JPEG, the secondary
+(`RobotGateway.state`) at 10 Hz plus a few binary products (map image, camera JPEG and raw frame, the secondary
 core's screen), and every operator action is one method that returns a `CommandResult`: ok, or a
 refusal reason the page shows as it is ("refused: switch to AUTO first"). `atemr.robot.gateway.RobotGatewayImpl`
 implements this protocol over the real robot; UI tests use small fakes of their own. Methods may
@@ -17,6 +17,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
 
 from atemr.msgs import Pose2D, Twist
 from atemr.ui.state import Mode, RobotState
@@ -79,6 +82,12 @@ class RobotGateway(Protocol):
 
     def camera_jpeg(self) -> bytes | None:
         """The newest camera frame as JPEG (at least 640×480), or None when the camera is off."""
+        ...
+
+    def camera_frame(self) -> NDArray[np.uint8] | None:
+        """The newest camera frame as RGB (height × width × 3), or None when the camera is off: the same
+        frame `camera_jpeg` encodes, for the WebRTC sender, which encodes video itself. Must not block (it
+        is read from the drive video's own event loop); the array is never changed once handed out."""
         ...
 
     def secondary_screen_png(self) -> bytes | None:

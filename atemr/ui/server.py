@@ -267,6 +267,7 @@ class DashboardServer:
         server, thread = self._server, self._thread
         self._server = self._thread = None
         self.app.extensions["atemr.stopping"].set()  # ends the open camera streams
+        self.app.extensions["atemr.drive_video"].shutdown()  # and the WebRTC ones, with their loop
         if server is not None:
             server.shutdown()
             server.server_close()

@@ -20,6 +20,7 @@ import math
 import os
 import shutil
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -263,7 +264,8 @@ class Site:
     def __init__(self, data_dir: Path, clock: RealTimeSimClock) -> None:
         self.data_dir = data_dir
         self.robot = KinematicGateway(clock)
-        config = Config(data_dir=data_dir, ui=UiConfig(port=0))
+        # MJPEG: the pages' tests watch the stream (WebRTC drive video has its own, test_drive_video.py)
+        config = Config(data_dir=data_dir, ui=UiConfig(port=0, drive_video="mjpeg"))
         self.server = DashboardServer(config, self.robot, clock=clock, hash_method=FAST_SCRYPT)
         self.scheduler = Scheduler(clock)
         self.scheduler.add(self.robot, PUSH_RATE_HZ)
@@ -326,14 +328,17 @@ BOOT_S = 4.0
 class RobotSite:
     """The whole simulated robot with its dashboard, run in a background thread."""
 
-    def __init__(self, data_dir: Path, speed: float = 1.0) -> None:
+    def __init__(self, data_dir: Path, speed: float = 1.0, overrides: dict[str, Any] | None = None) -> None:
+        """``overrides``: configuration keys for this robot (``{"nav.timeout_s": 12.0}``) over the test defaults;
+        the drive camera is MJPEG unless they say ``ui.drive_video`` (the pages' tests watch the stream)."""
         from atemr.robot import build_robot
         from atemr.robot.dashboard import add_dashboard
 
         self.data_dir = data_dir
         config = load_config(environ={}, overrides={
             "data_dir": str(data_dir), "can.channel": unique_channel("e2e"), "sim.seed": 5,
-            "secondary.portal_serve": False, "ui.enabled": False, "ui.port": 0,
+            "secondary.portal_serve": False, "ui.enabled": False, "ui.port": 0, "ui.drive_video": "mjpeg",
+            **(overrides or {}),
         })
         self.clock = BootThenRealTime(BOOT_S, speed)
         self.robot = build_robot(config, realtime=True, clock=self.clock)
@@ -358,30 +363,42 @@ class RobotSite:
         self.robot.start()
         self.thread.start()
 
-    def stop(self) -> None:
+    def pause(self) -> None:
+        """The robot's loop ends (as its process would) while its dashboard's web server stays up."""
         self.robot.stop()
         self.thread.join(timeout=10)
+
+    def stop(self) -> None:
+        self.pause()
         self.robot.shutdown()
         self.gateway.close()
 
 
-@pytest.fixture
-def robot_site(tmp_path: Path) -> Iterator[RobotSite]:
-    site = RobotSite(tmp_path / "data", speed=1.0)
+def running(site: RobotSite) -> Iterator[RobotSite]:
+    """``site`` with its admin password set, running for the test, stopped after it (a fixture's body)."""
     site.users.set_password("admin", ADMIN_PW)
     site.start()
     yield site
     site.stop()
+
+
+@pytest.fixture
+def robot_site(tmp_path: Path) -> Iterator[RobotSite]:
+    yield from running(RobotSite(tmp_path / "data", speed=1.0))
+
+
+@pytest.fixture
+def webrtc_robot_site(tmp_path: Path) -> Iterator[RobotSite]:
+    """The robot site sending its drive camera over WebRTC, its camera numbering its frames
+    (``sim.camera_counter``); skips without aiortc (the webrtc extra)."""
+    pytest.importorskip("aiortc", reason="aiortc (the webrtc extra) is not installed")
+    yield from running(RobotSite(tmp_path / "data", overrides={"ui.drive_video": "webrtc", "sim.camera_counter": True}))
 
 
 @pytest.fixture
 def fast_robot_site(tmp_path: Path) -> Iterator[RobotSite]:
     """The robot site paced at 4× real time (a whole mission in a few seconds)."""
-    site = RobotSite(tmp_path / "data", speed=4.0)
-    site.users.set_password("admin", ADMIN_PW)
-    site.start()
-    yield site
-    site.stop()
+    yield from running(RobotSite(tmp_path / "data", speed=4.0))
 
 
 def _skip_reason() -> str | None:
@@ -474,10 +491,24 @@ def login(page: Any, url: str, username: str, password: str) -> None:
     page.click("#login-button")
 
 
+def wait_for(page: Any, js: str, timeout_s: float = 15.0) -> Any:
+    """Poll the function ``js`` (evaluated by Playwright, not by the page: its CSP forbids eval) until it
+    returns something truthy, and return that."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = page.evaluate(js)
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"still false after {timeout_s:.0f} s: {js} → {value!r}")
+        page.wait_for_timeout(100)
+
+
 @pytest.fixture
 def helpers() -> Any:
     class Helpers:
         ADMIN_PW = ADMIN_PW
         login = staticmethod(login)
+        wait_for = staticmethod(wait_for)
 
     return Helpers

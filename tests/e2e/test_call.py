@@ -5,7 +5,6 @@ screen page opens only with its token, and the token opens no operator event."""
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 import pytest
@@ -13,18 +12,6 @@ import pytest
 pytestmark = pytest.mark.e2e
 
 STATS = "async () => window.atemrCall ? await window.atemrCall.stats() : null"
-
-
-def wait_for(page: Any, js: str, timeout_s: float = 15.0) -> Any:
-    """Poll the function ``js`` (evaluated by Playwright, not by the page: its CSP forbids eval) until truthy."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = page.evaluate(js)
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"still false after {timeout_s:.0f} s: {js} → {value!r}")
-        page.wait_for_timeout(100)
 
 
 def new_page(browser: Any, problems: list[str]) -> Any:
@@ -40,7 +27,7 @@ def operator_page(browser: Any, site: Any, username: str, password: str, helpers
     page = new_page(browser, problems)
     helpers.login(page, site.url, username, password)
     page.wait_for_url("**/control")
-    wait_for(page, "() => window.ATEMR && ATEMR.socket && ATEMR.socket.status === 'ONLINE'")
+    helpers.wait_for(page, "() => window.ATEMR && ATEMR.socket && ATEMR.socket.status === 'ONLINE'")
     return page
 
 
@@ -48,15 +35,16 @@ def call_of(page: Any) -> str:
     return str(page.evaluate("() => document.body.dataset.call"))
 
 
-def receiving(page: Any) -> Any:
+def receiving(page: Any, helpers: Any) -> Any:
     """The call's inbound counters once both audio and video have arrived and video frames were decoded."""
-    return wait_for(page, f"""async () => {{
+    return helpers.wait_for(page, f"""async () => {{
         const s = await ({STATS})();
         return s && s.audio && s.video && s.audio.bytesReceived > 0 && s.audio.packetsReceived > 0
             && s.video.bytesReceived > 0 && s.video.framesDecoded > 0 ? s : null; }}""", timeout_s=30.0)
 
 
 def test_a_call_between_an_operator_and_the_robots_screen(robot_site, media_browser, helpers, shots):
+    wait_for = helpers.wait_for
     site = robot_site
     token = site.server.app.extensions["atemr.screens"].add("tablet")
     site.users.create("carol", "carol-pass-1", "user")
@@ -103,7 +91,7 @@ def test_a_call_between_an_operator_and_the_robots_screen(robot_site, media_brow
     wait_for(screen, "() => document.body.dataset.call === 'active'")
     assert not operator.is_visible("#call-start") and operator.is_visible("#call-end")
     assert operator.is_visible("#call-video") and not screen.is_visible("#answer") and screen.is_visible("#hangup")
-    at_operator, at_screen = receiving(operator), receiving(screen)
+    at_operator, at_screen = receiving(operator, helpers), receiving(screen, helpers)
     screen.screenshot(path=str(shots / "call-screen.png"))
     operator.screenshot(path=str(shots / "call-operator.png"))
     for side in (at_operator, at_screen):

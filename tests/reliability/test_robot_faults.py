@@ -317,14 +317,20 @@ def bus_error(entered: Entered) -> HardwareError:
     return error
 
 
+def bus_off_switch(robot: Robot, monkeypatch: pytest.MonkeyPatch) -> list[bool]:
+    """The robot's CAN controller reports bus-off through python-can's ``bus.state`` while the returned flag's
+    one item is True (only the supervised bus does)."""
+    supervised = robot.components["can_bus"].bus  # type: ignore[attr-defined]
+    off = [False]
+    monkeypatch.setattr(type(supervised), "state", property(
+        lambda bus: can.BusState.ERROR if bus is supervised and off[0] else can.BusState.ACTIVE))
+    return off
+
+
 def test_bus_off_stops_both_motors_and_enters_error_naming_the_bus_until_it_is_back(
         harness: Harness, monkeypatch: pytest.MonkeyPatch) -> None:
     h = harness
-    supervised = h.robot.components["can_bus"].bus  # type: ignore[attr-defined]
-    off = [False]
-    # the controller reports bus-off through python-can's bus.state (only the supervised bus does)
-    monkeypatch.setattr(type(supervised), "state", property(
-        lambda bus: can.BusState.ERROR if bus is supervised and off[0] else can.BusState.ACTIVE))
+    off = bus_off_switch(h.robot, monkeypatch)
     fault_t = h.robot.clock.now()
     off[0] = True
     took = stop_time(h, fault_t, 1.0)
@@ -342,6 +348,29 @@ def test_bus_off_stops_both_motors_and_enters_error_naming_the_bus_until_it_is_b
     h.drive(back_t + 2.0)
     assert h.agent.state == "IDLE.MANUAL", [(r.source, r.dest, r.reason) for r in h.records[-5:]]
     assert not [e for e in h.errors if e.t > back_t]
+    h.drive(back_t + 3.0)
+    assert h.moving(), h.speeds()
+
+
+def test_a_bus_off_while_in_error_for_a_motor_is_handled_once_the_motor_is_back(
+        harness: Harness, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The bus fails while the agent waits in ERROR for a silent motor: back from that, the bus is a fault of its
+    own, so its recovery runs and its stop is released when it works again (it was held in IDLE for good)."""
+    h = harness
+    off = bus_off_switch(h.robot, monkeypatch)
+    fault_t = h.robot.clock.now()
+    h.emulators[0].model.unplug()
+    h.drive(fault_t + 1.0)
+    assert h.agent.state == "ERROR" and h.stop_cause() == "motor"
+    h.emulators[0].model.plug()
+    off[0] = True
+    h.drive(fault_t + 3.0)
+    assert h.stop_cause() == "bus" and h.agent.state == "ERROR"
+    bus_error(h.errors[-1])
+    off[0] = False
+    back_t = h.robot.clock.now()
+    h.drive(back_t + 2.0)
+    assert h.agent.state == "IDLE.MANUAL" and h.stop_cause() is None, (h.agent.state, h.stop_cause())
     h.drive(back_t + 3.0)
     assert h.moving(), h.speeds()
 
@@ -364,6 +393,7 @@ def test_a_dead_receive_side_stops_both_motors_and_enters_error_naming_the_bus(
     h.drive(fault_t + 1.5)
     # nothing is received, so the motors went silent too: the driver latched that as well, the bus stays the cause
     assert h.agent.state == "ERROR" and h.robot.parts.driver.fault is not None and h.stopped()
+    assert h.stop_cause() == "bus"  # what the carer reads: the bus to mend, not a motor
     monkeypatch.undo()
     back_t = h.robot.clock.now()
     h.drive(back_t + 2.5)

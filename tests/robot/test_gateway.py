@@ -180,7 +180,7 @@ def test_auto_goals_and_missions_wait_for_a_pose_after_a_map_switch(booted):
         "Cannot start a mission: the robot is not sure where it is (0% sure, it needs 70%). Set its position on "
         "the map (SET POSITION) or press FIND POSITION.")
     goal = gateway.set_goal(Pose2D(4.0, 2.0, 0.0))
-    assert not goal.ok and "not localized" in goal.reason
+    assert not goal.ok and goal.reason.startswith("Cannot drive to a goal: the robot is not sure where it is")
     assert gateway.set_mode("MANUAL").ok
     run(robot, 0.3)
     auto = gateway.set_mode("AUTO")
@@ -241,6 +241,8 @@ def test_camera_jpeg_capture_and_video(booted):
     data = gateway.camera_jpeg()
     assert data is not None and Image.open(io.BytesIO(data)).size == (640, 480)
     assert gateway.camera_jpeg() is data  # encoded once per frame, whoever asks
+    frame = gateway.camera_frame()  # the same frame raw, for the WebRTC drive video
+    assert frame is robot.parts.devices.camera.latest and frame.shape == (480, 640, 3)
     assert gateway.capture_image().ok
     images = list((robot.config.data_dir / "media" / "images").glob("*.jpg"))
     assert len(images) == 1

@@ -8,7 +8,18 @@ from typing import get_args
 import pytest
 
 from atemr.domain.status import LocalizationState, LocalizationStatus
-from atemr.robot.plain_words import ACTIONS, STATES, plain_guard_refusal, plain_outcome, plain_refusal
+from atemr.robot.plain_words import (
+    ACTIONS,
+    GOAL_REFUSALS,
+    NAVIGATION_FAILURES,
+    STATES,
+    plain_goal_refusal,
+    plain_guard_refusal,
+    plain_outcome,
+    plain_refusal,
+)
+from atemr.skills.nav.goal_check import GoalCheck, GoalRefusal
+from atemr.skills.nav.navigator import FailReason, NavStatus
 
 STATES_SEEN = ["STARTUP", "IDLE.MANUAL", "IDLE.AUTO", "EXEC", "MAPPING", "ERROR", "SHUTDOWN"]
 TECHNICAL = re.compile(r"IDLE|EXEC|MAPPING|STARTUP|ERROR\b|SHUTDOWN|'[a-z_]+'|valid here|_")
@@ -37,6 +48,36 @@ def test_outcomes_of_goals_and_missions():
     assert plain_outcome({"mission": "patrol", "outcome": "reached"}) == ("mission", "Mission 'patrol' finished.")
     assert plain_outcome({"mission": "patrol", "outcome": "cancelled", "reason": "stopped by the operator"}) == (
         "mission", "Mission 'patrol' cancelled: stopped by the operator.")
+
+
+@pytest.mark.parametrize("code", [c for c in get_args(GoalRefusal) if c not in ("not finite", "not AUTO mode")])
+def test_every_goal_refusal_is_said_on_the_map_with_what_to_do(code):
+    """The navigator's words ("goal (2.30, 2.57, 0.00 rad) is 0.25 m from an obstacle of map 'studio'; ...") stay
+    in the log; the carer reads what the spot is and what to tap. (A goal that is not finite or sent in MANUAL is
+    answered before the navigator is asked.)"""
+    status = LocalizationStatus(0.3, 0.7, "lost")
+    text = plain_goal_refusal(GoalCheck(False, code, "goal (2.30, 2.57, 0.00 rad) is ... of map 'studio'"), status)
+    assert text[0].isupper() and text.endswith("."), text
+    assert "goal (" not in text and not TECHNICAL.search(text.replace("SET POSITION", "")), text
+    assert code == "not localized" or code in GOAL_REFUSALS
+
+
+def test_a_goal_refusal_without_a_code_is_already_plain():
+    no_map = "no map is selected: select a map (or make one in MAPPING) and set the robot's pose first"
+    assert plain_goal_refusal(GoalCheck(False, None, no_map), LocalizationStatus(0.0, 0.7, "no map")) == no_map
+
+
+@pytest.mark.parametrize("why", get_args(FailReason))
+def test_a_goal_the_navigator_gave_up_is_said_by_why(why):
+    message = f"{why}: goal not reached within 12 s"
+    report = {"mission": "goal", "outcome": "failed",
+              "reason": f"goal 0: (2.40, 3.40, 0.00): navigation failed: {message}"}
+    kind, text = plain_outcome(report, NavStatus("FAILED", reason=why, message=message))
+    assert kind == "goal" and text == f"Goal failed: {NAVIGATION_FAILURES[why]}"
+    assert "goal 0" not in text and "navigation failed" not in text and text.endswith("."), text
+    # another goal's failure (its message is not this report's) is not taken for this one's
+    assert plain_outcome(report, NavStatus("FAILED", reason=why, message="stuck: earlier")) == (
+        "goal", f"Goal failed: {report['reason']}.")
 
 
 NOT_LOCALIZED: list[LocalizationState] = [s for s in get_args(LocalizationState) if s != "localized"]

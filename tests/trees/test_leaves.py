@@ -381,6 +381,32 @@ def test_watch_battery_acts_once_per_limit_until_charged_past_it() -> None:
     assert said == ["battery low: 19 %", "battery 9 %: drive the robot to its dock to charge", "battery low: 19 %"]
 
 
+def test_watch_health_reports_a_component_that_turned_bad_while_in_error_once_back() -> None:
+    """In Error for a motor, the CAN bus fails: back in Idle, the bus is a fault of its own (its recovery runs
+    only in Error), not an onset missed for good. One that healed meanwhile is nothing."""
+    bench = Bench(make("WatchHealth", components=["can_bus", "left_motor"]))
+    bench.tick()
+    bench.port.components["left_motor"] = ComponentHealth(False, "silent")
+    bench.tick()
+    assert [e.reason for e in bench.ctx.take_events()] == ["left_motor: silent"]
+    bench.ctx.state = "ERROR"
+    bench.port.components["can_bus"] = ComponentHealth(False, "bus-off")
+    bench.tick(3)
+    assert bench.ctx.take_events() == []  # the agent handles one error at a time
+    bench.port.components["left_motor"] = ComponentHealth(True)
+    bench.tick()
+    bench.ctx.state = "IDLE.MANUAL"
+    bench.tick(3)
+    assert [e.reason for e in bench.ctx.take_events()] == ["can_bus: bus-off"]
+    bench.ctx.state = "ERROR"
+    bench.port.components["left_motor"] = ComponentHealth(False, "silent")
+    bench.tick()
+    bench.port.components["left_motor"] = ComponentHealth(True)
+    bench.ctx.state = "IDLE.MANUAL"
+    bench.tick(2)
+    assert bench.ctx.take_events() == []
+
+
 def test_clock_timeout_stops_its_child_on_the_agent_clock() -> None:
     child = make("Rotate", angle_rad=12.0)
     timeout = ClockTimeout("limit", child, 0.35)

@@ -47,6 +47,7 @@ class RecordingGateway:
         }
         self.map: MapImage | None = None
         self.jpeg: bytes | None = None
+        self.frame: Any = None  # the raw camera frame (H x W x 3 uint8) the WebRTC drive video sends
         self.screen: bytes | None = None
         self.agent: dict[str, Any] | None = None
         self.maps_changed_count = 0
@@ -75,6 +76,9 @@ class RecordingGateway:
 
     def camera_jpeg(self) -> bytes | None:
         return self.jpeg
+
+    def camera_frame(self) -> Any:
+        return self.frame
 
     def secondary_screen_png(self) -> bytes | None:
         return self.screen

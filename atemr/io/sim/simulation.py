@@ -32,6 +32,7 @@ from atemr.io.devices.base import Subscribers
 from atemr.io.sim.base import BaseParams, Collision, DiffDriveBase, MountedWheel, WheelMotor
 from atemr.io.sim.camera import Camera, CameraParams
 from atemr.io.sim.cliff import CliffParams, CliffSensors
+from atemr.io.sim.frame_counter import BLOCK_PX, counter_width_px, draw_counter
 from atemr.io.sim.imu import Imu, ImuParams
 from atemr.io.sim.lidar import Lidar, LidarParams
 from atemr.io.sim.movers import Movers
@@ -63,6 +64,8 @@ class SimParams:
     imu_hz: float = 50.0
     cliff_hz: float = 20.0
     camera_hz: float = 0.0
+    #: Draw each frame's number into the camera image (`atemr.io.sim.frame_counter`).
+    camera_counter: bool = False
 
     def __post_init__(self) -> None:
         for name in ("physics_hz", "lidar_hz", "imu_hz", "cliff_hz"):
@@ -71,6 +74,9 @@ class SimParams:
                 raise ConfigError(f"must be within (0, 10000] Hz, got {value!r}", path=f"sim.{name}")
         if not (math.isfinite(self.camera_hz) and 0 <= self.camera_hz <= 120):
             raise ConfigError(f"must be within [0, 120] Hz (0: off), got {self.camera_hz!r}", path="sim.camera_hz")
+        if self.camera_counter and (self.camera.width < counter_width_px() or self.camera.height < BLOCK_PX):
+            raise ConfigError(f"the frame counter needs a camera image of at least {counter_width_px()}x{BLOCK_PX} "
+                              f"px, got {self.camera.width}x{self.camera.height}", path="sim.camera_counter")
 
 
 @dataclass(frozen=True)
@@ -239,7 +245,10 @@ class Simulation:
         return self.cliff.read(now, self.base.pose)
 
     def render_camera(self, now: float) -> NDArray[np.uint8]:
-        return self.camera.render(self.base.pose, self.scene, self.movers)
+        image = self.camera.render(self.base.pose, self.scene, self.movers)
+        if self.params.camera_counter:
+            draw_counter(image, self.camera_source.count + 1)  # the frame's number, from 1
+        return image
 
     # -- truth and events ----------------------------------------------------------------------
     @property
@@ -343,7 +352,7 @@ def params_from_config(cfg: SimConfig) -> SimParams:
         lidar=LidarParams(beams=cfg.lidar_beams, noise_std_m=cfg.lidar_noise_m, dropout_prob=cfg.lidar_dropout),
         camera=CameraParams(width=cfg.camera_width, height=cfg.camera_height),
         physics_hz=cfg.physics_hz, lidar_hz=cfg.lidar_hz, imu_hz=cfg.imu_hz, cliff_hz=cfg.cliff_hz,
-        camera_hz=cfg.camera_hz,
+        camera_hz=cfg.camera_hz, camera_counter=cfg.camera_counter,
     )
 
 

@@ -148,7 +148,8 @@ class WatchHeartbeat(Leaf):
 
 @behaviours.register("WatchHealth")
 class WatchHealth(Leaf):
-    """Post ``fault`` when one of ``components`` turns unhealthy (or disappears) while active.
+    """Post ``fault`` when one of ``components`` turns unhealthy (or disappears) while active, or is found
+    unhealthy on becoming active again when it turned bad meanwhile (as `WatchHeartbeat` does).
 
     The error carries the component and ``critical``; the Error state decides Idle or Shutdown from it.
     """
@@ -169,7 +170,13 @@ class WatchHealth(Leaf):
                 detail = "not reported" if h is None else (h.detail or "not healthy")
                 error = HardwareError(detail, component=component, critical=self.params.critical)
                 self.ctx.post("fault", str(error), self.name, error=error)
-        self._bad = bad  # only a new onset is a fault: a component still bad after recovery does not loop
+            self._bad = bad  # only a new onset is a fault: a component still bad after recovery does not loop
+        else:
+            # Inactive (in Error for another cause): one that heals is forgotten, one that turns bad is not taken
+            # as known, so it is reported once the agent is back. Otherwise a CAN bus-off during a motor fault's
+            # Error would never be a fault of its own: nothing would clear its latched stop, and the robot would
+            # stand in Idle, held stopped, for good.
+            self._bad &= bad
         self.feedback_message = f"unhealthy: {', '.join(sorted(bad))}" if bad else "all healthy"
         return Status.RUNNING
 

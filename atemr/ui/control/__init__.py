@@ -1,6 +1,6 @@
 """The Control page (camera, map, joystick, mode, states, graph, missions, simulation panel) and the
-robot products it fetches over HTTP: the map image, the secondary core's screen and the camera as MJPEG
-(`atemr.ui.control.mjpeg`)."""
+robot products it fetches over HTTP: the map image, the secondary core's screen, the camera as MJPEG
+(`atemr.ui.control.mjpeg`) and whether to try it over WebRTC first (`atemr.ui.drive_video`)."""
 
 from __future__ import annotations
 
@@ -67,6 +67,16 @@ def secondary_screen() -> Response:
     if png is None:
         abort(404, description="no secondary-core screen")
     return Response(png, mimetype="image/png", headers={"Cache-Control": "no-store"})
+
+
+@bp.route("/api/drive-video")
+@role_required("user")
+def drive_video() -> Any:
+    """Whether the page should try the camera over WebRTC first (``webrtc``), why not (``reason``: the page
+    says MJPEG and shows it), and the ICE servers for its peer connection."""
+    from atemr.ui.drive_video.events import drive_video_of
+
+    return jsonify(drive_video_of(current_app).availability().to_json())
 
 
 @bp.route("/api/camera.mjpeg")

@@ -1,4 +1,4 @@
-// The Control page: camera on/off, GO HERE (tap, drag for the heading, confirm; progress and arrival), SET
+// The Control page (the camera is camera.js): GO HERE (tap, drag for the heading, confirm; progress and arrival), SET
 // POSITION and FIND POSITION, capture, record, missions, and the simulation panel (secondary-core screen and
 // button, obstacle, kidnap).
 "use strict";
@@ -6,52 +6,6 @@
 (function () {
   const $ = (id) => document.getElementById(id);
   const A = window.ATEMR;
-
-  // -- camera --------------------------------------------------------------------------------------
-  // CAM-ON shows the MJPEG stream (/api/camera.mjpeg: binary JPEG parts the browser decodes itself, read by
-  // the server only while this page watches). When the stream cannot be had (it fails to load), the page
-  // falls back to JPEG frames over the Socket.IO connection (the "camera" subscription).
-  const cam = $("camera"), camOff = $("camera-off"), camBtn = $("cam-toggle");
-  const MJPEG = "/api/camera.mjpeg";
-  let transport = "mjpeg"; // "mjpeg" | "socket"
-  let camOn = false;
-  let camWanted = true; // CAM-ON by default (thesis 3.5.3); off saves bandwidth
-  let camPending = false;
-  function showCamera(on) {
-    camOn = on;
-    camBtn.textContent = on ? "CAM-ON" : "CAM-OFF";
-    camBtn.classList.toggle("on", on);
-    cam.hidden = !on; camOff.hidden = on;
-    cam.dataset.transport = transport;
-  }
-  async function setCamera(on) {
-    if (transport === "mjpeg") {
-      if (on) cam.src = `${MJPEG}?t=${Date.now()}`; // a new stream (also after a reconnect)
-      else cam.removeAttribute("src"); // the browser drops the stream: the server stops reading frames
-      showCamera(on);
-      return;
-    }
-    camPending = true;
-    const ack = await A.command("camera", { on });
-    camPending = false;
-    if (ack.ok) showCamera(on);
-  }
-  cam.addEventListener("error", () => {
-    if (transport !== "mjpeg" || !cam.getAttribute("src")) return;
-    transport = "socket";
-    cam.removeAttribute("src");
-    showCamera(false);
-    setCamera(camWanted);
-  });
-  camBtn.addEventListener("click", () => { camWanted = !camOn; setCamera(camWanted); });
-  A.socket.on("camera", (f) => {
-    if (transport === "socket" && camOn && f && f.jpeg) cam.src = `data:image/jpeg;base64,${f.jpeg}`;
-  });
-  A.socket.on("connect", () => setCamera(camWanted));
-  // Self-healing: a subscription lost on the way (reconnect, a refused ack) is asked for again.
-  A.onState(() => {
-    if (transport === "socket" && camWanted !== camOn && !camPending && A.socket.status === "ONLINE") setCamera(camWanted);
-  });
 
   const simTools = { obstacle: $("sim-obstacle"), kidnap: $("sim-kidnap") };
   for (const k of Object.keys(simTools)) if (!simTools[k]) delete simTools[k];

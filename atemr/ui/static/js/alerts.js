@@ -17,6 +17,10 @@
   const PERIOD_MS = Number(document.body.dataset.statePeriodMs) || 100;
   const STALE_MS = 2 * PERIOD_MS;
   const FIRST_STATE_GRACE_MS = 3000; // a page just opened waits this long for its first state
+  // The banner and the drive controls react after two periods (nothing is driven on old news), but the alert says
+  // "offline" only once the silence lasts this long: a robot busy for a moment (a slow tick) is not offline, and
+  // telling the carer so, then "back online", several times a minute would teach them to ignore the alerts.
+  const OFFLINE_ALERT_MS = 1000;
   const TOAST_MS = 8000;
   const KEPT = 100;
 
@@ -84,9 +88,11 @@
     if (kind === "refused") return [e.text, "warning"];
     if (kind === "battery") return [e.text, /critical/.test(e.text) ? "error" : "warning"];
     if (kind === "routine") return [`Routine ${e.text}`, /skipped|missed|failed|refused|cancelled/.test(e.text) ? "warning" : "ok"];
-    if (kind === "heartbeat" || kind === "motor fault" || kind === "can bus" || kind === "component error") {
-      return [e.text, /restored|cleared/.test(e.text) ? "ok" : "error"];
-    }
+    // The heartbeat, a motor and the CAN bus stop the robot: the carer reads that once, in plain words, from the
+    // state's stop_cause (below), and "may move again" when it clears. These events' own text ("0x157 heartbeat
+    // lost", "left_motor ...") is the engineer's, kept in the Events list.
+    if (kind === "heartbeat" || kind === "motor fault" || kind === "can bus") return null;
+    if (kind === "component error") return [e.text, "error"];
     return null; // settings, media, maps, autonomy: in the Events list, not worth interrupting for
   }
   A.onState((s) => {
@@ -148,6 +154,10 @@
     const opening = (!connected || lastAt === null) && now - opened <= FIRST_STATE_GRACE_MS;
     const nowStale = !opening && (!online || lastAt === null || now - lastAt > STALE_MS);
     if (nowStale) {
+      const silentMs = now - (lastAt ?? opened);
+      if (!offline && silentMs >= OFFLINE_ALERT_MS) {
+        offline = A.alert("The robot is offline: no state is coming. Driving is off until it is back.", "error");
+      }
       const ago = lastAt === null ? "no state has come yet" : `the last state came ${((now - lastAt) / 1000).toFixed(1)} s ago`;
       const why = online ? "No news from the robot" : "The connection to the robot is lost";
       banner.textContent = `${why}: ${ago}. What you see is old, and driving is off.`;
@@ -160,14 +170,14 @@
     A.live = !stale;
     document.body.classList.toggle("stale", stale);
     setDrive(!stale);
-    if (stale) {
-      offline = A.alert("The robot is offline: no state is coming. Driving is off until it is back.", "error");
-    } else {
-      if (offline) { offline.remove(); offline = null; }
+    if (!stale) {
       banner.textContent = "Connected again: the robot's state is live.";
       banner.className = "connection back";
       backTimer = setTimeout(() => { banner.hidden = true; }, 3000);
-      A.alert("The robot is back online.", "ok");
+      if (offline) { // said only after the offline alert: a short silence came and went without one
+        offline.remove(); offline = null;
+        A.alert("The robot is back online.", "ok");
+      }
     }
   }
   setInterval(check, Math.min(100, PERIOD_MS));
