@@ -171,9 +171,16 @@ class UiConfig:
     drive_video_max_peers: int = field(default=3, metadata={
         "min": 1, "max": 32, "help": "pages the robot sends WebRTC drive video to at once (each costs an encoder; "
                                      "more get MJPEG)"})
+    tls_cert: Path | None = field(default=None, metadata={
+        "help": "serve HTTPS with this PEM certificate (chain), e.g. from 'atemr tls make-cert': browsers give a "
+                "page the camera and microphone (calls) only over HTTPS, or on localhost"})
+    tls_key: Path | None = field(default=None, metadata={"help": "the private key (PEM) of ui.tls_cert"})
     foxglove: FoxgloveConfig = field(default_factory=FoxgloveConfig)
 
     def __post_init__(self) -> None:
+        if (self.tls_cert is None) != (self.tls_key is None):
+            missing = "ui.tls_key" if self.tls_key is None else "ui.tls_cert"
+            raise ConfigError("HTTPS needs both ui.tls_cert and ui.tls_key", path=missing)
         for url in self.ice_servers:
             if not url.startswith(ICE_SCHEMES):
                 raise ConfigError(f"ui.ice_servers: {url!r} must start with {', '.join(ICE_SCHEMES)}")
