@@ -261,7 +261,7 @@ def test_goals_missions_refusals_localization_battery_and_offline_are_said(tired
     assert pack is not None
     alerts.start()
     site.sim.submit(lambda: setattr(pack, "energy_wh", pack.capacity_wh * 0.17))
-    alerts.said("battery low", timeout=30_000)
+    alerts.said("Battery low", timeout=30_000)
     wait_for(page, "document.getElementById('battery').classList.contains('warning')")
     alerts.plain()
 

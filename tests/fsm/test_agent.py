@@ -494,8 +494,8 @@ def test_the_monitor_ends_the_task_at_the_return_limit_and_sends_the_robot_home(
     assert rig.agent.state == "IDLE.AUTO" and port.current_pose == Pose2D(0.5, 0.5, 0.0)
     by_battery = [r.trigger for r in rig.agent.trace if r.origin == "battery"]
     assert by_battery == (["cancel", "start_mission"] if at_return == "cancel" else ["start_mission"])
-    assert port.reports[0] == ("battery", "battery 9 %: the task ends and the robot goes home to charge"
-                               if at_return == "cancel" else "battery 9 %: the task finishes, then the robot goes "
+    assert port.reports[0] == ("battery", "Battery 9 %: the task ends and the robot goes home to charge"
+                               if at_return == "cancel" else "Battery 9 %: the task finishes, then the robot goes "
                                                              "home to charge")
 
 
@@ -511,7 +511,7 @@ def test_the_monitor_stops_the_robot_where_it_is_at_the_critical_limit(agent_spe
     rig.run(2.0)
     assert rig.agent.state == "IDLE.MANUAL" and rig.agent.task_reports[-1]["outcome"] == "cancelled"
     assert 2.9 < port.current_pose.x_m < 3.3, "stopped where it was"  # type: ignore[union-attr]
-    assert port.reports == [("battery", "battery critical: 4 %, stopped where it is; charge it now")]
+    assert port.reports == [("battery", "Battery critical: 4 %, stopped where it is; charge it now")]
 
 
 def test_kitchen_check_runs_with_navigation(agent_spec: AgentSpec, link: RecordingLink) -> None:

@@ -136,7 +136,7 @@ def test_a_long_battery_day(tmp_path):
             if agent.task_reports and agent.task_reports[-1]["mission"] == "to home to charge":
                 break
         said = battery_said()
-        assert any(t.startswith("battery low: ") for t in said), said
+        assert any(t.startswith("Battery low: ") for t in said), said
         assert any(t.endswith("the task ends and the robot goes home to charge") for t in said), said
         assert not any("critical" in t for t in said), said
         assert [(r.trigger, r.dest) for r in agent.trace if r.origin == "battery"] == [

@@ -301,15 +301,15 @@ def charge(percent: float, at_return: AtReturn = "cancel") -> BatteryStatus:
 
 @pytest.mark.parametrize(("state", "at_return", "percent", "triggers", "said"), [
     ("EXEC", "cancel", 50.0, [], None),
-    ("EXEC", "cancel", 18.0, [], "battery low: 18 %"),
-    ("EXEC", "cancel", 9.0, ["cancel"], "battery 9 %: the task ends and the robot goes home to charge"),
-    ("EXEC", "finish", 9.0, [], "battery 9 %: the task finishes, then the robot goes home to charge"),
-    ("IDLE.AUTO", "cancel", 9.0, ["start_mission"], "battery 9 %: the robot goes home to charge"),
-    ("IDLE.MANUAL", "cancel", 9.0, [], "battery 9 %: drive the robot to its dock to charge"),
-    ("MAPPING", "finish", 9.0, [], "battery 9 %: drive the robot to its dock to charge"),
-    ("EXEC", "finish", 4.0, ["cancel", "set_manual"], "battery critical: 4 %, stopped where it is; charge it now"),
-    ("IDLE.AUTO", "cancel", 4.0, ["set_manual"], "battery critical: 4 %, stopped where it is; charge it now"),
-    ("IDLE.MANUAL", "cancel", 4.0, [], "battery critical: 4 %, stopped where it is; charge it now"),
+    ("EXEC", "cancel", 18.0, [], "Battery low: 18 %. Let it charge soon: at 10 % it ends its task and goes home"),
+    ("EXEC", "cancel", 9.0, ["cancel"], "Battery 9 %: the task ends and the robot goes home to charge"),
+    ("EXEC", "finish", 9.0, [], "Battery 9 %: the task finishes, then the robot goes home to charge"),
+    ("IDLE.AUTO", "cancel", 9.0, ["start_mission"], "Battery 9 %: the robot goes home to charge"),
+    ("IDLE.MANUAL", "cancel", 9.0, [], "Battery 9 %: drive the robot to its dock to charge"),
+    ("MAPPING", "finish", 9.0, [], "Battery 9 %: drive the robot to its dock to charge"),
+    ("EXEC", "finish", 4.0, ["cancel", "set_manual"], "Battery critical: 4 %, stopped where it is; charge it now"),
+    ("IDLE.AUTO", "cancel", 4.0, ["set_manual"], "Battery critical: 4 %, stopped where it is; charge it now"),
+    ("IDLE.MANUAL", "cancel", 4.0, [], "Battery critical: 4 %, stopped where it is; charge it now"),
     ("STARTUP", "cancel", 4.0, [], None),
     ("ERROR", "cancel", 9.0, [], None),
 ])
@@ -355,7 +355,7 @@ def test_watch_battery_asks_the_operator_when_the_robot_was_taken_in_manual() ->
     bench.ctx.state = "IDLE.AUTO"
     bench.tick(3)
     assert bench.ctx.take_events() == []
-    assert bench.port.reports[-1] == ("battery", "battery 9 %: drive the robot to its dock to charge")
+    assert bench.port.reports[-1] == ("battery", "Battery 9 %: drive the robot to its dock to charge")
 
 
 def test_watch_battery_says_so_when_the_map_has_no_dock() -> None:
@@ -364,7 +364,7 @@ def test_watch_battery_says_so_when_the_map_has_no_dock() -> None:
     bench.port.battery_status = charge(9.0)
     bench.tick(2)
     assert bench.ctx.take_events() == []
-    assert bench.port.reports[-1] == ("battery", "battery 9 %: cannot go home: no dock on this map (a place of kind "
+    assert bench.port.reports[-1] == ("battery", "Battery 9 %: cannot go home: no dock on this map (a place of kind "
                                                  "dock, or 'home'): drive the robot to charge")
 
 
@@ -378,7 +378,8 @@ def test_watch_battery_acts_once_per_limit_until_charged_past_it() -> None:
         bench.port.reports.clear()
     # 19 %: low; 9 %: home; charging on the dock past 10 and 20 says nothing; 15 % re-arms the return limit,
     # 25 % the warning, so the next fall below 20 % warns again
-    assert said == ["battery low: 19 %", "battery 9 %: drive the robot to its dock to charge", "battery low: 19 %"]
+    low = "Battery low: 19 %. Let it charge soon: at 10 % it ends its task and goes home"
+    assert said == [low, "Battery 9 %: drive the robot to its dock to charge", low]
 
 
 def test_watch_health_reports_a_component_that_turned_bad_while_in_error_once_back() -> None:

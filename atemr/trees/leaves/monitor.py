@@ -240,26 +240,27 @@ class WatchBattery(Leaf):
         state, percent = self.ctx.state, f"{status.percent:.0f} %"
         executing = state.startswith("EXEC")
         if level == "low":
-            self.ctx.port.report("battery", f"battery low: {percent}")
+            self.ctx.port.report("battery", f"Battery low: {percent}. Let it charge soon: at "
+                                            f"{status.return_percent:.0f} % it ends its task and goes home")
         elif level == "critical":
             self._going_home = False
             if executing:
                 self.ctx.post("cancel", f"battery critical ({percent})", self.name)
             if executing or state == "IDLE.AUTO":
                 self.ctx.post("set_manual", f"battery critical ({percent}): stopped where it is", self.name)
-            self.ctx.port.report("battery", f"battery critical: {percent}, stopped where it is; charge it now")
+            self.ctx.port.report("battery", f"Battery critical: {percent}, stopped where it is; charge it now")
         elif executing and status.at_return == "finish":
             self._going_home = True
-            self.ctx.port.report("battery", f"battery {percent}: the task finishes, then the robot goes home to "
+            self.ctx.port.report("battery", f"Battery {percent}: the task finishes, then the robot goes home to "
                                             "charge")
         elif executing or state == "IDLE.AUTO":
             self._going_home = True
             if executing:
                 self.ctx.post("cancel", f"battery {percent}: going home to charge", self.name)
-            self.ctx.port.report("battery", f"battery {percent}: the task ends and the robot goes home to charge"
-                                 if executing else f"battery {percent}: the robot goes home to charge")
+            self.ctx.port.report("battery", f"Battery {percent}: the task ends and the robot goes home to charge"
+                                 if executing else f"Battery {percent}: the robot goes home to charge")
         else:
-            self.ctx.port.report("battery", f"battery {percent}: drive the robot to its dock to charge")
+            self.ctx.port.report("battery", f"Battery {percent}: drive the robot to its dock to charge")
 
     def _go_home_when_idle(self, status: BatteryStatus) -> None:
         """Start the way home once the task is over and the robot idles in AUTO; an operator who took the robot
@@ -267,13 +268,13 @@ class WatchBattery(Leaf):
         state = self.ctx.state
         if state == "IDLE.MANUAL":
             self._going_home = False
-            self.ctx.port.report("battery", f"battery {status.percent:.0f} %: drive the robot to its dock to charge")
+            self.ctx.port.report("battery", f"Battery {status.percent:.0f} %: drive the robot to its dock to charge")
         if state != "IDLE.AUTO":
             return
         self._going_home = False
         mission = self._home_mission()
         if isinstance(mission, str):
-            self.ctx.port.report("battery", f"battery {status.percent:.0f} %: cannot go home: {mission}")
+            self.ctx.port.report("battery", f"Battery {status.percent:.0f} %: cannot go home: {mission}")
             return
         self.ctx.post("start_mission", f"battery {status.percent:.0f} %: going home to charge", self.name,
                       mission=mission)
