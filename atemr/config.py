@@ -82,8 +82,8 @@ class SimConfig:
                                                             "help": "simulated pack's charge at start, %"})
     battery_base_load_w: float = field(default=15.0, metadata={"min": 0.0, "max": 1000.0,
                                                                "help": "what the electronics draw, W"})
-    battery_charge_w: float = field(default=60.0, metadata={"min": 0.0, "max": 10_000.0,
-                                                            "help": "charging power on the dock, W"})
+    battery_charge_s: float = field(default=10_800.0, metadata={
+        "min": 1.0, "max": 86_400.0, "help": "time on the dock that charges the simulated pack from empty to full, s"})
     start_time: str = field(default="", metadata={
         "help": "the calendar date and time the simulation starts at, for routines (ISO 8601 with its offset, "
                 "e.g. 2026-03-29T08:55+02:00; empty: the wall clock when it starts)"})
@@ -168,20 +168,38 @@ class UiConfig:
                 "host candidates only, enough on one LAN; comma-separated in the environment"})
     ice_username: str | None = field(default=None, metadata={"help": "username for the turn:/turns: servers"})
     ice_credential: str | None = field(default=None, metadata={"help": "credential for the turn:/turns: servers"})
+    ice_secret: str | None = field(default=None, metadata={
+        "help": "the TURN server's shared secret (coturn: use-auth-secret, static-auth-secret): each call and "
+                "drive video gets its own credentials, valid for ui.ice_credential_ttl_s, instead of the fixed "
+                "ui.ice_username/ui.ice_credential that every browser would keep"})
+    ice_credential_ttl_s: float = field(default=3600.0, metadata={
+        "min": 60.0, "max": 7 * 86400.0, "help": "how long a TURN credential made from ui.ice_secret is valid"})
     drive_video: Literal["webrtc", "mjpeg"] = field(default="webrtc", metadata={
         "help": "how the Control page gets the drive camera: webrtc (lower latency; needs aiortc, the webrtc extra; "
                 "MJPEG whenever WebRTC cannot be had) or mjpeg only"})
     drive_video_max_peers: int = field(default=3, metadata={
         "min": 1, "max": 32, "help": "pages the robot sends WebRTC drive video to at once (each costs an encoder; "
                                      "more get MJPEG)"})
+    tls_cert: Path | None = field(default=None, metadata={
+        "help": "serve HTTPS with this PEM certificate (chain), e.g. from 'atemr tls make-cert': browsers give a "
+                "page the camera and microphone (calls) only over HTTPS, or on localhost"})
+    tls_key: Path | None = field(default=None, metadata={"help": "the private key (PEM) of ui.tls_cert"})
     foxglove: FoxgloveConfig = field(default_factory=FoxgloveConfig)
 
     def __post_init__(self) -> None:
+        if (self.tls_cert is None) != (self.tls_key is None):
+            missing = "ui.tls_key" if self.tls_key is None else "ui.tls_cert"
+            raise ConfigError("HTTPS needs both ui.tls_cert and ui.tls_key", path=missing)
         for url in self.ice_servers:
             if not url.startswith(ICE_SCHEMES):
                 raise ConfigError(f"ui.ice_servers: {url!r} must start with {', '.join(ICE_SCHEMES)}")
-        if any(u.startswith(("turn:", "turns:")) for u in self.ice_servers) and not self.ice_username:
-            raise ConfigError("ui.ice_servers names a TURN server: set ui.ice_username and ui.ice_credential too")
+        if self.ice_secret is not None and (self.ice_username or self.ice_credential):
+            raise ConfigError("set ui.ice_secret (credentials made per call) or ui.ice_username and "
+                              "ui.ice_credential (fixed ones), not both", path="ui.ice_secret")
+        turn = any(u.startswith(("turn:", "turns:")) for u in self.ice_servers)
+        if turn and not (self.ice_username or self.ice_secret):
+            raise ConfigError("ui.ice_servers names a TURN server: set ui.ice_secret (the server's shared secret), "
+                              "or ui.ice_username and ui.ice_credential too")
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,8 @@ BUILTIN_COMMANDS: dict[str, Builtin] = {
                     "manage dashboard users: set-password NAME (the first admin password), list"),
     "screen": Builtin("atemr.cli.screen:ScreenCommand",
                       "the robot's screens (its tablet): add NAME (prints the device token once), list, revoke NAME"),
+    "tls": Builtin("atemr.cli.tls:TlsCommand",
+                   "HTTPS for the dashboard (calls need it): make-cert makes a self-signed certificate"),
     "fuzzy": Builtin("atemr.cli.fuzzy:FuzzyCommand",
                      "evaluate a fuzzy engine on rows from stdin (eval) or print and plot it (show)"),
     "sim": Builtin("atemr.cli.sim:SimCommand",

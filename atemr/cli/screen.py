@@ -37,6 +37,9 @@ class ScreenCommand:
             return 0
         token = store.add(args.name)
         print(token)
-        print(f"The token of screen {args.name}, shown this once: open http://ROBOT:PORT/screen?token={token} "
-              "on the robot's tablet.", file=sys.stderr)
+        scheme = "https" if config.ui.tls_cert is not None else "http"
+        print(f"The token of screen {args.name}, shown this once: open {scheme}://ROBOT:{config.ui.port}/screen?"
+              f"token={token} on the robot's tablet.", file=sys.stderr)
+        if config.ui.tls_cert is None:
+            print("Its camera and microphone need HTTPS over the network: see 'atemr tls make-cert'.", file=sys.stderr)
         return 0

@@ -116,6 +116,43 @@ class LocalizationStatus:
                 "robot's position on the map (SET POSITION) or press FIND POSITION")
 
 
+#: How low the charge is against the limits: above the warning limit, below it, below the return limit (the
+#: robot goes home), below the critical limit (it stops where it is).
+BatteryLevel = Literal["ok", "low", "return", "critical"]
+#: What the robot does with its task at the return limit: cancel it, or let it finish; then it goes home.
+AtReturn = Literal["cancel", "finish"]
+
+
+@dataclass(frozen=True)
+class BatteryStatus:
+    """The state of charge as every consumer reads it (the Monitor's ``WatchBattery``, the dashboard's BAT
+    indicator, the robot's screen, the routines' start check), with the limits it is compared with and what to
+    do at the return limit. One type, as for localization, so that no consumer calls the battery low by
+    another rule: the level is the charge against these limits, nothing else."""
+
+    percent: float
+    voltage_v: float
+    warn_percent: float
+    return_percent: float
+    critical_percent: float
+    at_return: AtReturn = "cancel"
+
+    @property
+    def level(self) -> BatteryLevel:
+        if self.percent < self.critical_percent:
+            return "critical"
+        if self.percent < self.return_percent:
+            return "return"
+        if self.percent < self.warn_percent:
+            return "low"
+        return "ok"
+
+    def forbids_task(self) -> str | None:
+        """Why no new task should start on this charge (below the return limit: it would only be cut short on
+        the way home), else None."""
+        return f"battery {self.percent:.0f} %" if self.level in ("return", "critical") else None
+
+
 #: Between the levels of a nested lifecycle state name (``IDLE.AUTO``).
 SEPARATOR = "."
 

@@ -38,6 +38,8 @@ from atemr.io.secondary_link import SecondaryLink, build_secondary_link
 from atemr.io.sim.simulation import Simulation
 from atemr.io.system_monitor import SystemMonitor
 from atemr.msgs import Pose2D, Twist, WheelSpeeds
+from atemr.robot.battery import RATE_HZ as BATTERY_HZ
+from atemr.robot.battery import BatteryGauge
 from atemr.robot.core import Robot
 from atemr.robot.health import FRESH_S, HealthBoard
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP, MotionInputs
@@ -59,6 +61,7 @@ from atemr.skills.ramp import checked_limits
 
 if TYPE_CHECKING:
     from atemr.io.secondary_emulator.board import SecondaryCore
+    from atemr.io.sim.battery import SimBattery
 
 log = logging.getLogger(__name__)
 
@@ -112,17 +115,17 @@ def _wire(robot: Robot) -> None:
     devices = _add_devices(robot, health, sim)
     primary = _add_primary(robot, inputs, health, settings, devices)
     store, localization, maps, wheels = _add_localization(robot, sim, devices, primary.driver)
+    battery, sim_battery = _add_battery(robot, primary.driver, maps, sim)
     port, navigation, agent, watcher = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
-                                         localization=localization, maps=maps)
+                                         localization=localization, maps=maps, battery=battery)
     system_monitor = SystemMonitor(config.data_dir)  # scheduled last of the always-present parts, below
     robot.parts = RobotParts(
         settings=settings, inputs=inputs, health=health, devices=devices, driver=primary.driver, link=primary.link,
         pipeline=primary.pipeline, motion=primary.motion, map_store=store, localization=localization, maps=maps,
         wheels=wheels, port=port, navigation=navigation, agent=agent, reload_watcher=watcher,
-        system_monitor=system_monitor, sim=sim, secondary_board=board,
+        system_monitor=system_monitor, sim=sim, secondary_board=board, battery=battery, sim_battery=sim_battery,
     )
     _add_routines(robot)
-    _add_battery(robot)
     _add_recorder(robot)
     if config.ui.enabled:
         from atemr.robot.dashboard import add_dashboard  # lazy: headless runs never import Flask
@@ -156,20 +159,20 @@ def _add_routines(robot: Robot) -> None:
     runner = RoutineRunner(RoutineStore(cfg.data_dir), parts.agent,
                            Path(parts.agent.spec.file or DEFAULT_AGENT_FILE).parent / "missions", calendar=calendar,
                            places=lambda: maps.places, localized=lambda: localization.localized, event=robot.event,
-                           battery=lambda: None if robot.parts.battery is None else robot.parts.battery.forbids_task())
+                           battery=parts.battery.forbids_task)
     robot.add(runner, RATE_HZ)
     robot.parts = replace(robot.parts, routines=runner)
 
 
-def _add_battery(robot: Robot) -> None:
-    """The battery watch (`atemr.robot.battery`) after the agent; in simulation with emulated motors, the simulated
-    pack that supplies them (`atemr.io.sim.battery`), charging on the active map's dock."""
+def _add_battery(robot: Robot, driver: RmdDriver, maps: MapService,
+                 sim: Simulation | None) -> tuple[BatteryGauge, SimBattery | None]:
+    """The battery gauge (`atemr.robot.battery`), which the agent's Monitor reads through the port; in simulation
+    with emulated motors, the simulated pack that supplies them (`atemr.io.sim.battery`), charging on the active
+    map's dock. Added before the agent, so the Monitor sees each reading in the tick it was taken."""
     from atemr.io.sim.base import MountedWheel
     from atemr.io.sim.battery import SimBattery
-    from atemr.robot.battery import RATE_HZ, BatteryWatch
 
-    cfg, parts = robot.config, robot.parts
-    maps, sim = parts.maps, parts.sim
+    cfg = robot.config
     pack = None
     # the emulated motors' models, which the pack supplies (a wheel that is not a mounted motor model has none)
     motors = [w.model for w in (sim.left, sim.right) if isinstance(w, MountedWheel)] if sim is not None else []
@@ -182,11 +185,11 @@ def _add_battery(robot: Robot) -> None:
 
         pack = SimBattery(cfg.battery, motors, capacity_wh=cfg.sim.battery_wh,
                           percent=cfg.sim.battery_percent, base_load_w=cfg.sim.battery_base_load_w,
-                          charge_w=cfg.sim.battery_charge_w, pose=lambda: world.pose, dock=dock_pose)
+                          charge_s=cfg.sim.battery_charge_s, pose=lambda: world.pose, dock=dock_pose)
         robot.add(pack, 10.0)
-    watch = BatteryWatch(cfg.battery, parts.driver, parts.agent, places=lambda: maps.places, event=robot.event)
-    robot.add(watch, RATE_HZ)
-    robot.parts = replace(robot.parts, battery=watch, sim_battery=pack)
+    gauge = BatteryGauge(cfg.battery, driver, event=robot.event)
+    robot.add(gauge, BATTERY_HZ)
+    return gauge, pack
 
 
 def _add_control(robot: Robot) -> None:
@@ -237,7 +240,7 @@ def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
 
 def _add_agent(
     robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, devices: Devices,
-    localization: LocalizationPipeline, maps: MapService,
+    localization: LocalizationPipeline, maps: MapService, battery: BatteryGauge,
 ) -> tuple[RobotPortImpl, RobotNavigation, Agent, ReloadWatcher]:
     """The agent (lifecycle + trees + Monitor) over the robot's ports; when it halts, the robot stops."""
     cfg = robot.config
@@ -246,6 +249,7 @@ def _add_agent(
         now=robot.clock.now, inputs=inputs, health=health, localization=localization, maps=maps,
         camera=(lambda: camera.latest) if camera is not None else (lambda: None),
         images_dir=cfg.data_dir / "media" / "images", wall_time=WallClock().wall_time,
+        battery=battery.status, event=robot.event,
     )
     control = primary.motion
 

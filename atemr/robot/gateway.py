@@ -308,11 +308,10 @@ class RobotGatewayImpl:
         }
 
     def _battery(self) -> BatteryJson | None:
-        watch = self.robot.parts.battery
-        latest = None if watch is None else watch.estimator.latest
-        if watch is None or latest is None:
+        status = self.robot.parts.battery.status()
+        if status is None:
             return None
-        return {"percent": round(latest.percent, 1), "voltage_v": round(latest.voltage_v, 2), "level": watch.level}
+        return {"percent": round(status.percent, 1), "voltage_v": round(status.voltage_v, 2), "level": status.level}
 
     def _localization(self) -> LocalizationJson:
         localization = self.robot.parts.localization

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from atemr.io.sim.battery import SimBattery
     from atemr.io.sim.simulation import Simulation
     from atemr.io.system_monitor import SystemMonitor
-    from atemr.robot.battery import BatteryWatch
+    from atemr.robot.battery import BatteryGauge
     from atemr.robot.control import RobotControl
     from atemr.robot.gateway import RobotGatewayImpl
     from atemr.robot.health import HealthBoard
@@ -67,6 +67,8 @@ class RobotParts:
     agent: Agent
     reload_watcher: ReloadWatcher
     system_monitor: SystemMonitor
+    #: The state of charge from the motors' supply voltage (the agent's Monitor reacts to it).
+    battery: BatteryGauge
     sim: Simulation | None = None
     #: The emulated secondary core's board, when the simulation runs one (its screen and button on the page).
     secondary_board: SecondaryCore | None = None
@@ -80,7 +82,5 @@ class RobotParts:
     control: RobotControl | None = None
     #: The care routines (scheduled missions), `atemr.robot.routines`.
     routines: RoutineRunner | None = None
-    #: The state of charge from the motors' supply voltage, and the reactions at its limits.
-    battery: BatteryWatch | None = None
     #: The simulated pack (simulation with emulated motors): the truth the estimate is checked against.
     sim_battery: SimBattery | None = None

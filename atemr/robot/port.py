@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
-from atemr.domain.status import ComponentHealth, LocalizationStatus, PowerState
+from atemr.domain.status import BatteryStatus, ComponentHealth, LocalizationStatus, PowerState
 from atemr.errors import HardwareError
 from atemr.io.can import PrimaryStatus
 from atemr.io.secondary_link import SecondaryLink
@@ -44,7 +44,8 @@ class RobotPortImpl:
     def __init__(self, *, now: Callable[[], float], inputs: MotionInputs, health: HealthBoard,
                  localization: LocalizationPipeline, maps: MapService,
                  camera: Callable[[], NDArray[np.uint8] | None], images_dir: Path,
-                 wall_time: Callable[[], float]) -> None:
+                 wall_time: Callable[[], float], battery: Callable[[], BatteryStatus | None],
+                 event: Callable[[str, str], None]) -> None:
         self._now = now
         self.inputs = inputs
         self.health_board = health
@@ -53,6 +54,8 @@ class RobotPortImpl:
         self.camera = camera
         self.images_dir = images_dir
         self.wall_time = wall_time
+        self._battery = battery
+        self._event = event
 
     def command_velocity(self, source: VelocitySource, twist: Twist, now: float) -> None:
         self.inputs.offer(source, twist, now)
@@ -101,6 +104,12 @@ class RobotPortImpl:
 
     def clear_faults(self) -> str | None:
         return self.health_board.clear_faults()
+
+    def battery(self) -> BatteryStatus | None:
+        return self._battery()
+
+    def report(self, kind: str, text: str) -> None:
+        self._event(kind, text)
 
 
 class SecondaryLinkPort:

@@ -24,6 +24,8 @@ import math
 from dataclasses import dataclass, field
 from itertools import pairwise
 
+from atemr.domain.status import AtReturn, BatteryStatus
+
 #: A 7-cell Li-ion pack (thesis table 3.3): open-circuit volts per cell → percent (a typical NMC curve).
 LI_ION_CURVE: tuple[tuple[float, ...], ...] = (
     (3.00, 0.0), (3.30, 5.0), (3.45, 10.0), (3.55, 20.0), (3.62, 30.0), (3.68, 40.0), (3.74, 50.0),
@@ -60,6 +62,8 @@ class BatteryParams:
                                                           "help": "end the task and go home below this"})
     critical_percent: float = field(default=5.0, metadata={"min": 0.0, "max": 100.0,
                                                            "help": "stop in place, critical, below this"})
+    at_return: AtReturn = field(default="cancel", metadata={
+        "help": "at the return limit: cancel the task, or let it finish; then go home"})
 
     def validate(self) -> None:
         if len(self.curve) < 2 or any(len(p) != 2 for p in self.curve):
@@ -73,6 +77,11 @@ class BatteryParams:
             raise ValueError(f"'curve' volts per cell lie in [{MIN_CELL_V}, {MAX_CELL_V}], percent in [0, 100]")
         if not self.critical_percent <= self.return_percent <= self.warn_percent:
             raise ValueError("the limits must be ordered: critical_percent <= return_percent <= warn_percent")
+
+    def status(self, reading: BatteryReading) -> BatteryStatus:
+        """The estimate as the robot's consumers read it, with the limits it is compared with."""
+        return BatteryStatus(reading.percent, reading.voltage_v, self.warn_percent, self.return_percent,
+                             self.critical_percent, self.at_return)
 
     def motor_power_w(self, motors: list[tuple[float, float]]) -> float:
         """What motors running at ``(current A, speed rad/s)`` draw: back-EMF power and copper losses."""

@@ -11,7 +11,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from atemr.domain.places import Places
-from atemr.domain.status import ComponentHealth, LocalizationStatus, PowerState
+from atemr.domain.status import BatteryStatus, ComponentHealth, LocalizationStatus, PowerState
 from atemr.errors import HardwareError, NavigationError
 from atemr.io.can import PrimaryStatus
 from atemr.msgs import Pose2D, Twist
@@ -50,6 +50,9 @@ class RecordingPort:
     #: What `clear_faults` answers (None: cleared); every call is counted in ``fault_clears``.
     faults_latched: str | None = None
     fault_clears: int = 0
+    #: What `battery` answers (None: no reading); every `report` is kept in ``reports``.
+    battery_status: BatteryStatus | None = None
+    reports: list[tuple[str, str]] = field(default_factory=list)
 
     def command_velocity(self, source: VelocitySource, twist: Twist, now: float) -> None:
         self.commands.append((source, twist, now))
@@ -102,6 +105,12 @@ class RecordingPort:
     def clear_faults(self) -> str | None:
         self.fault_clears += 1
         return self.faults_latched
+
+    def battery(self) -> BatteryStatus | None:
+        return self.battery_status
+
+    def report(self, kind: str, text: str) -> None:
+        self.reports.append((kind, text))
 
     @property
     def last_twist(self) -> Twist | None:

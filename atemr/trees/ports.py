@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from typing import Literal, Protocol, runtime_checkable
 
 from atemr.domain.places import Places
-from atemr.domain.status import ComponentHealth, HardwareBits, LocalizationStatus, PowerState
+from atemr.domain.status import BatteryStatus, ComponentHealth, HardwareBits, LocalizationStatus, PowerState
 from atemr.io.can import PrimaryStatus
 from atemr.msgs import ZERO_TWIST, Pose2D, Twist
 
@@ -87,6 +87,16 @@ class RobotPort(Protocol):
         """Clear the recoverable hardware faults whose cause is gone (on the robot: reset the motor driver's
         latched fault once both motors answer again with no error flag). None when nothing is latched any
         more; otherwise why not yet (the Error state calls this while it waits for the cause to clear)."""
+        ...
+
+    def battery(self) -> BatteryStatus | None:
+        """The state of charge with the limits the robot reacts at (the Monitor's ``WatchBattery``); None before
+        the first good reading, or on a robot that cannot measure its battery."""
+        ...
+
+    def report(self, kind: str, text: str) -> None:
+        """Tell the operator something that is not a transition (a battery warning): a robot event, which the
+        dashboard's events and alerts and the recording show."""
         ...
 
 

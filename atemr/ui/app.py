@@ -100,6 +100,7 @@ def create_app(
         SESSION_COOKIE_NAME="atemr_session",
         SESSION_COOKIE_HTTPONLY=True,
         SESSION_COOKIE_SAMESITE="Lax",
+        SESSION_COOKIE_SECURE=config.ui.tls_cert is not None,  # over HTTPS, never sent in the clear
         PERMANENT_SESSION_LIFETIME=lifetime,
         MAX_CONTENT_LENGTH=int(config.ui.max_upload_mb * 1024 * 1024),
         ATEMR_CONFIG=config,

@@ -16,6 +16,7 @@ import ipaddress
 import logging
 import re
 import socket
+import ssl
 import threading
 from typing import Any
 
@@ -31,6 +32,7 @@ from atemr.ui.app import create_app
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.message_queue import check_reachable
 from atemr.ui.state import STATE_RATE_HZ
+from atemr.ui.tls import server_context
 from atemr.ui.users import HASH_METHOD
 
 log = logging.getLogger(__name__)
@@ -140,11 +142,11 @@ class BoundedWSGIServer(ThreadedWSGIServer):
     """
 
     def __init__(self, host: str, port: int, app: Any, *, max_connections: int,
-                 handler: type[WSGIRequestHandler] | None = None) -> None:
+                 handler: type[WSGIRequestHandler] | None = None, ssl_context: ssl.SSLContext | None = None) -> None:
         self.max_connections = max_connections
         self.refused = 0
         self._slots = threading.BoundedSemaphore(max_connections)
-        super().__init__(host, port, app, handler=handler)
+        super().__init__(host, port, app, handler=handler, ssl_context=ssl_context)
 
     def process_request(self, request: Any, client_address: Any) -> None:
         if not self._slots.acquire(blocking=False):
@@ -222,7 +224,8 @@ class DashboardServer:
     def url(self) -> str:
         host = self.config.ui.host
         host = {"0.0.0.0": "127.0.0.1", "::": "::1"}.get(host, host)  # every interface: this machine's is one
-        return f"http://[{host}]:{self.port}" if ":" in host else f"http://{host}:{self.port}"
+        scheme = "https" if self.config.ui.tls_cert is not None else "http"
+        return f"{scheme}://[{host}]:{self.port}" if ":" in host else f"{scheme}://{host}:{self.port}"
 
     @property
     def running(self) -> bool:
@@ -233,11 +236,13 @@ class DashboardServer:
             return
         if self.config.ui.message_queue is not None:
             check_reachable(self.config.ui.message_queue, self.name)
+        ui = self.config.ui
+        tls = None if ui.tls_cert is None or ui.tls_key is None else server_context(ui.tls_cert, ui.tls_key)
         self.app.extensions["atemr.stopping"].clear()
         try:
             self._server = BoundedWSGIServer(
                 self.config.ui.host, self.config.ui.port, CloseEarly(self.app),
-                max_connections=self.config.ui.max_connections, handler=_RequestHandler,
+                max_connections=self.config.ui.max_connections, handler=_RequestHandler, ssl_context=tls,
             )
         except (OSError, SystemExit) as exc:  # werkzeug exits (!) when the port is taken
             why = exc.strerror if isinstance(exc, OSError) else "the address is in use or not available"

@@ -332,11 +332,15 @@ def state_message(robot: RobotGateway) -> dict[str, Any]:
 
 
 def screen_message(state: dict[str, Any]) -> dict[str, Any]:
-    """What the robot's screen shows of the state: the robot's name and what it does, in plain words
-    (never the map, the pose or the camera: the screen sees only what the resident should read)."""
-    from atemr.ui.screen.words import plain_activity
+    """What the robot's screen shows of the state: the robot's name, what it does and its charge, in plain
+    words (never the map, the pose or the camera: the screen sees only what the resident should read); the
+    battery's level too, for the colour."""
+    from atemr.ui.screen.words import plain_activity, plain_battery
 
-    return {"robot": state.get("robot") or "", "words": plain_activity(state)}
+    battery = state.get("battery")
+    level = battery.get("level") if isinstance(battery, dict) else None
+    return {"robot": state.get("robot") or "", "words": plain_activity(state), "battery": plain_battery(state),
+            "battery_level": level if isinstance(level, str) else ""}
 
 
 def push(app: Flask, robot: RobotGateway | None) -> int:

@@ -106,11 +106,12 @@ class PlaceJson(TypedDict):
 
 
 class BatteryJson(TypedDict):
-    """The state of charge estimated from the motors' supply voltage (`atemr.robot.battery.BatteryWatch`)."""
+    """The state of charge estimated from the motors' supply voltage (`atemr.robot.battery.BatteryGauge`)."""
 
     percent: float
     voltage_v: float
-    #: ``ok``, ``low`` (below the warning limit), ``return`` (going home to charge), ``critical`` (stopped).
+    #: ``ok``, ``low`` (below the warning limit), ``return`` (below the return limit: home to charge),
+    #: ``critical`` (below the critical limit: stopped); `atemr.domain.status.BatteryStatus.level`.
     level: str
 
 

@@ -441,6 +441,20 @@ def browser(playwright: Any) -> Iterator[Any]:
     browser.close()
 
 
+@pytest.fixture
+def launch(playwright: Any) -> Iterator[Any]:
+    """``launch(*args)``: a Chromium of this test's own with extra command-line ``args``; closed after it."""
+    browsers: list[Any] = []
+
+    def start(*extra: str) -> Any:
+        browsers.append(_launch(playwright, list(extra)))
+        return browsers[-1]
+
+    yield start
+    for browser in browsers:
+        browser.close()
+
+
 @pytest.fixture(scope="session")
 def media_browser(playwright: Any) -> Iterator[Any]:
     """Chromium with `MEDIA_ARGS`: getUserMedia answers with fake devices."""
@@ -508,6 +522,8 @@ def wait_for(page: Any, js: str, timeout_s: float = 15.0) -> Any:
 def helpers() -> Any:
     class Helpers:
         ADMIN_PW = ADMIN_PW
+        MEDIA_ARGS = MEDIA_ARGS
+        FAST_SCRYPT = FAST_SCRYPT
         login = staticmethod(login)
         wait_for = staticmethod(wait_for)
 

@@ -181,8 +181,9 @@ def test_every_stop_is_said_with_its_cause_and_what_to_do(robot_site, page, help
 
 
 #: A robot whose goals give up after 12 s (the default is 10 minutes) and whose pack is nearly at its warning
-#: level (20 %) with no charger, so a goal fails and the battery runs low within the test.
-TIRED = {"nav.timeout_s": 12.0, "sim.battery_percent": 21.0, "sim.battery_charge_w": 0.0,
+#: level (20 %) with the slowest charger (a day for a full charge: it starts on its dock), so a goal fails and the
+#: battery runs low within the test.
+TIRED = {"nav.timeout_s": 12.0, "sim.battery_percent": 21.0, "sim.battery_charge_s": 86_400.0,
          "sim.camera_hz": 2.0}  # a camera that renders less often: the robot keeps its pace on a busy machine
 
 
@@ -260,7 +261,7 @@ def test_goals_missions_refusals_localization_battery_and_offline_are_said(tired
     assert pack is not None
     alerts.start()
     site.sim.submit(lambda: setattr(pack, "energy_wh", pack.capacity_wh * 0.17))
-    alerts.said("battery low", timeout=30_000)
+    alerts.said("Battery low", timeout=30_000)
     wait_for(page, "document.getElementById('battery').classList.contains('warning')")
     alerts.plain()
 

@@ -5,6 +5,7 @@ screen page opens only with its token, and the token opens no operator event."""
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import pytest
@@ -63,6 +64,8 @@ def test_a_call_between_an_operator_and_the_robots_screen(robot_site, media_brow
     words = wait_for(screen, "() => { const t = document.getElementById('robot-words').textContent; "
                              "return t !== '—' && t; }")
     assert words in ("Waiting; someone can drive me from afar", "Waiting", "Starting up"), words
+    charge = wait_for(screen, "() => document.getElementById('battery').textContent")  # the simulated pack, full
+    assert re.fullmatch(r"Battery \d+ %", charge) and screen.is_visible("#battery"), charge
 
     # the screen's token opens no operator event
     refused = screen.evaluate("""() => new Promise((done) => {

@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from atemr.clock import SimClock
-from atemr.domain.status import ComponentHealth, PowerState, StateCode
+from atemr.domain.places import Place, Places
+from atemr.domain.status import AtReturn, BatteryStatus, ComponentHealth, PowerState, StateCode
 from atemr.errors import HardwareError
 from atemr.fsm.agent import Agent
 from atemr.fsm.machine import replay
@@ -472,6 +473,45 @@ def test_a_goal_with_navigation_runs_in_exec(agent_spec: AgentSpec, link: Record
     assert rig.agent.state == "IDLE.AUTO" and port.current_pose == Pose2D(3.6, 2.6, 1.0)
     report = rig.agent.task_reports[-1]
     assert report["outcome"] == "reached" and report["steps"][0]["position_error_m"] == 0.0
+
+
+@pytest.mark.parametrize(("at_return", "goal_outcome"), [("cancel", "cancelled"), ("finish", "reached")])
+def test_the_monitor_ends_the_task_at_the_return_limit_and_sends_the_robot_home(
+        agent_spec: AgentSpec, link: RecordingLink, at_return: AtReturn, goal_outcome: str) -> None:
+    port = RecordingPort(current_pose=Pose2D(2.6, 2.6, 0.0))
+    dock = Places([Place("home", Pose2D(0.5, 0.5, 0.0), "dock")])
+    rig = Rig(agent_spec, port, link, StraightLineNavigation(port, speed_mps=1.0, known_places=dock))
+    idle(rig)
+    rig.command("set_auto")
+    assert rig.command("goal", goal=Pose2D(4.6, 2.6, 0.0)).dest == "EXEC"  # type: ignore[attr-defined]
+    rig.run(0.5)
+    port.battery_status = BatteryStatus(9.0, 24.6, warn_percent=20.0, return_percent=10.0, critical_percent=5.0,
+                                        at_return=at_return)
+    rig.run(8.0)
+    goal, home = rig.agent.task_reports[-2], rig.agent.task_reports[-1]
+    assert goal["outcome"] == goal_outcome
+    assert home["mission"] == "to home to charge" and home["outcome"] == "reached"
+    assert rig.agent.state == "IDLE.AUTO" and port.current_pose == Pose2D(0.5, 0.5, 0.0)
+    by_battery = [r.trigger for r in rig.agent.trace if r.origin == "battery"]
+    assert by_battery == (["cancel", "start_mission"] if at_return == "cancel" else ["start_mission"])
+    assert port.reports[0] == ("battery", "Battery 9 %: the task ends and the robot goes home to charge"
+                               if at_return == "cancel" else "Battery 9 %: the task finishes, then the robot goes "
+                                                             "home to charge")
+
+
+def test_the_monitor_stops_the_robot_where_it_is_at_the_critical_limit(agent_spec: AgentSpec,
+                                                                       link: RecordingLink) -> None:
+    port = RecordingPort(current_pose=Pose2D(2.6, 2.6, 0.0))
+    rig = Rig(agent_spec, port, link, StraightLineNavigation(port, speed_mps=1.0))
+    idle(rig)
+    rig.command("set_auto")
+    rig.command("goal", goal=Pose2D(4.6, 2.6, 0.0))
+    rig.run(0.5)
+    port.battery_status = BatteryStatus(4.0, 23.0, warn_percent=20.0, return_percent=10.0, critical_percent=5.0)
+    rig.run(2.0)
+    assert rig.agent.state == "IDLE.MANUAL" and rig.agent.task_reports[-1]["outcome"] == "cancelled"
+    assert 2.9 < port.current_pose.x_m < 3.3, "stopped where it was"  # type: ignore[union-attr]
+    assert port.reports == [("battery", "Battery critical: 4 %, stopped where it is; charge it now")]
 
 
 def test_kitchen_check_runs_with_navigation(agent_spec: AgentSpec, link: RecordingLink) -> None:

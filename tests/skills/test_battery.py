@@ -72,7 +72,22 @@ def test_sag_under_load_is_compensated_and_the_reading_filtered() -> None:
     ({"curve": [[3.0, 0]]}, "at least two points"),
     ({"warn_percent": 5, "critical_percent": 10}, "ordered"),
     ({"cells": 0}, "at least 1"),
+    ({"at_return": "wait"}, "battery.at_return: expected one of 'cancel', 'finish', got 'wait'"),
 ])
 def test_bad_battery_settings_are_refused(layer: dict, words: str) -> None:
     with pytest.raises(ConfigError, match=words):
         merge_into(BatteryParams(), layer, Source("file", "robot.yaml"), prefix="battery")
+
+
+def test_the_status_carries_the_limits_and_names_the_level() -> None:
+    params = BatteryParams(warn_percent=30.0, return_percent=15.0, critical_percent=8.0, at_return="finish")
+    levels = []
+    for percent in (50.0, 29.0, 14.0, 7.0):
+        est = BatteryEstimator(params)
+        est.update(0.0, params.voltage_at(percent) - params.sag_ohm * params.load_current_a(24.0, []))  # idling
+        assert est.latest is not None
+        status = params.status(est.latest)
+        assert status.at_return == "finish" and (status.warn_percent, status.return_percent) == (30.0, 15.0)
+        levels.append((status.level, status.forbids_task()))
+    assert [lv for lv, _ in levels] == ["ok", "low", "return", "critical"]
+    assert levels[0][1] is None and levels[1][1] is None and levels[2][1] == "battery 14 %"

@@ -13,13 +13,14 @@ import py_trees
 import pytest
 
 from atemr.domain.places import Place, Places
-from atemr.domain.status import ComponentHealth, PowerState, StateCode
+from atemr.domain.status import AtReturn, BatteryStatus, ComponentHealth, PowerState, StateCode
 from atemr.errors import AtemrError, ConfigError, HardwareError
 from atemr.msgs import Pose2D, Twist
 from atemr.trees.behaviours import Leaf, behaviours, parse_params
 from atemr.trees.context import AgentContext
 from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
 from atemr.trees.leaves.checks import ClassifyError
+from atemr.trees.missions import Mission
 from atemr.trees.nodes import ClockTimeout
 from atemr.typed import Source
 
@@ -43,6 +44,7 @@ SAMPLES: dict[str, dict[str, Any]] = {
     "WatchPowerRequest": {},
     "WatchHeartbeat": {},
     "WatchHealth": {"components": ["left_motor"]},
+    "WatchBattery": {},
     "GoToPose": {"x_m": 1.0, "y_m": 0.5, "yaw_rad": 0.3},
     "GoToPlace": {"place": "kitchen"},
     "FollowPath": {"points": [[1.0, 0.0], [1.0, 1.0]]},
@@ -289,6 +291,95 @@ def test_watch_health_reports_each_onset() -> None:
     bench.port.components["left_motor"] = ComponentHealth(False, "again")
     bench.tick()
     assert len(bench.ctx.take_events()) == 1
+
+
+def charge(percent: float, at_return: AtReturn = "cancel") -> BatteryStatus:
+    """The battery at ``percent`` with the shipped limits: warn 20 %, return 10 %, critical 5 %."""
+    return BatteryStatus(percent, 26.0, warn_percent=20.0, return_percent=10.0, critical_percent=5.0,
+                         at_return=at_return)
+
+
+@pytest.mark.parametrize(("state", "at_return", "percent", "triggers", "said"), [
+    ("EXEC", "cancel", 50.0, [], None),
+    ("EXEC", "cancel", 18.0, [], "Battery low: 18 %. Let it charge soon: at 10 % it ends its task and goes home"),
+    ("EXEC", "cancel", 9.0, ["cancel"], "Battery 9 %: the task ends and the robot goes home to charge"),
+    ("EXEC", "finish", 9.0, [], "Battery 9 %: the task finishes, then the robot goes home to charge"),
+    ("IDLE.AUTO", "cancel", 9.0, ["start_mission"], "Battery 9 %: the robot goes home to charge"),
+    ("IDLE.MANUAL", "cancel", 9.0, [], "Battery 9 %: drive the robot to its dock to charge"),
+    ("MAPPING", "finish", 9.0, [], "Battery 9 %: drive the robot to its dock to charge"),
+    ("EXEC", "finish", 4.0, ["cancel", "set_manual"], "Battery critical: 4 %, stopped where it is; charge it now"),
+    ("IDLE.AUTO", "cancel", 4.0, ["set_manual"], "Battery critical: 4 %, stopped where it is; charge it now"),
+    ("IDLE.MANUAL", "cancel", 4.0, [], "Battery critical: 4 %, stopped where it is; charge it now"),
+    ("STARTUP", "cancel", 4.0, [], None),
+    ("ERROR", "cancel", 9.0, [], None),
+])
+def test_watch_battery_reacts_at_each_limit(state: str, at_return: AtReturn, percent: float, triggers: list[str],
+                                            said: str | None) -> None:
+    bench = Bench(make("WatchBattery"), state=state)
+    bench.port.battery_status = charge(percent, at_return)
+    assert bench.tick(3) == Status.RUNNING
+    assert [e.trigger for e in bench.ctx.take_events()] == triggers
+    assert bench.port.reports == ([] if said is None else [("battery", said)])
+
+
+def test_watch_battery_without_a_reading_does_nothing() -> None:
+    bench = Bench(make("WatchBattery"), state="EXEC")
+    assert bench.tick(3) == Status.RUNNING and bench.leaf.feedback_message == "no battery reading yet"
+    assert bench.ctx.take_events() == [] and bench.port.reports == []
+
+
+@pytest.mark.parametrize("at_return", ["cancel", "finish"])
+def test_watch_battery_sends_the_robot_home_once_the_task_is_over(at_return: AtReturn) -> None:
+    bench = Bench(make("WatchBattery"), state="EXEC")
+    bench.port.battery_status = charge(9.0, at_return)
+    bench.tick()
+    assert [e.trigger for e in bench.ctx.take_events()] == (["cancel"] if at_return == "cancel" else [])
+    bench.tick(20)  # the task runs on (finish) or is being cancelled: nothing more until the robot idles
+    assert bench.ctx.take_events() == []
+    bench.ctx.state = "IDLE.AUTO"
+    bench.tick()
+    events = bench.ctx.take_events()
+    assert [e.trigger for e in events] == ["start_mission"] and "going home to charge" in events[0].reason
+    mission = events[0].kwargs["mission"]
+    assert isinstance(mission, Mission) and mission.place_names() == ["home"]
+    bench.tick(10)
+    assert bench.ctx.take_events() == [], "it goes home once"
+
+
+def test_watch_battery_asks_the_operator_when_the_robot_was_taken_in_manual() -> None:
+    bench = Bench(make("WatchBattery"), state="EXEC")
+    bench.port.battery_status = charge(9.0, "finish")
+    bench.tick()
+    bench.ctx.state = "IDLE.MANUAL"  # the operator took the robot before the task ended
+    bench.tick()
+    bench.ctx.state = "IDLE.AUTO"
+    bench.tick(3)
+    assert bench.ctx.take_events() == []
+    assert bench.port.reports[-1] == ("battery", "Battery 9 %: drive the robot to its dock to charge")
+
+
+def test_watch_battery_says_so_when_the_map_has_no_dock() -> None:
+    bench = Bench(make("WatchBattery"), state="IDLE.AUTO")
+    bench.navigation.known_places = Places([Place("kitchen", Pose2D(1.0, 0.5, 1.0))])
+    bench.port.battery_status = charge(9.0)
+    bench.tick(2)
+    assert bench.ctx.take_events() == []
+    assert bench.port.reports[-1] == ("battery", "Battery 9 %: cannot go home: no dock on this map (a place of kind "
+                                                 "dock, or 'home'): drive the robot to charge")
+
+
+def test_watch_battery_acts_once_per_limit_until_charged_past_it() -> None:
+    bench = Bench(make("WatchBattery"), state="IDLE.MANUAL")
+    said: list[str] = []
+    for percent in (22.0, 19.0, 19.5, 18.0, 9.0, 8.0, 12.0, 14.0, 19.0, 24.0, 26.0, 19.0):
+        bench.port.battery_status = charge(percent)
+        bench.tick()
+        said += [text for _, text in bench.port.reports]
+        bench.port.reports.clear()
+    # 19 %: low; 9 %: home; charging on the dock past 10 and 20 says nothing; 15 % re-arms the return limit,
+    # 25 % the warning, so the next fall below 20 % warns again
+    low = "Battery low: 19 %. Let it charge soon: at 10 % it ends its task and goes home"
+    assert said == [low, "Battery 9 %: drive the robot to its dock to charge", low]
 
 
 def test_watch_health_reports_a_component_that_turned_bad_while_in_error_once_back() -> None:

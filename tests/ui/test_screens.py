@@ -9,7 +9,7 @@ import sqlite3
 import pytest
 
 from atemr.cli.screen import ScreenCommand
-from atemr.ui.screen.words import plain_activity
+from atemr.ui.screen.words import plain_activity, plain_battery
 from atemr.ui.screens import ScreenError, ScreenStore, token_hash
 
 
@@ -102,9 +102,12 @@ def test_screen_socket_gets_plain_words_and_is_refused_operator_events(app, gate
         ack = ws.emit(event, data, callback=True)
         assert ack["ok"] is False and ack["status"] == 403 and "screen device token opens only" in ack["reason"]
     assert gateway.calls == []
+    gateway.snapshot["battery"] = {"percent": 17.6, "voltage_v": 25.4, "level": "low"}
     sockets.push(app, gateway)
     words = [m["args"][0] for m in ws.get_received() if m["name"] == "screen_state"]
     assert words and words[-1]["words"] == plain_activity(gateway.state())
+    assert words[-1]["battery"] == "Battery low: 18 %" and words[-1]["battery_level"] == "low"
+    assert set(words[-1]) == {"robot", "words", "battery", "battery_level"}  # nothing of the map, pose or camera
     app.extensions["atemr.screens"].revoke("tablet")
     app.extensions["atemr.sockets"].checked_at = -1e9
     sockets.push(app, gateway)
@@ -131,3 +134,15 @@ def test_the_token_stays_out_of_the_request_log():
     line = '"GET /screen?token=Abc-_123 HTTP/1.1" 302 -'
     assert hide_tokens(line) == '"GET /screen?token=<hidden> HTTP/1.1" 302 -'
     assert hide_tokens('"GET /screen?a=1&token=x HTTP/1.1"') == '"GET /screen?a=1&token=<hidden> HTTP/1.1"'
+
+
+@pytest.mark.parametrize(("battery", "words"), [
+    ({"percent": 76.4, "voltage_v": 27.1, "level": "ok"}, "Battery 76 %"),
+    ({"percent": 18.0, "voltage_v": 25.4, "level": "low"}, "Battery low: 18 %"),
+    ({"percent": 9.2, "voltage_v": 24.6, "level": "return"}, "Battery 9 %: I need to charge"),
+    ({"percent": 4.0, "voltage_v": 23.0, "level": "critical"}, "Battery 4 %: please put me on my charger"),
+    (None, ""),
+    ({"percent": "lots"}, ""),
+])
+def test_plain_battery(battery, words):
+    assert plain_battery({"battery": battery}) == words

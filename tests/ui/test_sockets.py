@@ -391,9 +391,49 @@ def test_ice_servers_and_auto_answer_from_the_configuration(tmp_path, gateway, c
     assert call_states(operator)[-1]["state"] == "active"
 
 
+def test_turn_credentials_from_a_shared_secret_are_made_per_call_and_expire(tmp_path, gateway, clock, ui):
+    """coturn's use-auth-secret: the server recomputes HMAC-SHA1(secret, "EXPIRY:USER") and refuses it after
+    EXPIRY, so a page keeps nothing that lasts; each call's active message carries a fresh pair."""
+    import base64
+    import hashlib
+    import hmac
+    import time
+
+    from atemr.ui.app import create_app
+    from atemr.ui.call.events import ice_servers
+
+    config = ui.make_config(tmp_path, ice_servers=("stun:stun.example.org:3478", "turns:turn.example.org:5349"),
+                            ice_secret="coturn-static-secret", ice_credential_ttl_s=600.0)
+    app = create_app(config, gateway, clock=clock, hash_method=ui.FAST_SCRYPT)
+    stun, turn = ice_servers(app, now_unix_s=1_800_000_000.0)
+    assert stun == {"urls": "stun:stun.example.org:3478"}
+    assert turn["urls"] == "turns:turn.example.org:5349" and turn["username"] == "1800000600:KAY"
+    expected = hmac.new(b"coturn-static-secret", b"1800000600:KAY", hashlib.sha1).digest()
+    assert base64.b64decode(turn["credential"]) == expected
+    assert ice_servers(app, now_unix_s=1_800_000_100.0)[1]["username"] == "1800000700:KAY"
+    # on a real call the pages get a pair that expires ttl after now
+    app.extensions["atemr.users"].set_password("admin", ui.ADMIN_PW)
+    admin = app.test_client()
+    ui.login(admin, "admin", ui.ADMIN_PW)
+    screen = screen_socket(app)
+    operator = sio(app, admin)
+    before = time.time()
+    assert operator.emit("call_start", None, callback=True)["ok"]
+    assert screen.emit("screen_answer", None, callback=True)["ok"]
+    sent = call_states(screen)[-1]["ice_servers"][1]
+    expiry = int(sent["username"].split(":")[0])
+    assert before + 600 - 1 <= expiry <= time.time() + 600
+    assert "coturn-static-secret" not in str(call_states(operator))
+    # the drive video's answer too: made when asked, not once at start-up
+    first = admin.get("/api/drive-video").get_json()["ice_servers"]
+    if first:  # WebRTC offered (aiortc installed): its TURN pair is as fresh
+        assert before + 600 - 1 <= int(first[1]["username"].split(":")[0]) <= time.time() + 600
+
+
 @pytest.mark.parametrize(("ui_settings", "message"), [
     ({"ice_servers": ("http://stun.example.org",)}, "must start with stun:"),
-    ({"ice_servers": ("turn:turn.example.org",)}, "set ui.ice_username"),
+    ({"ice_servers": ("turn:turn.example.org",)}, "set ui.ice_secret"),
+    ({"ice_secret": "s", "ice_username": "kay", "ice_credential": "c"}, "not both"),
 ])
 def test_bad_ice_settings_are_refused(ui_settings, message, ui, tmp_path):
     from atemr.errors import ConfigError

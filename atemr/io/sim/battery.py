@@ -2,6 +2,11 @@
 dock, and seen by the robot the way the real one is: as the supply voltage each motor measures and reports in
 its status-1 reply (0x9A), sagging under load.
 
+Charging is a time at the dock (``sim.battery_charge_s``: empty to full), as a carer knows the robot's charger
+("three hours on the dock fills it"): while the robot stands within `DOCK_RADIUS_M` of the dock place, the
+charger carries the robot's load and fills the pack at ``capacity_wh / charge_s``, so an hour on the dock adds
+the same share whatever the robot draws there. Off the dock the pack only drains.
+
 The truth (``percent``, the energy left) is kept here for tests; the robot never reads it, it estimates the
 charge from the motors' replies (`atemr.skills.battery.BatteryEstimator`). The pack's true internal resistance
 (``internal_ohm``) need not be the one the estimator assumes, as on a real robot.
@@ -38,7 +43,7 @@ class SimBattery:
     name = "sim.battery"
 
     def __init__(self, params: BatteryParams, motors: Sequence[SuppliedMotor], *, capacity_wh: float,
-                 percent: float = 100.0, base_load_w: float = 15.0, charge_w: float = 60.0,
+                 percent: float = 100.0, base_load_w: float = 15.0, charge_s: float = 10_800.0,
                  internal_ohm: float = 0.12, pose: Callable[[], Pose2D] | None = None,
                  dock: Callable[[], Pose2D | None] = lambda: None) -> None:
         self.params = params
@@ -46,7 +51,7 @@ class SimBattery:
         self.capacity_wh = capacity_wh
         self.energy_wh = capacity_wh * min(100.0, max(0.0, percent)) / 100.0
         self.base_load_w = base_load_w
-        self.charge_w = charge_w
+        self.charge_s = charge_s
         self.internal_ohm = internal_ohm
         self.pose = pose
         self.dock = dock
@@ -65,6 +70,11 @@ class SimBattery:
         """What the motors draw: their mechanical power (back-EMF times current) and their copper losses."""
         return self.params.motor_power_w([(m.current_a, m.speed_radps) for m in self.motors])
 
+    @property
+    def charge_w(self) -> float:
+        """The power into the cells on the dock: a full pack's energy over the charging time."""
+        return self.capacity_wh * 3600.0 / self.charge_s
+
     def docked(self) -> bool:
         dock = self.dock()
         if dock is None or self.pose is None:
@@ -75,9 +85,9 @@ class SimBattery:
     def tick(self, now: float) -> None:
         dt = 0.0 if self._last is None else max(0.0, now - self._last)
         self._last = now
-        load_w = self.base_load_w + self.motor_power_w()
         self.charging = self.docked()
-        net_w = (self.charge_w if self.charging else 0.0) - load_w
+        # on the dock the charger carries the load and fills the cells in charge_s; off it the load drains them
+        net_w = self.charge_w if self.charging else -(self.base_load_w + self.motor_power_w())
         self.energy_wh = min(self.capacity_wh, max(0.0, self.energy_wh + net_w * dt / 3600.0))
         ocv = self.params.voltage_at(self.percent)
         self.current_a = -net_w / max(ocv, 1.0)  # negative while charging: the terminal voltage rises above,

@@ -2,22 +2,27 @@
 
 They never finish (RUNNING forever under the Monitor's Parallel) and keep their memory between ticks:
 the status publisher sends CAN 0x153 at ``period_s`` and at once on any change; the watchers turn
-edges (a power-off request, a lost heartbeat, a component going bad) into events for the machine.
+edges (a power-off request, a lost heartbeat, a component going bad, the battery crossing a limit) into
+events for the machine.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import py_trees
 
 from atemr.clock import due
-from atemr.domain.status import AgentBits, HardwareBits, state_code
-from atemr.errors import HardwareError
+from atemr.domain.status import AgentBits, BatteryLevel, BatteryStatus, HardwareBits, state_code
+from atemr.errors import ConfigError, HardwareError
 from atemr.io.can import PrimaryStatus
 from atemr.trees.behaviours import Leaf, behaviours
 from atemr.trees.context import MONITOR_NS
 from atemr.trees.ports import HARDWARE_COMPONENTS
+
+if TYPE_CHECKING:
+    from atemr.trees.missions import Mission
 
 Status = py_trees.common.Status
 
@@ -174,3 +179,117 @@ class WatchHealth(Leaf):
             self._bad &= bad
         self.feedback_message = f"unhealthy: {', '.join(sorted(bad))}" if bad else "all healthy"
         return Status.RUNNING
+
+
+#: The levels from the least to the most urgent, and the limit (a `BatteryStatus` field) below which each holds.
+SEVERITY: tuple[BatteryLevel, ...] = ("ok", "low", "return", "critical")
+LIMITS: dict[BatteryLevel, str] = {"low": "warn_percent", "return": "return_percent", "critical": "critical_percent"}
+#: Points above a limit the charge must climb back (on the dock) before that limit acts again, so a reading
+#: that wobbles round a limit does not repeat the reaction.
+REARM_POINTS = 5.0
+
+
+@behaviours.register("WatchBattery")
+class WatchBattery(Leaf):
+    """React to the state of charge (`RobotPort.battery`) at the limits it carries (``battery.*`` settings).
+
+    * below ``warn_percent`` it warns (`RobotPort.report`: the dashboard's alerts and the recording);
+    * below ``return_percent`` it ends the task as ``at_return`` says (``cancel``: at once; ``finish``: the task
+      completes first) and then, in IDLE.AUTO, starts a one-step mission to the active map's dock (``home``),
+      through ``start_mission`` like any mission (so its autonomy level applies); in MANUAL or MAPPING it asks
+      the operator to drive the robot home;
+    * below ``critical_percent`` it stops the robot where it is (the task cancelled, MANUAL) and reports critical.
+
+    Each limit acts once on the way down (a lower one marks the higher ones done, so a robot charging from 8 %
+    is not warned at 12 %) and again only once the charge is `REARM_POINTS` above it. Outside ``in_states``
+    nothing acts; a limit crossed there acts when the agent comes back.
+    """
+
+    Params = WatchParams
+    summary = "warn at the battery's warning limit, end the task and go home at its return limit, stop at critical"
+
+    def setup(self, **kwargs: object) -> None:
+        super().setup(**kwargs)
+        self._done: set[BatteryLevel] = set()
+        self._going_home = False
+        self.bb = self.attach_blackboard_client(self.name, MONITOR_NS)
+        self.bb.register_key("battery", access=py_trees.common.Access.WRITE)
+
+    def update(self) -> py_trees.common.Status:
+        status = self.ctx.port.battery()
+        if status is None:
+            self.feedback_message = "no battery reading yet"
+            return Status.RUNNING
+        self._rearm(status)
+        level = status.level
+        if level != "ok" and level not in self._done and _active(self, self.params.in_states):
+            self._done.update(SEVERITY[1:SEVERITY.index(level) + 1])
+            self._react(level, status)
+        if self._going_home:
+            self._go_home_when_idle(status)
+        self.bb.battery = {"percent": round(status.percent, 1), "level": level, "going_home": self._going_home}
+        self.feedback_message = f"{status.percent:.0f} % ({level})" + (", going home" if self._going_home else "")
+        return Status.RUNNING
+
+    def _rearm(self, status: BatteryStatus) -> None:
+        for level in list(self._done):
+            if status.percent >= float(getattr(status, LIMITS[level])) + REARM_POINTS:
+                self._done.discard(level)
+
+    def _react(self, level: BatteryLevel, status: BatteryStatus) -> None:
+        state, percent = self.ctx.state, f"{status.percent:.0f} %"
+        executing = state.startswith("EXEC")
+        if level == "low":
+            self.ctx.port.report("battery", f"Battery low: {percent}. Let it charge soon: at "
+                                            f"{status.return_percent:.0f} % it ends its task and goes home")
+        elif level == "critical":
+            self._going_home = False
+            if executing:
+                self.ctx.post("cancel", f"battery critical ({percent})", self.name)
+            if executing or state == "IDLE.AUTO":
+                self.ctx.post("set_manual", f"battery critical ({percent}): stopped where it is", self.name)
+            self.ctx.port.report("battery", f"Battery critical: {percent}, stopped where it is; charge it now")
+        elif executing and status.at_return == "finish":
+            self._going_home = True
+            self.ctx.port.report("battery", f"Battery {percent}: the task finishes, then the robot goes home to "
+                                            "charge")
+        elif executing or state == "IDLE.AUTO":
+            self._going_home = True
+            if executing:
+                self.ctx.post("cancel", f"battery {percent}: going home to charge", self.name)
+            self.ctx.port.report("battery", f"Battery {percent}: the task ends and the robot goes home to charge"
+                                 if executing else f"Battery {percent}: the robot goes home to charge")
+        else:
+            self.ctx.port.report("battery", f"Battery {percent}: drive the robot to its dock to charge")
+
+    def _go_home_when_idle(self, status: BatteryStatus) -> None:
+        """Start the way home once the task is over and the robot idles in AUTO; an operator who took the robot
+        in MANUAL meanwhile is asked to drive it home instead."""
+        state = self.ctx.state
+        if state == "IDLE.MANUAL":
+            self._going_home = False
+            self.ctx.port.report("battery", f"Battery {status.percent:.0f} %: drive the robot to its dock to charge")
+        if state != "IDLE.AUTO":
+            return
+        self._going_home = False
+        mission = self._home_mission()
+        if isinstance(mission, str):
+            self.ctx.port.report("battery", f"Battery {status.percent:.0f} %: cannot go home: {mission}")
+            return
+        self.ctx.post("start_mission", f"battery {status.percent:.0f} %: going home to charge", self.name,
+                      mission=mission)
+
+    def _home_mission(self) -> Mission | str:
+        """A one-step mission to the active map's dock, or why there is none."""
+        # Imported here: missions are built from the leaves, so this module cannot import them at load time.
+        from atemr.trees.missions import parse_mission
+
+        navigation = self.ctx.navigation
+        dock = None if navigation is None else navigation.places().dock()
+        if dock is None:
+            return "no dock on this map (a place of kind dock, or 'home'): drive the robot to charge"
+        try:
+            return parse_mission({"mission": {"name": f"to {dock.name} to charge",
+                                              "steps": [{"go_to": {"place": dock.name}}]}})
+        except ConfigError as exc:
+            return exc.reason

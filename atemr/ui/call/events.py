@@ -12,8 +12,12 @@ both pages in the ``active`` state message, so both ends use the same configurat
 
 from __future__ import annotations
 
+import base64
+import hashlib
+import hmac
 import logging
 import threading
+import time
 from collections.abc import Callable
 from typing import Any, cast
 
@@ -57,17 +61,35 @@ class Call:
         self.send(outcome)
 
 
-def ice_servers(app: Flask) -> list[dict[str, Any]]:
-    """The RTCPeerConnection ``iceServers`` from the configuration (empty: host candidates only, a LAN)."""
-    ui = app.config["ATEMR_CONFIG"].ui
+def ice_servers(app: Flask, now_unix_s: float | None = None) -> list[dict[str, Any]]:
+    """The RTCPeerConnection ``iceServers`` from the configuration (empty: host candidates only, a LAN).
+
+    With ``ui.ice_secret`` each answer carries credentials of its own that expire (`turn_credentials`), so a
+    page's copy is worth nothing after ``ui.ice_credential_ttl_s``; otherwise the fixed account."""
+    config = app.config["ATEMR_CONFIG"]
+    ui = config.ui
+    account: tuple[str, str] | None = None
+    if ui.ice_secret is not None:
+        now = time.time() if now_unix_s is None else now_unix_s  # the TURN server checks against its wall clock
+        account = turn_credentials(ui.ice_secret, config.secondary.robot_name, now + ui.ice_credential_ttl_s)
+    elif ui.ice_username:
+        account = (ui.ice_username, ui.ice_credential or "")
     servers: list[dict[str, Any]] = []
     for url in ui.ice_servers:
         server: dict[str, Any] = {"urls": url}
-        if url.startswith(("turn:", "turns:")) and ui.ice_username:
-            server["username"] = ui.ice_username
-            server["credential"] = ui.ice_credential or ""
+        if url.startswith(("turn:", "turns:")) and account is not None:
+            server["username"], server["credential"] = account
         servers.append(server)
     return servers
+
+
+def turn_credentials(secret: str, user: str, expires_unix_s: float) -> tuple[str, str]:
+    """Time-limited TURN credentials from the server's shared secret (the TURN REST API that coturn's
+    ``use-auth-secret`` implements): the username is ``EXPIRY:USER`` and the password the base64 HMAC-SHA1
+    of that username under the secret, which the TURN server recomputes; it refuses the pair after EXPIRY."""
+    username = f"{int(expires_unix_s)}:{user}"
+    digest = hmac.new(secret.encode(), username.encode(), hashlib.sha1).digest()
+    return username, base64.b64encode(digest).decode("ascii")
 
 
 def call_of(app: Flask) -> Call:

@@ -32,7 +32,7 @@ def init_app(app: Flask, robot: RobotGateway | None) -> None:
     closes its connection."""
     ui = app.config["ATEMR_CONFIG"].ui
     video = DriveVideo(None if robot is None else robot.camera_frame, enabled=ui.drive_video == "webrtc",
-                       max_peers=ui.drive_video_max_peers, ice_servers=ice_servers(app))
+                       max_peers=ui.drive_video_max_peers, ice_servers=lambda: ice_servers(app))
     app.extensions["atemr.drive_video"] = video
     disconnect_hooks(app).append(video.close)
 

@@ -19,6 +19,7 @@ import asyncio
 import importlib
 import logging
 import threading
+from collections.abc import Callable
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
 from typing import Any
@@ -64,7 +65,9 @@ class DriveVideo:
     """The robot's WebRTC drive-video connections (thread-safe; see the module docstring)."""
 
     def __init__(self, frames: Frames | None, *, enabled: bool, max_peers: int,
-                 ice_servers: list[dict[str, Any]]) -> None:
+                 ice_servers: Callable[[], list[dict[str, Any]]]) -> None:
+        """``ice_servers`` is asked at each page's question and each offer: TURN credentials made from a shared
+        secret expire, so they are made when used (`atemr.ui.call.events.ice_servers`)."""
         self._frames = frames
         self.enabled = enabled
         self.max_peers = max_peers
@@ -88,7 +91,7 @@ class DriveVideo:
             missing = self._missing
         if missing:
             return Availability(False, missing)
-        return Availability(True, "", self.ice_servers)
+        return Availability(True, "", self.ice_servers())
 
     @property
     def peers(self) -> int:
@@ -152,7 +155,7 @@ class DriveVideo:
 
         assert self._frames is not None
         servers = [RTCIceServer(urls=s["urls"], username=s.get("username"), credential=s.get("credential"))
-                   for s in self.ice_servers]
+                   for s in self.ice_servers()]
         pc = RTCPeerConnection(RTCConfiguration(iceServers=servers or None))
         with self._lock:
             if sid not in self._peers:  # the socket went or offered again while this waited

@@ -1,4 +1,4 @@
-"""What the robot does, in words a resident reads on the robot's screen from 1 to 2 m away.
+"""What the robot does and how charged it is, in words a resident reads on the robot's screen from 1 to 2 m away.
 
 The operator's pages show states and codes; the person at home needs one short sentence. Pure: it reads
 a `RobotState` (or the part of it the robot sent) and never fails on a key that is missing or unknown.
@@ -50,3 +50,21 @@ def plain_activity(state: Mapping[str, Any]) -> str:
     if agent == "IDLE" and state.get("mode") == "MANUAL":
         return "Waiting; someone can drive me from afar"
     return DOING.get(agent, "Waiting")
+
+
+#: The battery's level (`RobotState.battery`), as the resident reads it beside the charge.
+CHARGE = {
+    "ok": "Battery {percent} %",
+    "low": "Battery low: {percent} %",
+    "return": "Battery {percent} %: I need to charge",
+    "critical": "Battery {percent} %: please put me on my charger",
+}
+
+
+def plain_battery(state: Mapping[str, Any]) -> str:
+    """The charge in a few words ("Battery 76 %"); "" before the robot has measured it."""
+    battery = state.get("battery")
+    if not isinstance(battery, Mapping) or not isinstance(battery.get("percent"), (int, float)):
+        return ""
+    text = CHARGE.get(str(battery.get("level")), CHARGE["ok"])
+    return text.format(percent=round(battery["percent"]))

@@ -1,4 +1,5 @@
-// The robot's screen: what the robot does in plain words, the caller's video, ANSWER / DECLINE / HANG UP.
+// The robot's screen: what the robot does and its charge in plain words, the caller's video, ANSWER / DECLINE /
+// HANG UP.
 // Its socket is the screen's (a device token's session): it gets `screen_state` and the call's events.
 "use strict";
 
@@ -25,7 +26,12 @@
       : reason ? `No call (${reason})` : "No call";
   }
 
-  sock.on("screen_state", (s) => { words.textContent = s.words || "—"; });
+  const battery = $("battery");
+  sock.on("screen_state", (s) => {
+    words.textContent = s.words || "—";
+    battery.textContent = s.battery || "";  // the charge, as on every dashboard page
+    battery.dataset.level = s.battery_level || "";
+  });
   sock.on("call_state", (s) => {
     caller = s.caller || caller;
     if (s.state === "active" && !peer) {
