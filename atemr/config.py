@@ -249,6 +249,9 @@ class TraceConfig:
                                                           "(0: none)"})
     camera_hz: float = field(default=1.0, metadata={"min": 0.0, "max": 30.0,
                                                     "help": "camera frames recorded per second as JPEG (0: none)"})
+    depth_hz: float = field(default=1.0, metadata={"min": 0.0, "max": 30.0,
+                                                   "help": "depth frames recorded per second (16-bit millimetres, "
+                                                           "with the camera's intrinsics; 0: none)"})
     writer: Literal["auto", "process", "thread", "inline"] = field(default="auto", metadata={
         "help": "who encodes and writes: a process of its own (auto on a paced robot), a thread, or the robot's "
                 "loop (auto in a headless simulation: repeatable, nothing dropped)"})

@@ -334,8 +334,8 @@ def _add_recorder(robot: Robot) -> None:
     sources = RecorderSources(devices=parts.devices, localization=parts.localization, maps=parts.maps,
                               navigation=parts.navigation, agent=parts.agent, health=parts.health, sim=sim,
                               can_tap=robot.open_bus(), jpeg=jpeg)
-    recorder = RunRecorder(sources, sinks, camera_hz=cfg.trace.camera_hz, pose_hz=cfg.trace.pose_hz, meta=meta,
-                           threaded_maps=robot.scheduler.realtime)
+    recorder = RunRecorder(sources, sinks, camera_hz=cfg.trace.camera_hz, depth_hz=cfg.trace.depth_hz,
+                           pose_hz=cfg.trace.pose_hz, meta=meta, threaded_maps=robot.scheduler.realtime)
     if writer is not None:
         writer.preamble = recorder.preamble
     recorder.attach()

@@ -39,7 +39,7 @@ from atemr.io.recording.agent_trace import record_entry
 from atemr.io.recording.codec import Codec
 from atemr.io.recording.mcap_writer import Entry
 from atemr.io.sim.simulation import Simulation
-from atemr.msgs import ZERO_TWIST, ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
+from atemr.msgs import ZERO_TWIST, CameraMount, ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.robot.health import HealthBoard
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
@@ -95,17 +95,22 @@ class RunRecorder:
     name = "recorder"
 
     def __init__(self, sources: RecorderSources, sinks: Iterable[MessageSink], *, camera_hz: float = 1.0,
-                 pose_hz: float = 2.0, meta: dict[str, Any] | None = None, threaded_maps: bool = False) -> None:
+                 depth_hz: float = 1.0, pose_hz: float = 2.0, meta: dict[str, Any] | None = None,
+                 threaded_maps: bool = False) -> None:
         self.sources = sources
         self.sinks = list(sinks)
         self.codec = Codec()
         self.camera_period_s = 1.0 / camera_hz if camera_hz > 0 else float("inf")
+        self.depth_period_s = 1.0 / depth_hz if depth_hz > 0 else float("inf")
         self.agent_recorder = AgentRecorder(sources.agent, self._on_record, pose_hz=pose_hz, meta=meta)
         self.messages = 0
         self._ticks = 0
         self._next_health = float("-inf")
         self._next_camera = float("-inf")
         self._camera_key: object = None
+        self._next_depth = float("-inf")
+        self._depth_key: object = None
+        self._depth_mount: CameraMount | None = None  # the depth camera's, once a frame said where it is
         self._map: OccupancyMap | None = None
         self._map_bytes: Entry | None = None
         self._static: Entry | None = None
@@ -187,11 +192,19 @@ class RunRecorder:
     def on_scan(self, scan: LaserScan) -> None:
         if scan.sensor_pose != self._laser:
             self._laser = scan.sensor_pose
-            self._static = self._emit(tp.TF_STATIC.name, scan.t, keep=True, build=lambda: ros.tf_msg(
-                [ros.transform(scan.t, ros.BASE_FRAME, ros.LASER_FRAME, scan.sensor_pose),
-                 ros.transform(scan.t, ros.BASE_FRAME, ros.IMU_FRAME, Pose2D()),
-                 ros.transform(scan.t, ros.BASE_FRAME, ros.CAMERA_FRAME, Pose2D())]))
+            self._static_transforms(scan.t)
         self._emit(tp.SCAN.name, scan.t, lambda: ros.scan_msg(scan))
+
+    def _static_transforms(self, t: float) -> None:
+        """Every part's place on the base (kept: each file part starts with it); sent again when a part's
+        place becomes known or changes (the depth camera's, with its first frame)."""
+        laser = self._laser or Pose2D()
+        parts = [ros.transform(t, ros.BASE_FRAME, ros.LASER_FRAME, laser),
+                 ros.transform(t, ros.BASE_FRAME, ros.IMU_FRAME, Pose2D()),
+                 ros.transform(t, ros.BASE_FRAME, ros.CAMERA_FRAME, Pose2D())]
+        if self._depth_mount is not None:
+            parts.append(ros.optical_transform(t, ros.BASE_FRAME, self._depth_mount))
+        self._static = self._emit(tp.TF_STATIC.name, t, keep=True, build=lambda: ros.tf_msg(parts))
 
     def on_imu(self, sample: ImuSample) -> None:
         self._emit(tp.IMU.name, sample.t, lambda: ros.imu_msg(sample))
@@ -219,6 +232,8 @@ class RunRecorder:
                 name: {"ok": h.ok, "reason": h.detail} for name, h in self.sources.health.collect().items()}})
         if due(now, self._next_camera):
             self._camera(now)
+        if due(now, self._next_depth):
+            self._depth(now)
 
     def _can(self, now: float) -> None:
         """The frames the tap heard since the last tick, as one message (hundreds a second: one each would cost
@@ -324,6 +339,21 @@ class RunRecorder:
         self._next_camera = now + self.camera_period_s
         self._camera_key = frame
         self._emit(tp.CAMERA.name, now, lambda: ros.image_msg(now, jpeg(frame)))
+
+    def _depth(self, now: float) -> None:
+        depth = self.sources.devices.depth
+        if depth is None:
+            return
+        frame = depth.latest
+        if frame is None or frame is self._depth_key:
+            return
+        self._next_depth = now + self.depth_period_s
+        self._depth_key = frame
+        if frame.mount != self._depth_mount:
+            self._depth_mount = frame.mount
+            self._static_transforms(frame.t)
+        self._emit(tp.DEPTH_INFO.name, frame.t, lambda: ros.depth_info_msg(frame))
+        self._emit(tp.DEPTH.name, frame.t, lambda: ros.depth_image_msg(frame))
 
 
 def _frame(msg: can.Message) -> dict[str, Any]:

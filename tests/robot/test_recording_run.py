@@ -17,9 +17,9 @@ from atemr.config import load_config
 from atemr.errors import ConfigError
 from atemr.io.recording.agent_trace import read_agent_trace
 from atemr.io.recording.mcap_reader import RecordingReader
-from atemr.io.recording.ros2_convert import seconds, yaw_of
+from atemr.io.recording.ros2_convert import DEPTH_FRAME, depth_from, seconds, yaw_of
 from atemr.io.recording.topics import TOPICS
-from atemr.msgs import LaserScan, Pose2D, Twist, WheelSpeeds
+from atemr.msgs import DepthImage, LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.robot.core import Robot
 from atemr.robot.headless import build_headless_robot
 from atemr.robot.replay import Replay, replay_slam
@@ -31,6 +31,7 @@ class Run:
     path: Path
     robot: Robot
     scans: list[LaserScan] = field(default_factory=list)
+    depths: list[DepthImage] = field(default_factory=list)
     wheels: list[tuple[float, Twist]] = field(default_factory=list)
 
 
@@ -48,6 +49,8 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
         out.wheels.append((t, drive.measured(wheels)))
 
     robot.parts.devices.lidar.subscribe(out.scans.append)
+    assert robot.parts.devices.depth is not None, "the simulated robot has its D415"
+    robot.parts.devices.depth.subscribe(out.depths.append)
     robot.parts.wheels.subscribe(on_wheels)
     agent = robot.parts.agent
     with robot:
@@ -136,6 +139,40 @@ def test_the_agent_health_events_and_camera_are_recorded(run: Run) -> None:
     frames = by_topic["/camera/image/compressed"]
     assert 12 <= len(frames) <= 17 and bytes(frames[0].data[:2]) == b"\xff\xd8"  # JPEG at 2 fps over 8 s
     assert len({f["id"] for m in by_topic["/can/frames"] for f in m["frames"]}) >= 4  # motors, secondary core
+
+
+def test_depth_frames_decode_to_what_the_depth_camera_gave_and_sit_on_the_mast(run: Run) -> None:
+    """Issues 23 and 24: the D415's frames as ROS 2 depth images (16UC1 millimetres) with their camera info at
+    trace.depth_hz, in an optical frame the static transforms put where the camera is mounted, looking ahead
+    and down: what Foxglove needs to draw them as a point cloud in the robot's frame."""
+    from scipy.spatial.transform import Rotation
+
+    with open(run.path, "rb") as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        got: dict[str, list] = {}
+        for _, channel, _, msg in reader.iter_decoded_messages(
+                topics=["/camera/depth/image_rect_raw", "/camera/depth/camera_info", "/tf_static"]):
+            got.setdefault(channel.topic, []).append(msg)
+    images, infos = got["/camera/depth/image_rect_raw"], got["/camera/depth/camera_info"]
+    assert 6 <= len(images) == len(infos) <= 10  # 1 Hz over 8 s (the default trace.depth_hz)
+    given = {round(d.t, 6): d for d in run.depths}
+    for image, info in zip(images, infos, strict=True):
+        assert image.encoding == "16UC1" and image.header.frame_id == DEPTH_FRAME
+        frame = given[round(seconds(image.header.stamp), 6)]
+        back = depth_from(image, info)
+        assert back.depth_m.shape == frame.depth_m.shape == (240, 424)
+        assert np.abs(back.depth_m - frame.depth_m).max() <= 0.0005 + 1e-6  # to the millimetre
+        assert (back.fx, back.fy, back.cx, back.cy) == pytest.approx((frame.fx, frame.fy, frame.cx, frame.cy))
+    mount = run.depths[-1].mount
+    placed = {(t.header.frame_id, t.child_frame_id): t.transform for m in got["/tf_static"] for t in m.transforms}
+    move = placed[("base_link", DEPTH_FRAME)]
+    assert (move.translation.x, move.translation.y, move.translation.z) == pytest.approx(
+        (mount.x_m, mount.y_m, mount.z_m))
+    q = move.rotation
+    ahead = Rotation.from_quat([q.x, q.y, q.z, q.w]).apply([0.0, 0.0, 1.0])  # the optical axis, in base_link
+    assert ahead == pytest.approx([math.cos(mount.pitch_rad), 0.0, -math.sin(mount.pitch_rad)], abs=1e-9)
+    right = Rotation.from_quat([q.x, q.y, q.z, q.w]).apply([1.0, 0.0, 0.0])  # image x: the robot's right
+    assert right == pytest.approx([0.0, -1.0, 0.0], abs=1e-9)
 
 
 def test_a_recording_cut_mid_chunk_reads_up_to_the_cut(run: Run, tmp_path: Path) -> None:

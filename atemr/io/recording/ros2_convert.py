@@ -16,12 +16,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from atemr.domain.maps import OccupancyMap
-from atemr.msgs import ImuSample, LaserScan, Pose2D, Twist
+from atemr.msgs import CameraMount, DepthImage, ImuSample, LaserScan, Pose2D, Twist
 
 Msg = dict[str, Any]
 
 MAP_FRAME, ODOM_FRAME, BASE_FRAME = "map", "odom", "base_link"
 LASER_FRAME, IMU_FRAME, CAMERA_FRAME = "laser", "imu_link", "camera"
+#: The depth camera's optical frame (x right, y down, z forward, as the RealSense ROS driver names it).
+DEPTH_FRAME = "camera_depth_optical_frame"
+#: The depth image's unit: millimetres in 16 bits, what RealSense gives and ROS depth tools read (16UC1).
+DEPTH_MM_PER_M = 1000.0
 
 _NS = 1_000_000_000
 
@@ -113,6 +117,52 @@ def image_msg(t: float, jpeg: bytes) -> Msg:
     return {"header": header(t, CAMERA_FRAME), "format": "jpeg", "data": jpeg}
 
 
+def depth_image_msg(frame: DepthImage) -> Msg:
+    """A depth frame as ``sensor_msgs/Image`` ``16UC1`` in millimetres (0: no data), as the RealSense ROS driver
+    publishes it, so Foxglove and ROS depth tools show and project it as they are."""
+    mm = np.clip(np.rint(frame.depth_m * DEPTH_MM_PER_M), 0, np.iinfo(np.uint16).max).astype("<u2")
+    height, width = mm.shape
+    return {"header": header(frame.t, DEPTH_FRAME), "height": height, "width": width, "encoding": "16UC1",
+            "is_bigendian": 0, "step": 2 * width, "data": mm.tobytes()}
+
+
+def depth_info_msg(frame: DepthImage) -> Msg:
+    """The depth frame's pinhole intrinsics as ``sensor_msgs/CameraInfo`` (no distortion: the D415's depth
+    stream comes rectified), which Foxglove uses to turn the image into a point cloud."""
+    height, width = frame.depth_m.shape
+    k = [frame.fx, 0.0, frame.cx, 0.0, frame.fy, frame.cy, 0.0, 0.0, 1.0]
+    return {"header": header(frame.t, DEPTH_FRAME), "height": height, "width": width, "distortion_model": "plumb_bob",
+            "d": [0.0] * 5, "k": k, "r": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            "p": [frame.fx, 0.0, frame.cx, 0.0, 0.0, frame.fy, frame.cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            "binning_x": 0, "binning_y": 0,
+            "roi": {"x_offset": 0, "y_offset": 0, "height": 0, "width": 0, "do_rectify": False}}
+
+
+def depth_from(image: Any, info: Any) -> DepthImage:
+    """A decoded ``16UC1`` image and its camera info back as the `DepthImage` the robot's layer reads (metres;
+    the mount is the static transform's, not carried here)."""
+    if image.encoding != "16UC1":
+        raise ValueError(f"a depth image must be 16UC1, got {image.encoding!r}")
+    mm = np.frombuffer(bytes(image.data), dtype=">u2" if image.is_bigendian else "<u2")
+    depth = (mm.reshape(int(image.height), int(image.width)) / DEPTH_MM_PER_M).astype(np.float32)
+    k = list(info.k)
+    valid = depth[depth > 0]
+    return DepthImage(seconds(image.header.stamp), depth, float(k[0]), float(k[4]), float(k[2]), float(k[5]),
+                      float(valid.min()) if valid.size else 0.0, float(valid.max()) if valid.size else 0.0)
+
+
+def optical_transform(t: float, parent: str, mount: CameraMount) -> Msg:
+    """Where a camera's optical frame (x right, y down, z forward) sits on the base: the mount's position, its
+    yaw and downward pitch, then the fixed turn from a body frame to an optical one."""
+    from scipy.spatial.transform import Rotation
+
+    body = Rotation.from_euler("ZY", [mount.yaw_rad, mount.pitch_rad])
+    x, y, z, w = (body * Rotation.from_quat([-0.5, 0.5, -0.5, 0.5])).as_quat()
+    return {"header": header(t, parent), "child_frame_id": DEPTH_FRAME,
+            "transform": {"translation": {"x": mount.x_m, "y": mount.y_m, "z": mount.z_m},
+                          "rotation": {"x": float(x), "y": float(y), "z": float(z), "w": float(w)}}}
+
+
 # -- poses and motion ----------------------------------------------------------------------------------------
 def odometry_msg(t: float, p: Pose2D, twist: Twist, *, frame: str = ODOM_FRAME, child: str = BASE_FRAME,
                  pose_cov: NDArray[np.float64] | None = None) -> Msg:
@@ -192,12 +242,17 @@ def grid_from(msg: Any, name: str = "map") -> OccupancyMap:
 __all__ = [
     "BASE_FRAME",
     "CAMERA_FRAME",
+    "DEPTH_FRAME",
+    "DEPTH_MM_PER_M",
     "IMU_FRAME",
     "LASER_FRAME",
     "MAP_FRAME",
     "ODOM_FRAME",
     "covariance3",
     "covariance6",
+    "depth_from",
+    "depth_image_msg",
+    "depth_info_msg",
     "grid_from",
     "grid_msg",
     "header",
@@ -206,6 +261,7 @@ __all__ = [
     "imu_msg",
     "nanoseconds",
     "odometry_msg",
+    "optical_transform",
     "path_msg",
     "pose_cov_msg",
     "pose_from",

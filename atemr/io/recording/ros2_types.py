@@ -35,6 +35,12 @@ _FIELDS: dict[str, str] = {
                        "float64[9] angular_velocity_covariance\ngeometry_msgs/Vector3 linear_acceleration\n"
                        "float64[9] linear_acceleration_covariance",
     "sensor_msgs/CompressedImage": "std_msgs/Header header\nstring format\nuint8[] data",
+    "sensor_msgs/Image": "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\nuint8 is_bigendian\n"
+                         "uint32 step\nuint8[] data",
+    "sensor_msgs/RegionOfInterest": "uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify",
+    "sensor_msgs/CameraInfo": "std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\n"
+                              "float64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\nuint32 binning_x\n"
+                              "uint32 binning_y\nsensor_msgs/RegionOfInterest roi",
     "nav_msgs/Odometry": "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\n"
                          "geometry_msgs/TwistWithCovariance twist",
     "nav_msgs/MapMetaData": "builtin_interfaces/Time map_load_time\nfloat32 resolution\nuint32 width\n"
@@ -82,7 +88,8 @@ def schema_text(short: str) -> str:
 
 
 #: The types a recording's ROS 2 channels carry.
-MESSAGE_TYPES = ("sensor_msgs/LaserScan", "sensor_msgs/Imu", "sensor_msgs/CompressedImage", "nav_msgs/Odometry",
+MESSAGE_TYPES = ("sensor_msgs/LaserScan", "sensor_msgs/Imu", "sensor_msgs/CompressedImage", "sensor_msgs/Image",
+                 "sensor_msgs/CameraInfo", "nav_msgs/Odometry",
                  "nav_msgs/OccupancyGrid", "nav_msgs/Path", "tf2_msgs/TFMessage",
                  "geometry_msgs/PoseWithCovarianceStamped", "geometry_msgs/TwistStamped")
 

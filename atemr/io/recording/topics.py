@@ -96,6 +96,10 @@ TF_STATIC = ros2("/tf_static", "tf2_msgs/TFMessage", "base_link -> laser / imu_l
 MAP = ros2("/map", "nav_msgs/OccupancyGrid", "the active map when it changes (and at every part's start)")
 PLAN = ros2("/plan", "nav_msgs/Path", "the navigator's global path when it changes")
 CAMERA = ros2("/camera/image/compressed", "sensor_msgs/CompressedImage", "camera frames as JPEG at trace.camera_hz")
+DEPTH = ros2("/camera/depth/image_rect_raw", "sensor_msgs/Image",
+             "depth frames (16UC1, millimetres, 0: no data) at trace.depth_hz, in camera_depth_optical_frame")
+DEPTH_INFO = ros2("/camera/depth/camera_info", "sensor_msgs/CameraInfo",
+                  "the depth camera's intrinsics, with each frame")
 GROUND_TRUTH = ros2("/sim/ground_truth", "nav_msgs/Odometry", "the simulator's true pose (simulation only)")
 HEALTH = json_topic("/health", "atemr.Health", {"t": _number(), "components": {
     "type": "object", "additionalProperties": {"type": "object", "properties": {"ok": {"type": "boolean"},
@@ -114,7 +118,7 @@ AGENT_STATE = json_topic("/agent/state", "atemr.agent.State", {"t": _number(), "
                                                               "mode": {"type": ["string", "null"]}},
                          ["t", "state"], "the agent's state and mode, when they change")
 
-ROS2_TOPICS = (SCAN, IMU, WHEEL_ODOM, ODOM, POSE, TF, TF_STATIC, MAP, PLAN, CAMERA, GROUND_TRUTH)
+ROS2_TOPICS = (SCAN, IMU, WHEEL_ODOM, ODOM, POSE, TF, TF_STATIC, MAP, PLAN, CAMERA, DEPTH, DEPTH_INFO, GROUND_TRUTH)
 TOPICS: dict[str, Topic] = {t.name: t for t in (*ROS2_TOPICS, CAN, HEALTH, EVENTS, MAPPING, AGENT_STATE, *_AGENT)}
 
 
@@ -123,6 +127,6 @@ def topic(name: str) -> Topic:
     return TOPICS[name]
 
 
-__all__ = ["AGENT_STATE", "AGENT_TOPICS", "CAMERA", "CAN", "EVENTS", "GROUND_TRUTH", "HEALTH", "IMU", "KIND_TOPIC",
-           "MAP", "MAPPING", "ODOM", "PLAN", "POSE", "ROS2_TOPICS", "SCAN", "TF", "TF_STATIC", "TOPICS", "TOPIC_KIND",
-           "WHEEL_ODOM", "Topic", "topic"]
+__all__ = ["AGENT_STATE", "AGENT_TOPICS", "CAMERA", "CAN", "DEPTH", "DEPTH_INFO", "EVENTS", "GROUND_TRUTH", "HEALTH",
+           "IMU", "KIND_TOPIC", "MAP", "MAPPING", "ODOM", "PLAN", "POSE", "ROS2_TOPICS", "SCAN", "TF", "TF_STATIC",
+           "TOPICS", "TOPIC_KIND", "WHEEL_ODOM", "Topic", "topic"]
