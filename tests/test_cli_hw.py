@@ -72,6 +72,26 @@ def test_echo_prints_readings_as_json_lines(emulated, capsys) -> None:
     assert abs(samples[-1]["acc_mps2"][2] - 9.81) < 0.2  # standing on a level floor
 
 
+def test_echo_prints_the_depth_cameras_frames(tmp_path: Path, capsys, monkeypatch) -> None:
+    """The real RealSense driver on the emulated D415 (pyrealsense2's API): a wall 1.5 m ahead, the left
+    eighth of the image without data (the stereo shadow); then unplugged, echo says why it stopped."""
+    from atemr.io.devices.realsense_emulator import FakeD415
+
+    d415 = FakeD415(wall_mm=1500)
+    monkeypatch.setitem(sys.modules, "pyrealsense2", d415.module())
+    config = write_config(tmp_path / "robot.yaml", depth="{driver: realsense, serial: '822512060000'}")
+    assert main(["hw", "echo", "depth", "--config", str(config), "--count", "2"]) == 0
+    frames = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert len(frames) == 2 and (frames[0]["width"], frames[0]["height"]) == (424, 240)
+    assert frames[0]["valid"] == pytest.approx(7 / 8, abs=0.01)
+    assert frames[0]["min_m"] == frames[0]["median_m"] == frames[0]["max_m"] == 1.5
+    assert (frames[0]["fx"], frames[0]["cx"]) == (305.0, 211.5)
+    assert ("device", "822512060000") in d415.streams and d415.stopped >= 1
+    d415.plugged = False
+    assert main(["hw", "echo", "depth", "--config", str(config), "--count", "1", "--timeout", "1"]) == 1
+    assert "no depth reading" in capsys.readouterr().err
+
+
 def test_echo_refuses_the_simulator(tmp_path: Path, capsys) -> None:
     config = write_config(tmp_path / "robot.yaml", lidar="{driver: sim}")
     assert main(["hw", "echo", "lidar", "--config", str(config)]) == 2

@@ -22,7 +22,7 @@ if TYPE_CHECKING:  # only what runs a command imports what it needs: `atemr --he
 from atemr.errors import ConfigError
 from atemr.io.devices.config import SIMULATED_DRIVERS
 
-SENSORS = ("lidar", "imu", "camera")
+SENSORS = ("lidar", "imu", "camera", "depth")
 
 
 def reading_json(kind: str, reading: Any, t: float) -> dict[str, Any]:
@@ -34,6 +34,17 @@ def reading_json(kind: str, reading: Any, t: float) -> dict[str, Any]:
     if kind == "imu":
         return {"t": round(reading.t, 6), "yaw_rate_radps": reading.yaw_rate_radps,
                 "acc_mps2": [reading.accel_x_mps2, reading.accel_y_mps2, reading.accel_z_mps2]}
+    if kind == "depth":  # a frame is 100 000 readings: what a person checks a depth camera by
+        import numpy as np
+
+        seen = reading.depth_m[reading.depth_m > 0]
+        height, width = reading.depth_m.shape
+        return {"t": round(reading.t, 6), "width": int(width), "height": int(height),
+                "valid": round(seen.size / max(1, reading.depth_m.size), 4),
+                "min_m": round(float(seen.min()), 3) if seen.size else None,
+                "median_m": round(float(np.median(seen)), 3) if seen.size else None,
+                "max_m": round(float(seen.max()), 3) if seen.size else None,
+                "fx": reading.fx, "fy": reading.fy, "cx": reading.cx, "cy": reading.cy}
     height, width = reading.shape[:2]
     mean = reading.reshape(-1, reading.shape[2]).mean(axis=0)
     return {"t": round(t, 6), "width": int(width), "height": int(height),
