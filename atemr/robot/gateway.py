@@ -280,6 +280,7 @@ class RobotGatewayImpl:
             "pose": pose_json(pose),
             "localization": self._localization(),
             "scan": points_json(scan_points(scan, pose)) if scan is not None and pose is not None else [],
+            "depth_obstacles": points_json(parts.navigation.depth_obstacles()) if pose is not None else [],
             "global_path": points_json(status.global_path) if running and status is not None else [],
             "local_path": points_json(status.local_trajectory) if running and status is not None else [],
             "goal": pose_json(goal) if running and agent_state == "EXEC" else None,

@@ -14,6 +14,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
+from numpy.typing import NDArray
+
 from atemr.domain.maps import OccupancyMap
 from atemr.io.devices.base import Device
 from atemr.msgs import DepthImage, LaserScan, Pose2D, Twist
@@ -58,6 +61,11 @@ class RobotNavigation(NavigatorPort):
         layer.update(image, pose, self._scan())
         if self._on_clearance is not None:
             self._on_clearance(TimedClearance(layer.clearance(pose), image.t))
+
+    def depth_obstacles(self) -> NDArray[np.float64]:
+        """What the depth obstacle layer holds now, (N, 2) map-frame cell centres (none without the layer)."""
+        layer = self.voxels
+        return layer.obstacle_points() if layer is not None else np.zeros((0, 2))
 
     # -- the map service's MapUser -------------------------------------------------------------------
     def prepare_map(self, grid: OccupancyMap) -> NavMap:

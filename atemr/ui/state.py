@@ -155,6 +155,9 @@ class RobotState(TypedDict):
     localization: LocalizationJson
     #: Valid lidar returns in the map frame (empty when not localized).
     scan: Points
+    #: Cells the depth camera's obstacle layer holds now (a table top, a shoe: what the lidar's plane may miss),
+    #: map frame; empty without a depth camera or a pose.
+    depth_obstacles: Points
     global_path: Points
     local_path: Points
     #: The goal being driven to (EXEC only), or None.

@@ -93,6 +93,21 @@ def test_the_snapshot_has_every_key_filled_from_the_robot(booted):
     assert any(e["kind"].startswith("localization") for e in state["events"])  # drained by the gateway's pump
 
 
+def test_the_depth_cameras_obstacles_are_in_the_state_where_they_are(booted):
+    """Issue 24: what the D415's layer holds is drawn on the map. Turned towards the laundry basket (not on the
+    map; the lidar sees its side, the depth camera its volume), the layer's cells lie on the basket."""
+    robot, gateway = booted
+    assert gateway.state()["depth_obstacles"] == []  # facing the TV wall: only what the map already has
+    drive(robot, gateway, Twist(0.0, -0.6), 1.4)  # turn right, about 45 degrees
+    run(robot, 1.0)
+    cells = np.asarray(gateway.state()["depth_obstacles"])
+    assert cells.ndim == 2 and len(cells) >= 5, cells
+    basket = next(f for f in robot.parts.sim.world.furniture if f.name == "laundry basket")
+    x, y, r = basket.params
+    near = np.hypot(cells[:, 0] - x, cells[:, 1] - y) <= r + 0.1
+    assert near.mean() > 0.9, cells[~near]
+
+
 def test_joystick_drives_the_robot_and_the_pose_follows(booted):
     robot, gateway = booted
     x0 = gateway.state()["pose"]["x_m"]

@@ -36,7 +36,7 @@ class RecordingGateway:
             "robot": "KAY", "agent_state": "IDLE", "mode": "MANUAL", "simulation": True, "active_map": None,
             "map_version": 0, "pose": None,
             "localization": {"confidence": 0.0, "limit": 0.7, "localized": False, "state": "no map", "candidates": []},
-            "scan": [], "global_path": [], "local_path": [], "goal": None,
+            "scan": [], "depth_obstacles": [], "global_path": [], "local_path": [], "goal": None,
             "navigation": None, "wheel_speeds": {"left_radps": 0.0, "right_radps": 0.0}, "emergency": False,
             "stop_cause": None, "level1": {}, "level2": {},
             "system": None, "limits": {"linear_mps": 0.5, "angular_radps": 1.0}, "awareness": False,

@@ -141,6 +141,13 @@ class VoxelLayer:
         self._min_match = max(p.wall_match_m, 1.5 * self.resolution_m)
         self._clears_seen = costmap.clears
 
+    def obstacle_points(self) -> NDArray[np.float64]:
+        """The centres of the cells the layer holds as obstacles now, (N, 2) in the map frame: what the
+        dashboard draws over the map beside the lidar's scan."""
+        rows, cols = np.nonzero(self.columns)
+        xs, ys = self.costmap.map.cell_to_world(rows, cols)
+        return np.column_stack([xs, ys]).astype(np.float64)
+
     # -- frames ----------------------------------------------------------------------------------------------
     def _grid_frame(self, pose: Pose2D) -> tuple[float, float, float, float]:
         """(cos, sin, x, y) taking base-frame (x, y) to grid-frame metres (from the grid's lower-left corner)."""

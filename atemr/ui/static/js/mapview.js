@@ -179,6 +179,14 @@ class MapView {
     const s = this.state;
     this.path(s.global_path, "#1f6feb", 2);
     this.path(s.local_path, "#2da44e", 3);
+    if (Array.isArray(s.depth_obstacles) && this.meta) {  // the depth camera's layer: one square per cell
+      const side = Math.max(2, this.meta.resolution_m * this.scale);
+      ctx.fillStyle = "rgba(219, 109, 40, 0.75)";
+      for (const p of s.depth_obstacles) {
+        const [sx, sy] = this.toScreen(p[0], p[1]);
+        ctx.fillRect(sx - side / 2, sy - side / 2, side, side);
+      }
+    }
     if (Array.isArray(s.scan)) {
       ctx.fillStyle = "#e5534b";
       for (const p of s.scan) {
