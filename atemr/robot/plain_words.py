@@ -111,25 +111,45 @@ def plain_goal_refusal(check: GoalCheck, localization: LocalizationStatus) -> st
     return said or check.reason
 
 
+#: Why a task ended without succeeding or failing (the agent's trigger that left EXEC), as a carer reads it.
+INTERRUPTIONS = {
+    "fault": "stopped: the robot has a fault (its alert says which and what to do). Send it again once the fault "
+             "is gone",
+    "power_off": "stopped: the robot is powering off",
+    "shutdown": "stopped: the robot is shutting down",
+    "restart": "stopped: the robot is restarting",
+}
+
+
 def plain_outcome(report: dict[str, Any], navigation: NavStatus | None = None) -> tuple[str, str]:
     """The event (kind, text) for a finished goal or mission (`atemr.trees.progress.TaskProgress.report`).
 
-    ``navigation``: the navigator's last status; when it is the failure this goal ended with (its message is
-    in the report's reason), a failed goal is said by the navigator's `FailReason`, not in the task's words
-    ("goal 0: (2.40, 3.40, 0.00): navigation failed: timeout: ...")."""
+    ``navigation``: the navigator's last status; when it is the failure this task ended with (its message is
+    in the report's reason), the failure is said by the navigator's `FailReason`, not in the task's words
+    ("goal 0: (2.40, 3.40, 0.00): navigation failed: timeout: ..."); a mission names the step it failed at.
+    A task a fault or a shutdown ended is said as stopped, not by the agent's trigger."""
     outcome = str(report.get("outcome") or "finished")
     reason = str(report.get("reason") or "")
+    failure = None
+    if outcome == "failed" and navigation is not None and navigation.state == "FAILED" and navigation.message \
+            and navigation.message in reason:
+        failure = navigation.reason
     if report.get("mission") == "goal":  # a single goal from the dashboard (`atemr.trees.missions.goal_task`)
-        text = {"reached": "Goal reached.", "cancelled": "Goal cancelled."}.get(outcome, f"Goal {outcome}")
-        failure = navigation.reason if navigation is not None and navigation.state == "FAILED" else None
-        if outcome == "failed" and failure is not None and navigation is not None and navigation.message \
-                and navigation.message in reason:
+        if failure is not None:
             return "goal", f"Goal failed: {NAVIGATION_FAILURES[failure]}"
+        if outcome in INTERRUPTIONS:
+            return "goal", f"Goal {INTERRUPTIONS[outcome]}."
+        text = {"reached": "Goal reached.", "cancelled": "Goal cancelled."}.get(outcome, f"Goal {outcome}")
         if outcome not in ("reached", "cancelled"):
             text += f": {reason}." if reason else "."
         return "goal", text
     name = report.get("mission") or "mission"
     if outcome == "reached":  # every step done
         return "mission", f"Mission '{name}' finished."
+    if failure is not None:
+        step, _, _ = reason.partition(": navigation failed")
+        return "mission", f"Mission '{name}' failed at {step.strip()}: {NAVIGATION_FAILURES[failure]}"
+    if outcome in INTERRUPTIONS:
+        return "mission", f"Mission '{name}' {INTERRUPTIONS[outcome]}."
     text = f"Mission '{name}' {outcome}" + (f": {reason}." if reason else ".")
     return "mission", text

@@ -50,6 +50,24 @@ def test_outcomes_of_goals_and_missions():
         "mission", "Mission 'patrol' cancelled: stopped by the operator.")
 
 
+def test_a_mission_the_navigator_failed_names_its_step_and_says_why() -> None:
+    message = "no path: no path to the goal after recoveries (clear costmap, rotate in place, back off, replan)"
+    report = {"mission": "map-the-flat", "outcome": "failed",
+              "reason": f"the other rooms: waypoint 3: navigation failed: {message}"}
+    kind, text = plain_outcome(report, NavStatus("FAILED", reason="no path", message=message))
+    assert (kind, text) == ("mission", "Mission 'map-the-flat' failed at the other rooms: waypoint 3: "
+                                       + NAVIGATION_FAILURES["no path"])
+    assert "navigation failed" not in text and "recoveries" not in text
+
+
+@pytest.mark.parametrize("outcome", ["fault", "power_off", "shutdown", "restart"])
+def test_a_task_a_fault_or_a_shutdown_ended_is_said_as_stopped(outcome: str) -> None:
+    for mission, start in (("goal", "Goal stopped: "), ("patrol", "Mission 'patrol' stopped: ")):
+        _, text = plain_outcome({"mission": mission, "outcome": outcome, "reason": "0x157 heartbeat lost"})
+        assert text.startswith(start) and text.endswith("."), text
+        assert "0x157" not in text and not TECHNICAL.search(text.replace("'patrol'", "")), text
+
+
 @pytest.mark.parametrize("code", [c for c in get_args(GoalRefusal) if c not in ("not finite", "not AUTO mode")])
 def test_every_goal_refusal_is_said_on_the_map_with_what_to_do(code):
     """The navigator's words ("goal (2.30, 2.57, 0.00 rad) is 0.25 m from an obstacle of map 'studio'; ...") stay
