@@ -71,9 +71,11 @@ class GridCaster:
         #: Distance from each cell's centre to the nearest blocked cell's centre, in cells (inf: none).
         self.clearance_cells = edt[1:-1, 1:-1]
 
-    def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray, max_range_m: float) -> GridHits:  # noqa: PLR0915  the simulator's hot ray walk: its per-ray arrays stay in one frame
+    def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray,  # noqa: PLR0915  the simulator's hot ray walk: its per-ray arrays stay in one frame
+             max_range_m: float | FloatArray) -> GridHits:
         """One ray per angle from ``origin_xy`` (grid frame, metres from the lower-left corner), up to
-        ``max_range_m``; cells outside the grid are empty."""
+        ``max_range_m`` (one range, or one per ray: the camera stops its furniture rays at the wall, so they
+        end as soon as nothing in front of it can be left); cells outside the grid are empty."""
         res = self.resolution_m
         angles = np.asarray(angles_rad, dtype=np.float64)
         n = angles.shape[0]
@@ -82,7 +84,7 @@ class GridCaster:
         flat_grid = self._flat
         gx0 = origin_xy[0] / res
         gy0 = origin_xy[1] / res
-        t_max = max_range_m / res
+        t_max = np.asarray(max_range_m, dtype=np.float64) / res
 
         dist = np.full(n, np.inf)
         hit_row = np.full(n, -1, dtype=np.intp)
@@ -113,7 +115,7 @@ class GridCaster:
         nudge_y = np.copysign(1e-9, dy)
 
         # Where each ray leaves the grid (when it starts inside it): nothing beyond can stop it.
-        t_lim = np.full(n, t_max)
+        t_lim = np.broadcast_to(t_max, (n,)).copy()
         inside = 0.0 <= gx0 <= width and 0.0 <= gy0 <= height
         if inside:
             tx_exit = np.abs(np.where(pos_x, float(width), 0.0) - gx0) * inv_dx
