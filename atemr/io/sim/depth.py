@@ -110,6 +110,8 @@ class DepthCamera:
         order = np.argsort(pixel_bin, kind="stable")
         #: Pixel index (row-major) of each sorted position, and where each azimuth bin's pixels start.
         self._order = order
+        #: Where each pixel (row-major) sits in the sorted order: the image is one gather from the sorted depths.
+        self._unsort = np.argsort(order).astype(np.intp)
         self._bin_start = np.searchsorted(pixel_bin[order], np.arange(bins + 1))
         self._bin = pixel_bin[order]
         self._lo, self._step, self._bins = lo, step, bins
@@ -136,40 +138,29 @@ class DepthCamera:
         ox = pose.x_m + c * m.x_m - s * m.y_m
         oy = pose.y_m + s * m.x_m + c * m.y_m
         oz = m.z_m
-        d = self._dir
-        dx = np.float32(c) * d[:, 0] - np.float32(s) * d[:, 1]
-        dy = np.float32(s) * d[:, 0] + np.float32(c) * d[:, 1]
-        dz = self._dz_safe
-        # Inverse directions once per frame for every object's slab test (no component exactly 0).
-        inv = (_inverse(dx), _inverse(dy), self._inv_dz)
         t_hit = np.minimum(self._floor_t, self._ceiling(scene.world.wall_height_m))
         # Walls: one grid cast per azimuth bin, in the grid frame.
         gx, gy, gyaw = scene.to_grid_frame(ox, oy, pose.yaw_rad)
         flat = scene.walls_caster.cast((gx, gy), gyaw + self._bin_azimuth, self._reach).distance_m
         np.minimum(t_hit, flat.astype(np.float32)[self._bin] * self._inv_horizontal, out=t_hit)
-        ray = (ox, oy, oz)
+        # Objects and people in view and not behind the walls of every bin they span (a ray meets them no nearer,
+        # in plan, than their outline's nearest point: the wall it meets first hides them). In a flat most of
+        # the furniture is in other rooms.
+        shapes: list[tuple[tuple[int, int], str, tuple[float, ...], tuple[float, float]]] = []
         for item in scene.objects.values():
-            span = self._slice(_outline_azimuths(item.shape, item.params, ox, oy), pose.yaw_rad)
-            if span is None:
-                continue
-            a, b = span
-            if item.shape == "box":
-                x0, y0, x1, y1 = item.params
-                hit = _box_hits(ray, (inv[0][a:b], inv[1][a:b], inv[2][a:b]), (x0, y0, item.clearance_m),
-                                (x1, y1, item.height_m))
-            else:
-                hit = _cylinder_hits(ray, (dx[a:b], dy[a:b], dz[a:b]), item.params, (item.clearance_m, item.height_m))
-            np.minimum(t_hit[a:b], hit, out=t_hit[a:b])
+            span = self._slice(_outline_azimuths(item.shape, item.params, ox, oy), pose.yaw_rad, flat)
+            if span is not None:
+                shapes.append((span, item.shape, item.params, (item.clearance_m, item.height_m)))
         for mover in movers.items if movers is not None else ():
             circle = (mover.x_m, mover.y_m, mover.spec.radius_m)
-            span = self._slice(_outline_azimuths("circle", circle, ox, oy), pose.yaw_rad)
+            span = self._slice(_outline_azimuths("circle", circle, ox, oy), pose.yaw_rad, flat)
             if span is not None:
-                a, b = span
-                hit = _cylinder_hits(ray, (dx[a:b], dy[a:b], dz[a:b]), circle, (0.0, mover.spec.height_m))
-                np.minimum(t_hit[a:b], hit, out=t_hit[a:b])
-        sorted_depth = np.minimum(t_hit, np.float32(1e3)) * self._depth_per_t  # nothing hit: far beyond range
-        depth = np.empty_like(sorted_depth)
-        depth[self._order] = sorted_depth
+                shapes.append((span, "circle", circle, (0.0, mover.spec.height_m)))
+        if shapes:
+            self._hit_shapes(t_hit, shapes, (ox, oy, oz), (c, s))
+        sorted_depth = np.minimum(t_hit, np.float32(1e3))  # nothing hit: far beyond range
+        sorted_depth *= self._depth_per_t
+        depth = sorted_depth.take(self._unsort)
         if p.subpixel_px:
             depth += p.noise_std_m(depth) * self.rng.standard_normal(depth.shape, dtype=np.float32)
         out_of_range = ~((depth >= p.range_min_m) & (depth <= p.range_max_m))
@@ -187,9 +178,34 @@ class DepthCamera:
             self._ceiling_t[height_m] = t
         return t
 
-    def _slice(self, outline: tuple[float, float, float] | None, yaw: float) -> tuple[int, int] | None:
-        """The sorted pixels whose azimuths an outline spans (None: out of view or out of reach); an outline
-        the camera stands inside (None from `_outline_azimuths`) spans every pixel."""
+    def _hit_shapes(self, t_hit: F32, shapes: list[tuple[tuple[int, int], str, tuple[float, ...], tuple[float, float]]],
+                    origin: tuple[float, float, float], turn: tuple[float, float]) -> None:
+        """Lower ``t_hit`` (sorted pixels) to each shape's hits: (pixel span, "box" or "circle", its plan
+        outline, (bottom, top) heights). The rays are turned to the world and inverted only over the pixels
+        the shapes span, once for all of them."""
+        lo, hi = min(a for (a, _), *_ in shapes), max(b for (_, b), *_ in shapes)
+        c, s = np.float32(turn[0]), np.float32(turn[1])
+        d = self._dir[lo:hi]
+        dx = c * d[:, 0] - s * d[:, 1]
+        dy = s * d[:, 0] + c * d[:, 1]
+        dz = self._dz_safe[lo:hi]
+        inv: tuple[F32, F32, F32] | None = None
+        for (a, b), shape, outline, (bottom, top) in shapes:
+            i, j = a - lo, b - lo
+            if shape == "box":
+                if inv is None:  # inverse directions once per frame for every box's slab test
+                    inv = (_inverse(dx), _inverse(dy), self._inv_dz[lo:hi])
+                x0, y0, x1, y1 = outline
+                hit = _box_hits(origin, (inv[0][i:j], inv[1][i:j], inv[2][i:j]), (x0, y0, bottom), (x1, y1, top))
+            else:
+                hit = _cylinder_hits(origin, (dx[i:j], dy[i:j], dz[i:j]), outline, (bottom, top))
+            np.minimum(t_hit[a:b], hit, out=t_hit[a:b])
+
+    def _slice(self, outline: tuple[float, float, float] | None, yaw: float,
+               walls: NDArray[np.float64] | None = None) -> tuple[int, int] | None:
+        """The sorted pixels whose azimuths an outline spans (None: out of view, out of reach, or behind the
+        ``walls``, the plan distance to the wall in each azimuth bin); an outline the camera stands inside
+        (None from `_outline_azimuths`) spans every pixel."""
         if outline is None:
             return 0, len(self._bin)
         centre, half, gap = outline
@@ -200,14 +216,20 @@ class DepthCamera:
         b1 = math.ceil((rel + half - self._lo) / self._step) + 1
         if b1 < 0 or b0 > self._bins - 1:
             return None
-        a = int(self._bin_start[max(b0, 0)])
-        b = int(self._bin_start[min(b1, self._bins - 1) + 1])
+        b0, b1 = max(b0, 0), min(b1, self._bins - 1)
+        if walls is not None and gap >= walls[b0:b1 + 1].max():
+            return None
+        a = int(self._bin_start[b0])
+        b = int(self._bin_start[b1 + 1])
         return (a, b) if b > a else None
 
 
 def _inverse(d: F32) -> F32:
     """1 / d with no component exactly 0 (a ray parallel to a slab then meets it only at infinity)."""
-    out: F32 = (np.float32(1.0) / np.where(np.abs(d) < 1e-6, np.float32(1e-6), d)).astype(np.float32)
+    tiny = np.abs(d) < 1e-6
+    if tiny.any():  # rare: only a ray (almost) along an axis
+        d = np.where(tiny, np.float32(1e-6), d)
+    out: F32 = np.divide(np.float32(1.0), d, dtype=np.float32)
     return out
 
 
