@@ -30,7 +30,15 @@ from atemr.errors import AtemrError, ConfigError, HardwareError
 from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.io.can.supervisor import BusSupervisor
 from atemr.io.devices.base import fresh
-from atemr.io.devices.drivers import DeviceContext, Devices, build_devices, depth_mount, driver_name, needs_world
+from atemr.io.devices.drivers import (
+    DeviceContext,
+    Devices,
+    Frame,
+    build_devices,
+    depth_mount,
+    driver_name,
+    needs_world,
+)
 from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.recording.mcap_writer import SUFFIX, RecordingWriter
@@ -116,8 +124,9 @@ def _wire(robot: Robot) -> None:
     primary = _add_primary(robot, inputs, health, settings, devices)
     store, localization, maps, wheels = _add_localization(robot, sim, devices, primary.driver)
     battery, sim_battery = _add_battery(robot, primary.driver, maps, sim)
-    port, navigation, agent, watcher = _add_agent(robot, primary, inputs=inputs, health=health, devices=devices,
-                                         localization=localization, maps=maps, battery=battery)
+    port, navigation, agent, watcher = _add_agent(robot, primary, inputs=inputs, health=health,
+                                                  frame=_frame_reader(robot, devices, sim), devices=devices,
+                                                  localization=localization, maps=maps, battery=battery)
     system_monitor = SystemMonitor(config.data_dir)  # scheduled last of the always-present parts, below
     robot.parts = RobotParts(
         settings=settings, inputs=inputs, health=health, devices=devices, driver=primary.driver, link=primary.link,
@@ -238,16 +247,27 @@ def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
     return store, localization, maps, wheels
 
 
+def _frame_reader(robot: Robot, devices: Devices, sim: Simulation | None) -> Callable[[], Frame | None]:
+    """How the agent reads one camera frame (a mission step storing a picture): the newest; from the simulator's
+    camera, rendered at once when no consumer has kept it rendering (`FrameSource.request`: the agent ticks on
+    the scheduler's thread, where rendering is safe)."""
+    camera = devices.camera
+    if camera is None:
+        return lambda: None
+    if sim is not None and driver_name(robot.config, "camera") == "sim":
+        source, now = sim.camera_source, robot.clock.now
+        return lambda: source.request(now())
+    return lambda: camera.latest
+
+
 def _add_agent(
-    robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, devices: Devices,
-    localization: LocalizationPipeline, maps: MapService, battery: BatteryGauge,
+    robot: Robot, primary: _Primary, *, inputs: MotionInputs, health: HealthBoard, frame: Callable[[], Frame | None],
+    devices: Devices, localization: LocalizationPipeline, maps: MapService, battery: BatteryGauge,
 ) -> tuple[RobotPortImpl, RobotNavigation, Agent, ReloadWatcher]:
     """The agent (lifecycle + trees + Monitor) over the robot's ports; when it halts, the robot stops."""
     cfg = robot.config
-    camera = devices.camera
     port = RobotPortImpl(
-        now=robot.clock.now, inputs=inputs, health=health, localization=localization, maps=maps,
-        camera=(lambda: camera.latest) if camera is not None else (lambda: None),
+        now=robot.clock.now, inputs=inputs, health=health, localization=localization, maps=maps, camera=frame,
         images_dir=cfg.data_dir / "media" / "images", wall_time=WallClock().wall_time,
         battery=battery.status, event=robot.event,
     )
@@ -339,6 +359,10 @@ def _add_recorder(robot: Robot) -> None:
     if writer is not None:
         writer.preamble = recorder.preamble
     recorder.attach()
+    if sim is not None and driver_name(cfg, "camera") == "sim":
+        # Rendered for the recording only from a camera period before each frame it keeps (trace.camera_hz).
+        lead_s = 2 * sim.camera_source.period_s
+        sim.camera_source.want("recording", lambda now: now + lead_s >= recorder.next_camera_t)
     parts.wheels.subscribe(recorder.on_wheels)
     robot.event_listeners.append(recorder.on_event)
     if live is not None:
@@ -378,6 +402,8 @@ def _add_simulation(robot: Robot) -> tuple[Simulation, SecondaryCore | None]:
     params = params_from_config(cfg.sim, cfg.robot_body(), depth_mount(cfg.devices.depth))
     if driver_name(cfg, "depth") != "sim":
         params = replace(params, depth_hz=0.0)  # nobody reads the simulated depth camera: do not render it
+    # Frames are rendered for the consumers the robot's parts register (`FrameSource`), never for nobody.
+    params = replace(params, frames_on_demand=True)
     sim = build_simulation(cfg.sim.world, cfg.sim.seed, params=params, wheels=wheels)
     for component, rate in sim.components():
         robot.add(component, rate)

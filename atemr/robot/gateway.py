@@ -39,7 +39,7 @@ from atemr.clock import WallClock
 from atemr.domain.routines import RoutineBook
 from atemr.errors import AtemrError, ConfigError, brief, brief_text
 from atemr.fsm.agent import DEFAULT_AGENT_FILE
-from atemr.io.devices.drivers import camera_rate_hz
+from atemr.io.devices.drivers import camera_rate_hz, driver_name
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
@@ -150,6 +150,10 @@ class RobotGatewayImpl:
         self.place_editor = PlaceEditor(self.maps)
         robot.add(_Pump(self), pump_rate_hz)
         self.recorder: VideoRecorder | None = None
+        if self.sim is not None and self.camera is not None and driver_name(self.config, "camera") == "sim":
+            # A client may open the camera view at any moment and expects a live picture at once: the simulated
+            # camera renders while the dashboard runs (a headless run has none, and renders no frame for nobody).
+            self.sim.camera_source.want("dashboard", lambda now: True)
         if self.camera is not None:
             camera = self.camera
             rate_hz = camera_rate_hz(self.config)

@@ -320,6 +320,12 @@ class RunRecorder:
             self._state = state
             self._emit(tp.AGENT_STATE.name, now, lambda: {"t": now, "state": state[0], "mode": state[1]})
 
+    @property
+    def next_camera_t(self) -> float:
+        """When the next camera frame is recorded (-inf: at the first tick): a simulated camera renders for the
+        recording only shortly before it."""
+        return self._next_camera
+
     def on_event(self, t: float, kind: str, text: str) -> None:
         """A robot event (`atemr.robot.core.Robot.event`, any thread): recorded at the next tick."""
         self._pending_events.append((t, kind, text))

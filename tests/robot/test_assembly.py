@@ -181,3 +181,18 @@ def test_motors_with_protocol_v4_drive_the_base_and_answer_on_0x240(tmp_path):
         assert {0x241, 0x242} <= {m.arbitration_id for m in frames}  # the V4.2 replies
         requests = [m for m in frames if m.arbitration_id in (0x141, 0x142)]
         assert requests and not [m for m in requests if m.data[0] in (0x88, 0x9B)]  # V4.2 has neither
+
+
+def test_a_headless_robot_renders_no_camera_frame_until_a_picture_is_taken(tmp_path):
+    from atemr.robot.headless import build_headless_robot
+
+    config = load_config(environ={}, overrides={"data_dir": str(tmp_path), "sim.seed": 1})
+    robot = build_headless_robot(config)  # no dashboard, no recording: nobody watches the camera
+    with robot:
+        sim = robot.parts.sim
+        robot.run(until=2.0)
+        assert sim.params.camera_hz > 0 and sim.camera_source.count == 0 and sim.camera_source.skipped == 21
+        assert robot.parts.health.collect()["camera"].ok
+        stored = robot.parts.port.capture_image("kitchen")
+        assert stored.endswith(".jpg") and sim.camera_source.count == 1
+        assert sim.depth_source.count == 21 and not sim.depth_source.skipped  # the depth layer takes every frame

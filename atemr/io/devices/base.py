@@ -130,6 +130,11 @@ class Subscribers(Generic[R]):
     def subscribe(self, callback: Callable[[R], None]) -> None:
         self._callbacks.append(callback)
 
+    @property
+    def listeners(self) -> int:
+        """How many callbacks take every reading."""
+        return len(self._callbacks)
+
     def publish(self, reading: R) -> None:
         self.latest = reading
         self.count += 1

@@ -84,7 +84,7 @@ def _sim_device(kind: str, ctx: DeviceContext, what: str, max_age_s: float) -> D
     sim = ctx.world(kind)
     sources: dict[str, PeriodicSource[Any]] = {"lidar": sim.lidar_source, "imu": sim.imu_source,
                                                "camera": sim.camera_source, "depth": sim.depth_source}
-    return SimDevice(kind, sources[kind], now=ctx.now, max_age_s=max_age_s, what=what, world=sim.world.name)
+    return SimDevice(kind, sources[kind], max_age_s=max_age_s, what=what, world=sim.world.name)
 
 
 @lidar_drivers.register("sim")

@@ -2,7 +2,9 @@
 
 The simulation schedules its own sensor sources (a scan is cast when the world has moved), so a
 `SimDevice` is not ticked by the robot (``rate_hz`` None): it passes the source's readings on and judges
-freshness on the robot's clock, exactly as a real driver's health does.
+freshness by when the source last ticked, on the robot's clock, as a real driver's health does by arrivals. A
+camera nobody watches ticks without rendering (`atemr.io.sim.simulation.FrameSource`) and is still healthy;
+the device does not subscribe to the source itself, which would count as a consumer of every frame.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ class SimDevice(Generic[R]):
 
     rate_hz: float | None = None
 
-    def __init__(self, kind: str, source: PeriodicSource[R], *, now: Callable[[], float], max_age_s: float,
+    def __init__(self, kind: str, source: PeriodicSource[R], *, max_age_s: float,
                  what: str, world: str) -> None:
         self.name = kind
         self.kind = kind
@@ -30,12 +32,6 @@ class SimDevice(Generic[R]):
         self.max_age_s = max_age_s
         self.what = what
         self.world = world
-        self._now = now
-        self._last: float | None = None
-        source.subscribe(self._arrived)
-
-    def _arrived(self, reading: R) -> None:
-        self._last = self._now()
 
     @property
     def latest(self) -> R | None:
@@ -49,7 +45,7 @@ class SimDevice(Generic[R]):
         self.source.subscribe(callback)
 
     def health(self, now: float) -> ComponentHealth:
-        return fresh(self._last, now, self.max_age_s, self.what)
+        return fresh(self.source.last_tick_t, now, self.max_age_s, self.what)
 
     def info(self) -> DeviceInfo:
         return DeviceInfo(kind=self.kind, driver="sim", model=f"simulated, world {self.world}")

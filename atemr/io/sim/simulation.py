@@ -69,6 +69,9 @@ class SimParams:
     cliff_hz: float = 20.0
     camera_hz: float = 0.0
     depth_hz: float = 0.0
+    #: Render camera and depth frames only for a consumer (`FrameSource`): the assembled robot's setting, where
+    #: consumers register; the bare simulator renders every frame.
+    frames_on_demand: bool = False
     #: The robot's volume (base, mast, tablet): collisions are checked part by part against what is at each
     #: part's heights. Its base radius is the footprint and must be ``base.footprint_radius_m``.
     body: RobotBody = KAY
@@ -111,6 +114,8 @@ class PeriodicSource(Generic[T]):
         self.name = name
         self._read = read
         self._out: Subscribers[T] = Subscribers(name)
+        #: When the source last ticked (None: never): a simulated device is alive while its source ticks.
+        self.last_tick_t: float | None = None
 
     @property
     def latest(self) -> T | None:
@@ -125,6 +130,57 @@ class PeriodicSource(Generic[T]):
         self._out.subscribe(callback)
 
     def tick(self, now: float) -> None:
+        self.last_tick_t = now
+        self._out.publish(self._read(now))
+
+
+class FrameSource(PeriodicSource[T]):
+    """A simulated camera's frames. On demand (``on_demand``), a tick renders a frame only while a consumer wants
+    it: one that subscribed (it takes every frame: the depth obstacle layer), or one registered with `want`
+    whose test says so at that tick (the dashboard while someone watches, a recording when its next frame is
+    due). A consumer that needs a frame at one moment (a mission step storing a picture) calls `request`.
+
+    A frame costs milliseconds where a scan costs a fraction of one, and a headless run nobody watches renders
+    none; without demand the frames are skipped, not the clock: `last_tick_t` still says the camera runs.
+    """
+
+    def __init__(self, name: str, read: Callable[[float], T], *, period_s: float, on_demand: bool = False) -> None:
+        super().__init__(name, read)
+        self.period_s = period_s
+        self.on_demand = on_demand
+        self._wants: dict[str, Callable[[float], bool]] = {}
+        #: Ticks that rendered nothing for want of a consumer.
+        self.skipped = 0
+        self._rendered_t: float | None = None
+
+    def want(self, consumer: str, wants: Callable[[float], bool]) -> None:
+        """Register ``consumer``: ``wants(now)``, on the scheduler's thread at each tick, says whether it needs
+        this tick's frame (registering the same name again replaces its test)."""
+        self._wants[consumer] = wants
+
+    def wanted(self, now: float) -> bool:
+        """Whether a frame is rendered at this tick."""
+        return not self.on_demand or self._out.listeners > 0 or any(wants(now) for wants in self._wants.values())
+
+    def request(self, now: float) -> T | None:
+        """The newest frame, rendered now (on the caller's thread, which must be the scheduler's) when the last
+        one is more than a period old because nobody wanted the frames in between; None before the first
+        tick (the camera is not running)."""
+        if self.last_tick_t is None:
+            return None
+        if self._rendered_t is None or now - self._rendered_t > self.period_s * (1 + 1e-9):
+            self._publish(now)
+        return self.latest
+
+    def tick(self, now: float) -> None:
+        self.last_tick_t = now
+        if self.wanted(now):
+            self._publish(now)
+        else:
+            self.skipped += 1
+
+    def _publish(self, now: float) -> None:
+        self._rendered_t = now
         self._out.publish(self._read(now))
 
 
@@ -177,8 +233,10 @@ class Simulation:
         self.lidar_source = PeriodicSource[LaserScan]("sim.lidar", self.read_lidar)
         self.imu_source = PeriodicSource[ImuSample]("sim.imu", self.read_imu)
         self.cliff_source = PeriodicSource[CliffReadings]("sim.cliff", self.read_cliff)
-        self.camera_source = PeriodicSource[NDArray[np.uint8]]("sim.camera", self.render_camera)
-        self.depth_source = PeriodicSource[DepthImage]("sim.depth", self.render_depth)
+        self.camera_source = FrameSource[NDArray[np.uint8]](
+            "sim.camera", self.render_camera, period_s=_period(p.camera_hz), on_demand=p.frames_on_demand)
+        self.depth_source = FrameSource[DepthImage](
+            "sim.depth", self.render_depth, period_s=_period(p.depth_hz), on_demand=p.frames_on_demand)
 
     # -- wiring --------------------------------------------------------------------------------
     def components(self) -> list[tuple[PeriodicSource[Any], float]]:
@@ -365,6 +423,11 @@ class Simulation:
     def command_twist(self, linear_mps: float, angular_radps: float) -> None:
         """Command a body twist through the wheels (inverse differential-drive kinematics)."""
         self.command_wheels(*self.wheel_speeds_for(linear_mps, angular_radps))
+
+
+def _period(rate_hz: float) -> float:
+    """Seconds between frames at ``rate_hz`` (inf: the camera is off)."""
+    return 1.0 / rate_hz if rate_hz > 0 else math.inf
 
 
 def params_from_config(cfg: SimConfig, body: RobotBody = KAY, depth_mount: CameraMount | None = None) -> SimParams:

@@ -189,3 +189,50 @@ def test_interventions_from_another_thread_run_on_the_next_physics_tick():
     with pytest.raises(ConfigError, match="overlaps wall"):
         futures["bad"].result(timeout=0)
     assert futures["drop"].result(timeout=0) in sim.scene.objects
+
+
+def on_demand(seconds=1.0):
+    """A simulation whose cameras render for consumers only (as the assembled robot's), run ``seconds``."""
+    sim = build_simulation("studio", 0, params=SimParams(camera_hz=10.0, depth_hz=10.0, frames_on_demand=True))
+    sched = Scheduler(SimClock())
+    sim.attach(sched)
+    return sim, sched
+
+
+def test_frames_on_demand_render_nothing_for_nobody_and_the_camera_stays_healthy():
+    from atemr.io.devices.sim import SimDevice
+
+    sim, sched = on_demand()
+    device = SimDevice("camera", sim.camera_source, max_age_s=1.0, what="camera frame", world="studio")
+    sched.run(duration=1.0)
+    assert sim.camera_source.count == 0 and sim.depth_source.count == 0
+    assert sim.camera_source.skipped == 11
+    assert device.health(1.0).ok  # it ticks: a camera nobody watches is not a silent one
+
+
+def test_a_subscriber_takes_every_frame_and_a_registered_consumer_those_it_wants():
+    sim, sched = on_demand()
+    depth = []
+    sim.depth_source.subscribe(depth.append)
+    sim.camera_source.want("the second second", lambda now: 0.95 <= now < 1.95)
+    sched.run(duration=3.0)
+    assert len(depth) == 31
+    assert sim.camera_source.count == 10  # the ticks at 1.0 .. 1.9 s
+    sim.camera_source.want("the second second", lambda now: False)  # replaced
+    sched.run(duration=1.0)
+    assert sim.camera_source.count == 10
+
+
+def test_a_request_renders_a_frame_now_only_when_the_newest_is_stale():
+    sim, sched = on_demand()
+    assert sim.camera_source.request(0.0) is None  # not running yet
+    sched.run(duration=1.0)
+    frame = sim.camera_source.request(sched.clock.now())
+    assert frame is not None and frame.shape == (480, 640, 3) and sim.camera_source.count == 1
+    assert sim.camera_source.request(sched.clock.now() + 0.05) is frame  # fresh enough: the same frame
+    assert sim.camera_source.count == 1
+
+
+def test_the_bare_simulator_renders_every_frame():
+    sim, _ = drive(7, camera_hz=10.0, seconds=1.0)
+    assert sim.camera_source.count == 11 and sim.camera_source.skipped == 0
