@@ -363,6 +363,9 @@ def _add_recorder(robot: Robot) -> None:
         # Rendered for the recording only from a camera period before each frame it keeps (trace.camera_hz).
         lead_s = 2 * sim.camera_source.period_s
         sim.camera_source.want("recording", lambda now: now + lead_s >= recorder.next_camera_t)
+    if sim is not None and driver_name(cfg, "depth") == "sim":  # the same for the depth frames (trace.depth_hz)
+        depth_lead_s = 2 * sim.depth_source.period_s
+        sim.depth_source.want("recording", lambda now: now + depth_lead_s >= recorder.next_depth_t)
     parts.wheels.subscribe(recorder.on_wheels)
     robot.event_listeners.append(recorder.on_event)
     if live is not None:

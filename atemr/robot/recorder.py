@@ -106,9 +106,9 @@ class RunRecorder:
         self.messages = 0
         self._ticks = 0
         self._next_health = float("-inf")
-        self._next_camera = float("-inf")
+        self._next_camera = float("-inf") if camera_hz > 0 else float("inf")  # 0: no frame at all
         self._camera_key: object = None
-        self._next_depth = float("-inf")
+        self._next_depth = float("-inf") if depth_hz > 0 else float("inf")
         self._depth_key: object = None
         self._depth_mount: CameraMount | None = None  # the depth camera's, once a frame said where it is
         self._map: OccupancyMap | None = None
@@ -325,6 +325,11 @@ class RunRecorder:
         """When the next camera frame is recorded (-inf: at the first tick): a simulated camera renders for the
         recording only shortly before it."""
         return self._next_camera
+
+    @property
+    def next_depth_t(self) -> float:
+        """When the next depth frame is recorded (as `next_camera_t`, for the simulated depth camera)."""
+        return self._next_depth
 
     def on_event(self, t: float, kind: str, text: str) -> None:
         """A robot event (`atemr.robot.core.Robot.event`, any thread): recorded at the next tick."""

@@ -196,3 +196,27 @@ def test_a_headless_robot_renders_no_camera_frame_until_a_picture_is_taken(tmp_p
         stored = robot.parts.port.capture_image("kitchen")
         assert stored.endswith(".jpg") and sim.camera_source.count == 1
         assert sim.depth_source.count == 21 and not sim.depth_source.skipped  # the depth layer takes every frame
+
+
+def test_a_recording_alone_renders_the_depth_frames_it_keeps(tmp_path):
+    """With the depth layer off, only the recording wants depth frames: the simulated D415 renders about one a
+    second (trace.depth_hz) rather than ten, and each rendered frame is the one recorded; trace.depth_hz 0
+    records none and renders none."""
+    from mcap.reader import make_reader
+
+    from atemr.robot.headless import build_headless_robot
+
+    for depth_hz, recorded in ((1.0, range(3, 5)), (0.0, range(0, 1))):
+        folder = tmp_path / f"hz{depth_hz}"
+        config = load_config(environ={}, overrides={
+            "data_dir": str(folder), "sim.seed": 1, "nav.depth_layer": False, "trace.depth_hz": depth_hz,
+            "trace.file": str(folder / "run.mcap")})
+        robot = build_headless_robot(config)
+        with robot:
+            robot.run(until=3.0)
+            rendered = robot.parts.sim.depth_source.count
+        with open(folder / "run.mcap", "rb") as handle:
+            kept = sum(1 for _ in make_reader(handle).iter_messages(topics=["/camera/depth/image_rect_raw"]))
+        assert kept in recorded, (depth_hz, kept)
+        # from two periods (0.2 s) before each kept frame: about three rendered per kept one, never all 31
+        assert rendered <= 3 * kept, (depth_hz, rendered, kept)
