@@ -116,7 +116,8 @@ def test_every_run_records_to_mcap_rotated_by_size(tmp_path):
 
     config = load_config(environ={}, overrides={
         "data_dir": str(tmp_path), "can.channel": unique_channel("robot"), "ui.enabled": False,
-        "secondary.portal_serve": False, "trace.max_file_mb": 0.06, "trace.max_files": 3})
+        "secondary.portal_serve": False, "trace.max_file_mb": 0.06, "trace.max_files": 3,
+        "trace.depth_hz": 0.0})  # one depth frame (200 kB before compression) is bigger than these 60 kB parts
     robot = build_robot(config, realtime=False, clock=SimClock())
     with robot:
         robot.run(duration=6.0)
