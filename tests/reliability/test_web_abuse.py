@@ -72,6 +72,9 @@ class Robot:
     def camera_jpeg(self) -> bytes | None:
         return None
 
+    def camera_frame(self) -> None:
+        return None
+
     def agent_snapshot(self) -> dict[str, Any] | None:
         return None
 

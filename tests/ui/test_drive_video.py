@@ -8,6 +8,8 @@ import asyncio
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,6 +20,13 @@ from atemr.ui.drive_video.pacing import FramePacer
 from atemr.ui.drive_video.sender import NO_AIORTC
 
 A, B = object(), object()
+
+
+def run_apart(coro: Any) -> Any:
+    """``asyncio.run(coro)`` on a thread of its own: this thread may already run an event loop (a browser test
+    before it in the same worker, or the receiver's own loop calling back into the test)."""
+    with ThreadPoolExecutor(1, thread_name_prefix="test-receiver") as pool:
+        return pool.submit(asyncio.run, coro).result()
 
 
 @pytest.mark.parametrize(("looks", "sent"), [
@@ -114,12 +123,12 @@ def test_a_page_receives_the_camera_with_its_frame_number(video_app, gateway, ui
     def while_open() -> None:
         seen["peers"] = video.peers
         # one page at most here: a second is refused with the reason (its page uses MJPEG)
-        seen["second"] = asyncio.run(receive_one_frame(
+        seen["second"] = run_apart(receive_one_frame(
             lambda o: sio(video_app, other).emit("drive_video_offer", o, callback=True)))
         seen["stop"] = socket.emit("drive_video_stop", None, callback=True)
         seen["after_stop"] = video.peers
 
-    ack, frame = asyncio.run(receive_one_frame(lambda o: socket.emit("drive_video_offer", o, callback=True),
+    ack, frame = run_apart(receive_one_frame(lambda o: socket.emit("drive_video_offer", o, callback=True),
                                                while_open))
     assert ack["ok"] and ack["description"]["type"] == "answer", ack
     assert frame is not None and frame.shape == (480, 640, 3)
@@ -143,7 +152,7 @@ def test_a_socket_that_goes_closes_its_connection(video_app, gateway, ui):
         socket.disconnect()
         seen.append(video.peers)
 
-    ack, _ = asyncio.run(receive_one_frame(lambda o: socket.emit("drive_video_offer", o, callback=True), leave))
+    ack, _ = run_apart(receive_one_frame(lambda o: socket.emit("drive_video_offer", o, callback=True), leave))
     assert ack["ok"] and seen == [1, 0]
 
 

@@ -440,3 +440,17 @@ def test_bad_ice_settings_are_refused(ui_settings, message, ui, tmp_path):
 
     with pytest.raises(ConfigError, match=message):
         ui.make_config(tmp_path, **ui_settings)
+
+
+# -- the drive video (atemr.ui.drive_video; the negotiation itself: test_drive_video.py) -------------------------
+DRIVE_VIDEO_EVENTS = [
+    ("drive_video_offer", {"description": {"type": "offer", "sdp": "v=0\r\n"}}),
+    ("drive_video_stop", None),
+]
+
+
+@pytest.mark.parametrize(("event", "data"), DRIVE_VIDEO_EVENTS)
+def test_drive_video_events_are_refused_to_the_robots_screen(app, event, data):
+    ack = screen_socket(app).emit(event, data, callback=True)
+    assert ack["ok"] is False and ack["status"] == 403, ack
+    assert "screen device token opens only" in ack["reason"], ack
