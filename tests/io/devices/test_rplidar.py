@@ -303,7 +303,8 @@ def test_a_health_error_is_reported_with_its_code_and_the_device_reset(make_driv
     with RplidarEmulator(lambda: FEED, health_status=rp.HealthStatus.ERROR, health_error_code=0x1234) as emu:
         driver = make_driver(emu.port)
         wait_for(lambda: "0x1234" in driver.health(time.monotonic()).detail, driver)
-        assert rp.Command.RESET in emu.commands
+        # the driver says why, then resets: the emulator reads the reset from its pty a moment later
+        wait_for(lambda: rp.Command.RESET in emu.commands, driver)
         status = driver.health(time.monotonic())
         assert not status.ok and "0x1234" in status.detail and "reports an error" in status.detail
         assert rp.Command.SCAN not in emu.commands and driver.count == 0
