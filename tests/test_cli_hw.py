@@ -92,6 +92,31 @@ def test_echo_prints_the_depth_cameras_frames(tmp_path: Path, capsys, monkeypatc
     assert "no depth reading" in capsys.readouterr().err
 
 
+def test_the_d415s_colour_stream_is_checked_and_echoed_as_the_camera(emulated, capsys, monkeypatch) -> None:
+    """``camera: realsense`` with ``depth: realsense``: the check opens the D415 once for both rows, and echo
+    prints the colour stream's frames (the emulator's picture: red on the left half, blue on the right)."""
+    from atemr.io.devices.realsense_emulator import LEFT_RGB, RIGHT_RGB, FakeD415
+
+    folder, lidar, imu, _ = emulated
+    d415 = FakeD415()
+    monkeypatch.setitem(sys.modules, "pyrealsense2", d415.module())
+    config = write_config(folder / "robot.yaml", lidar=f"{{driver: rplidar, port: {lidar.port}}}",
+                          imu=f"{{driver: wt901, port: {imu.port}}}",
+                          camera="{driver: realsense, width: 424, height: 240, fps: 15}", depth="{driver: realsense}",
+                          motors="{driver: emulated}", secondary="{driver: emulated}")
+    assert main(["hw", "check", "--config", str(config), "--seconds", "1.5", "--json"]) == 0
+    rows = {r["device"]: r for r in json.loads(capsys.readouterr().out)["devices"]}
+    for kind in ("camera", "depth"):
+        assert rows[kind]["ok"] and rows[kind]["driver"] == "realsense", rows[kind]
+        assert "D415" in rows[kind]["model"]
+    assert d415.started == 1 and d415.running == 0  # one pipeline for both rows, closed after the check
+    assert main(["hw", "echo", "camera", "--config", str(config), "--count", "2"]) == 0
+    frames = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert len(frames) == 2 and (frames[0]["width"], frames[0]["height"]) == (424, 240)
+    halves = [(left + right) / 2 for left, right in zip(LEFT_RGB, RIGHT_RGB, strict=True)]
+    assert frames[0]["mean_rgb"] == pytest.approx(halves, abs=0.5)
+
+
 def test_echo_refuses_the_simulator(tmp_path: Path, capsys) -> None:
     config = write_config(tmp_path / "robot.yaml", lidar="{driver: sim}")
     assert main(["hw", "echo", "lidar", "--config", str(config)]) == 2

@@ -145,7 +145,24 @@ class Subscribers(Generic[R]):
                 log.exception("%s: a subscriber failed", self.name)
 
 
-class ThreadedDevice(ABC, Generic[R]):
+class Publishes(Generic[R]):
+    """A device's reading side of the interface (``latest``, ``count``, ``subscribe``) from its ``_out``."""
+
+    _out: Subscribers[R]
+
+    @property
+    def latest(self) -> R | None:
+        return self._out.latest
+
+    @property
+    def count(self) -> int:
+        return self._out.count
+
+    def subscribe(self, callback: Callable[[R], None]) -> None:
+        self._out.subscribe(callback)
+
+
+class ThreadedDevice(Publishes[R], ABC):
     """A device read by a thread of its own (serial ports, cameras); see the module docstring.
 
     Subclasses implement `_open` (open the port, configure the device, return a short description such as
@@ -181,20 +198,9 @@ class ThreadedDevice(ABC, Generic[R]):
 
     # -- the interface -------------------------------------------------------------------------------------
     @property
-    def latest(self) -> R | None:
-        return self._out.latest
-
-    @property
-    def count(self) -> int:
-        return self._out.count
-
-    @property
     def connected(self) -> bool:
         with self._lock:
             return self._connected
-
-    def subscribe(self, callback: Callable[[R], None]) -> None:
-        self._out.subscribe(callback)
 
     def start(self) -> None:
         """Start the reader thread; it opens the device (and keeps trying while the device is missing)."""

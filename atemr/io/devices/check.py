@@ -67,6 +67,7 @@ def check_devices(config: Config, *, seconds: float = 2.0, until_healthy: bool =
     rows: dict[str, CheckRow] = {}
     sensors: dict[str, Device[Any]] = {}
     can_parts: dict[str, Any] = {}
+    context = DeviceContext(config, clock.now)  # one for every device: a D415's two streams share its pipeline
     try:
         for kind in kinds:
             driver = driver_name(config, kind)
@@ -77,7 +78,7 @@ def check_devices(config: Config, *, seconds: float = 2.0, until_healthy: bool =
                 can_parts[kind] = driver
             else:
                 try:
-                    device = build_device(DeviceContext(config, clock.now), kind)
+                    device = build_device(context, kind)
                 except AtemrError as exc:
                     rows[kind] = CheckRow(kind, driver, None, None, None, False, str(exc), kind in CRITICAL)
                     continue

@@ -8,7 +8,8 @@ motors with a simulated lidar on the bench::
     devices:
       lidar:  {driver: rplidar, port: /dev/ttyUSB0, baudrate: 115200, pose: [0.10, 0.0, 0.0]}
       imu:    {driver: wt901, port: /dev/ttyUSB1, baudrate: 9600}
-      camera: {driver: opencv, source: "0"}    # a V4L2 index, a device path, a video file or an rtsp/http URL
+      camera: {driver: opencv, source: "0"}    # a V4L2 index, a device path, a video file or an rtsp/http URL;
+                                               # realsense: the D415's colour stream
       depth:  {driver: realsense}              # the D415 (the realsense extra); none: no depth camera
       motors: {driver: rmd, protocol: v1}      # or emulated
       secondary: {driver: esp32}               # or emulated
@@ -75,10 +76,13 @@ class ImuDeviceConfig:
 
 @dataclass(frozen=True)
 class CameraDeviceConfig:
-    """The front camera: anything OpenCV opens (V4L2, a file, an rtsp/http URL), or the simulator's."""
+    """The front camera: anything OpenCV opens (V4L2, a file, an rtsp/http URL), the RealSense D415's colour
+    stream, or the simulator's. ``source`` is OpenCV's alone; ``width``, ``height`` and ``fps`` are every
+    driver's (a D415 streams colour at 424 x 240, 640 x 480, 848 x 480, 1280 x 720 among others)."""
 
-    driver: Literal["auto", "sim", "opencv", "none"] = field(default="auto", metadata={
-        "help": "auto: sim in simulation, opencv on the robot; none: no camera"})
+    driver: Literal["auto", "sim", "opencv", "realsense", "none"] = field(default="auto", metadata={
+        "help": "auto: sim in simulation, opencv on the robot; realsense: the D415's colour stream (the camera "
+                "devices.depth.serial names, one pipeline with its depth); none: no camera"})
     source: str = field(default="0", metadata={
         "help": "a V4L2 index (0), a device path (/dev/video0), a video file, or an rtsp:// or http:// URL"})
     width: int = field(default=640, metadata={"min": 16, "max": 4096})
@@ -98,7 +102,8 @@ class DepthDeviceConfig:
     pose: tuple[float, ...] = field(default=(0.10, 0.0, 0.85, 0.2094, 0.0), metadata={
         "help": "the optical centre in the base frame and where it looks: [x_m, y_m, z_m, pitch_rad, yaw_rad] "
                 "(pitch positive: tilted down); KAY's: on the mast under the tablet, 12 degrees down"})
-    serial: str = field(default="", metadata={"help": "the camera's serial number (empty: the first one found)"})
+    serial: str = field(default="", metadata={
+        "help": "the D415's serial number (empty: the first one found); camera: realsense reads the same one"})
     width: int = field(default=424, metadata={"min": 16, "max": 1280, "help": "depth stream width (D415: 424)"})
     height: int = field(default=240, metadata={"min": 16, "max": 720, "help": "depth stream height (D415: 240)"})
     fps: int = field(default=15, metadata={"min": 6, "max": 90, "help": "the stream's frame rate (D415: 6..90)"})

@@ -13,8 +13,8 @@ link always run, and their ``emulated`` drivers are the emulators the wiring put
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,17 +27,23 @@ from atemr.io.sim.simulation import PeriodicSource, Simulation
 from atemr.msgs import CameraMount, DepthImage, ImuSample, LaserScan
 from atemr.registry import Registry
 
+if TYPE_CHECKING:
+    from atemr.io.devices.realsense import D415
+
 #: How old the newest simulated reading may be before the device counts as silent, in seconds.
 SIM_MAX_AGE_S = {"lidar": 0.5, "imu": 0.2}
 
 
 @dataclass(frozen=True)
 class DeviceContext:
-    """What a driver factory may use: the configuration, the robot's clock, the simulated world if any."""
+    """What a driver factory may use: the configuration, the robot's clock, the simulated world if any, and
+    ``shared``: what drivers of one robot share, such as the one RealSense pipeline both the depth and the
+    camera drivers read (build every device of a robot with one context)."""
 
     config: Config
     now: Callable[[], float]
     sim: Simulation | None = None
+    shared: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     def world(self, kind: str) -> Simulation:
         """The simulation, for a ``sim`` driver; an error naming the device when there is none."""
@@ -130,13 +136,31 @@ def no_depth(ctx: DeviceContext) -> None:
     return None
 
 
+def d415(ctx: DeviceContext, kind: str) -> D415:
+    """The robot's one RealSense D415 (``devices.depth.serial``), made by the first of its streams' drivers and
+    shared with the other (a camera is opened by one pipeline at a time)."""
+    from atemr.io.devices.realsense import D415
+
+    camera = ctx.shared.get("realsense")
+    if camera is None:
+        camera = ctx.shared["realsense"] = D415(now=ctx.now, serial=ctx.config.devices.depth.serial,
+                                                config_path=f"devices.{kind}.driver")
+    assert isinstance(camera, D415)
+    return camera
+
+
 @depth_drivers.register("realsense")
 def realsense(ctx: DeviceContext) -> Device[Any]:
     """Intel RealSense D415 over USB through pyrealsense2 (`atemr.io.devices.realsense`; the realsense extra)."""
-    from atemr.io.devices.realsense import RealSenseDepth
-
     cfg = ctx.config.devices.depth
-    return RealSenseDepth.from_config(cfg, now=ctx.now, mount=depth_mount(cfg))
+    return d415(ctx, "depth").depth_stream(cfg, depth_mount(cfg))
+
+
+@camera_drivers.register("realsense")
+def realsense_camera(ctx: DeviceContext) -> Device[Any]:
+    """The D415's colour stream as the front camera, from the same pipeline as its depth
+    (`atemr.io.devices.realsense`; the realsense extra)."""
+    return d415(ctx, "camera").colour_stream(ctx.config.devices.camera)
 
 
 @lidar_drivers.register("rplidar")

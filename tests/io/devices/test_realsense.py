@@ -1,5 +1,6 @@
-"""The depth camera behind the device interface (issue 24): the RealSense D415 driver where it can be tested
-without the camera (the missing extra, the SDK frame's conversion on synthetic arrays) and the simulated one."""
+"""The depth camera behind the device interface (issue 24): the RealSense D415 drivers where they can be tested
+without the camera (the missing extra, the SDK frames' conversion on synthetic arrays, both streams from one
+pipeline on the emulated D415) and the simulated one."""
 
 from __future__ import annotations
 
@@ -15,9 +16,11 @@ import pytest
 from atemr.clock import SimClock
 from atemr.config import load_config
 from atemr.errors import ConfigError
+from atemr.io.devices import realsense
 from atemr.io.devices.config import DepthDeviceConfig
-from atemr.io.devices.drivers import DeviceContext, build_device, depth_mount, driver_name
-from atemr.io.devices.realsense import INSTALL_HINT, Intrinsics, RealSenseDepth, depth_image
+from atemr.io.devices.drivers import DeviceContext, build_device, build_devices, depth_mount, driver_name
+from atemr.io.devices.realsense import INSTALL_HINT, Intrinsics, colour_frame, colour_stream_fps, depth_image
+from atemr.io.devices.realsense_emulator import LEFT_RGB, RIGHT_RGB, FakeD415
 from atemr.io.sim.simulation import SimParams, build_simulation
 from atemr.msgs import CameraMount, DepthImage
 from atemr.scheduler import Scheduler
@@ -38,8 +41,13 @@ def test_without_pyrealsense2_configuring_the_realsense_driver_names_the_extra(m
     with pytest.raises(ConfigError, match=r"pip install 'atemr\[realsense\]'") as error:
         build_device(DeviceContext(config, time.monotonic), "depth")
     assert INSTALL_HINT in str(error.value) and error.value.path == "devices.depth.driver"
+    # the colour stream as the camera says so too, at its own key
+    config = load_config(environ={}, overrides={"simulation": False, "devices.camera.driver": "realsense"})
+    with pytest.raises(ConfigError, match=r"atemr\[realsense\]") as error:
+        build_device(DeviceContext(config, time.monotonic), "camera")
+    assert error.value.path == "devices.camera.driver"
     with pytest.raises(ConfigError, match=r"atemr\[realsense\]"):
-        RealSenseDepth.from_config(DepthDeviceConfig(driver="realsense"), now=time.monotonic, mount=CameraMount())
+        realsense.D415(now=time.monotonic)
 
 
 def test_the_sdk_frame_becomes_metres_with_no_data_and_far_readings_as_zero():
@@ -107,3 +115,126 @@ def test_the_simulated_depth_camera_is_a_device_with_health():
     assert device.info().driver == "sim"
     none = build_device(DeviceContext(config, clock.now, build_simulation("studio", 0)), "depth")
     assert none is None  # sim.depth_hz 0 in a bare simulation: no frames, no device
+
+
+# -- the colour stream as the front camera, from the depth's pipeline -------------------------------------------
+def d415_config(**overrides):
+    return load_config(environ={}, overrides={"simulation": False, "devices.camera.driver": "realsense",
+                                              "devices.depth.driver": "realsense", **overrides})
+
+
+def tick_until(devices, done, timeout_s=5.0):
+    deadline = time.monotonic() + timeout_s
+    while not done() and time.monotonic() < deadline:
+        for device in devices:
+            device.tick(time.monotonic())
+        time.sleep(0.01)
+    return done()
+
+
+def test_the_colour_frame_is_a_new_rgb_array_of_the_size_asked_for():
+    raw = np.zeros((240, 424, 3), dtype=np.uint8)
+    raw[:, :, 0] = 255
+    frame = colour_frame(raw, 424, 240)
+    assert frame.shape == (240, 424, 3) and frame.flags.c_contiguous and not np.shares_memory(frame, raw)
+    assert (frame[0, 0] == [255, 0, 0]).all()  # rgb8: red first, as every camera of the robot gives it
+    for bad in (np.zeros((480, 640, 3), np.uint8), np.zeros((240, 424), np.uint8), np.zeros((240, 424, 3), np.uint16)):
+        with pytest.raises(OSError, match="424 x 240 RGB"):
+            colour_frame(bad, 424, 240)
+    assert [colour_stream_fps(hz) for hz in (1, 6, 10, 15, 25, 30, 45, 120)] == [6, 6, 15, 15, 30, 30, 60, 60]
+
+
+def test_depth_and_colour_come_from_one_pipeline_and_both_say_when_the_camera_is_unplugged(monkeypatch):
+    """A D415 is opened by one pipeline at a time (the emulator refuses a second, as the device does): the camera
+    and depth devices share it, each with its own frames and health, and both come back when it does."""
+    d415 = FakeD415(wall_mm=1200)
+    monkeypatch.setitem(sys.modules, "pyrealsense2", d415.module())
+    config = d415_config(**{"devices.camera.width": 640, "devices.camera.height": 480, "devices.camera.fps": 10,
+                            "devices.depth.serial": "822512060000"})
+    devices = build_devices(DeviceContext(config, time.monotonic))
+    camera, depth = devices.camera, devices.depth
+    assert camera is not None and depth is not None
+    assert (camera.name, depth.name, camera.rate_hz, depth.rate_hz) == ("camera", "depth", 50.0, 50.0)
+    colours: list = []
+    camera.subscribe(colours.append)
+    try:
+        camera.start()
+        depth.start()
+        assert tick_until([camera, depth], lambda: len(colours) >= 2 and depth.latest is not None)
+        assert d415.started == 1 and d415.running == 1  # one pipeline, both streams
+        assert ("depth", 424, 240, "z16", 15) in d415.streams and ("color", 640, 480, "rgb8", 15) in d415.streams
+        assert ("device", "822512060000") in d415.streams
+        frame = colours[-1]
+        assert frame.shape == (480, 640, 3) and frame.dtype == np.uint8 and camera.latest is frame
+        assert tuple(frame[240, 10]) == LEFT_RGB and tuple(frame[240, 630]) == RIGHT_RGB
+        assert float(np.median(depth.latest.depth_m[depth.latest.depth_m > 0])) == pytest.approx(1.2)
+        now = time.monotonic()
+        assert camera.health(now).ok and depth.health(now).ok
+        assert camera.info().kind == "camera" and depth.info().kind == "depth"
+        assert camera.info().model == "Intel RealSense D415" and camera.info().driver == "realsense"
+        d415.plugged = False
+        assert tick_until([camera, depth], lambda: not camera.health(time.monotonic()).ok
+                          and not depth.health(time.monotonic()).ok)
+        for device in (camera, depth):
+            assert "D415" in device.health(time.monotonic()).detail
+        d415.plugged = True
+        seen = len(colours)
+        assert tick_until([camera, depth], lambda: len(colours) > seen + 1 and camera.health(time.monotonic()).ok
+                          and depth.health(time.monotonic()).ok)
+        assert d415.running == 1
+        depth.shutdown()  # the camera still streams while one of its devices runs
+        seen = len(colours)
+        assert tick_until([camera], lambda: len(colours) > seen)
+    finally:
+        camera.shutdown()
+        depth.shutdown()
+    assert d415.running == 0
+
+
+def test_each_stream_alone_asks_the_pipeline_for_its_own_stream_only(monkeypatch):
+    d415 = FakeD415()
+    monkeypatch.setitem(sys.modules, "pyrealsense2", d415.module())
+    config = d415_config(**{"devices.depth.driver": "none", "devices.camera.width": 424,
+                            "devices.camera.height": 240, "devices.camera.fps": 30})
+    devices = build_devices(DeviceContext(config, time.monotonic))
+    assert devices.depth is None and devices.camera is not None
+    try:
+        devices.camera.start()
+        assert tick_until([devices.camera], lambda: devices.camera.latest is not None)
+    finally:
+        devices.camera.shutdown()
+    assert [s for s in d415.streams if s[0] in ("depth", "color")] == [("color", 424, 240, "rgb8", 30)]
+    assert devices.camera.latest.shape == (240, 424, 3)
+
+
+def test_separate_contexts_would_open_the_camera_twice_and_the_second_is_refused(monkeypatch):
+    """What the shared reader prevents: two pipelines on one D415 (the device answers "busy" to the second)."""
+    d415 = FakeD415()
+    monkeypatch.setitem(sys.modules, "pyrealsense2", d415.module())
+    config = d415_config()
+    camera = build_device(DeviceContext(config, time.monotonic), "camera")
+    depth = build_device(DeviceContext(config, time.monotonic), "depth")
+    assert camera is not None and depth is not None
+    try:
+        camera.start()
+        assert tick_until([camera], lambda: camera.latest is not None)
+        depth.start()
+        assert tick_until([depth], lambda: "busy" in (depth.health(time.monotonic()).detail or ""))
+    finally:
+        camera.shutdown()
+        depth.shutdown()
+
+
+def test_a_stream_cannot_be_asked_for_twice_nor_after_the_camera_started(monkeypatch):
+    monkeypatch.setitem(sys.modules, "pyrealsense2", FakeD415().module())
+    config = d415_config()
+    reader = realsense.D415(now=time.monotonic)
+    stream = reader.colour_stream(config.devices.camera)
+    with pytest.raises(RuntimeError, match="already taken"):
+        reader.colour_stream(config.devices.camera)
+    stream.start()
+    try:
+        with pytest.raises(RuntimeError, match="after its pipeline started"):
+            reader.depth_stream(config.devices.depth, CameraMount())
+    finally:
+        stream.shutdown()
