@@ -202,6 +202,8 @@ def print_summary(result: dict[str, Any]) -> None:
     if pose is not None:
         print(f"  final pose ({pose['x_m']:.2f}, {pose['y_m']:.2f}, {pose['yaw_rad']:.2f}); "
               f"state {result['state']}")
+    else:
+        print(f"  final pose unknown: not localized on the map; state {result['state']}")
     error = result.get("pose_error") or {}
     if error.get("rmse_m") is not None:
         print(f"  pose error against ground truth: RMSE {error['rmse_m']:.3f} m, max {error['max_m']:.3f} m; "

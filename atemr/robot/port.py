@@ -70,7 +70,10 @@ class RobotPortImpl:
         return self.health_board.collect()
 
     def pose(self) -> Pose2D | None:
-        return self.localization.map_pose() or self.localization.odom_pose
+        return self.localization.map_pose()
+
+    def odom_pose(self) -> Pose2D | None:
+        return self.localization.odom_pose
 
     def joystick(self) -> tuple[Twist, float] | None:
         latest = self.inputs.operator()

@@ -72,6 +72,9 @@ class RecordingPort:
     def pose(self) -> Pose2D | None:
         return self.current_pose
 
+    def odom_pose(self) -> Pose2D | None:
+        return self.current_pose
+
     def joystick(self) -> tuple[Twist, float] | None:
         return self.joystick_command
 

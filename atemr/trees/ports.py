@@ -54,7 +54,13 @@ class RobotPort(Protocol):
         ...
 
     def pose(self) -> Pose2D | None:
-        """The best current pose estimate (map frame if localized, else odometry); None before any."""
+        """Where the robot is on the map; None while it is not localized. Never a pose in another frame: a
+        mission's steps, its final pose and the recording's poses are read as places on the map."""
+        ...
+
+    def odom_pose(self) -> Pose2D | None:
+        """The odometry pose (the ``odom`` frame: smooth, drifts slowly, known while not localized): feedback for
+        motions relative to where the robot stands, such as turning in place; None before any."""
         ...
 
     def joystick(self) -> tuple[Twist, float] | None:

@@ -72,6 +72,10 @@ def test_a_map_begun_unlocalized_starts_at_the_odometry_pose(robot):
     robot.run(until=6.0)
     localization.start_global(robot.clock.now())  # the pose is unknown now
     assert localization.map_pose() is None
+    # the agent's port says so: no pose on the map (a mission's final pose, its steps' errors and the recorded
+    # poses would read an odometry pose as one on the map), while turning in place still has odometry to steer by
+    port = robot.parts.port
+    assert port.pose() is None and port.odom_pose() == localization.odom_pose
     maps.begin()
     drive(robot, 8.0)
     assert maps.slam is not None and not maps.slam.anchored

@@ -72,7 +72,8 @@ class RotateParams:
 
 @behaviours.register("Rotate")
 class Rotate(Leaf):
-    """Turn in place by ``angle_rad`` (counter-clockwise positive) using the pose's heading as feedback.
+    """Turn in place by ``angle_rad`` (counter-clockwise positive) using the odometry's heading as feedback (a
+    turn relative to where the robot stands needs no map: it works while the robot is not localized).
 
     A proportional controller on the remaining angle, saturated at ``max_speed_radps``; the remaining
     angle is integrated from heading changes so turns beyond half a revolution work. SUCCESS within
@@ -84,12 +85,12 @@ class Rotate(Leaf):
     summary = "rotate in place by angle_rad using heading feedback"
 
     def initialise(self) -> None:
-        pose = self.ctx.port.pose()
+        pose = self.ctx.port.odom_pose()
         self._last_yaw = pose.yaw_rad if pose is not None else None
         self._remaining = self.params.angle_rad
 
     def update(self) -> py_trees.common.Status:
-        pose = self.ctx.port.pose()
+        pose = self.ctx.port.odom_pose()
         if pose is None or self._last_yaw is None:
             return self.fail("no pose to steer by")
         self._remaining -= wrap_angle(pose.yaw_rad - self._last_yaw)
