@@ -3,8 +3,9 @@
 The whole simulated robot (CAN, motors, agent, localization, navigation: `atemr.robot.headless`) runs a goal
 across the studio and back, as fast as the CPU allows, once without a recording and once recording to MCAP
 (`atemr.robot.recorder` → `atemr.io.recording.writer_process`, what a paced robot uses, and the inline writer
-of headless runs, which encodes and writes on the robot's own thread). Runs alternate and the best of each is
-kept (a shared machine).
+of headless runs, which encodes and writes on the robot's own thread). Each run is a fresh interpreter (runs in
+one process slowed down as robots piled up on its heap, so whichever ran first looked fastest: the order, not the
+recording, made most of the difference), runs alternate, and the best of each is kept (a shared machine).
 Rows:
 
 * robot seconds per wall second recorded vs not, camera off, with the paced robot's writer process
@@ -18,6 +19,10 @@ Run: ``.venv/bin/python benchmarks/run recording`` (or ``atemr bench recording``
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -55,13 +60,26 @@ def robot_run(seconds: float, folder: Path, *, writer: str | None, camera_hz: fl
     return took, path.stat().st_size if writer is not None else 0
 
 
-def best(seconds: float, folder: Path, camera_hz: float,
-         writers: tuple[str, ...]) -> dict[str | None, tuple[float, int]]:
-    """Best wall time (and the last size) of each writer and of no recording, runs alternating, two each."""
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def fresh_run(seconds: float, folder: Path, *, writer: str | None, camera_hz: float) -> tuple[float, int]:
+    """`robot_run` in a fresh interpreter (this file run with ``--trial``), so no run inherits another's heap."""
+    trial = json.dumps({"seconds": seconds, "folder": str(folder), "writer": writer, "camera_hz": camera_hz})
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    done = subprocess.run([sys.executable, __file__, "--trial", trial], cwd=ROOT, env=env, capture_output=True,
+                          text=True, check=True)
+    took, size = json.loads(done.stdout.strip().splitlines()[-1])
+    return float(took), int(size)
+
+
+def best(seconds: float, folder: Path, camera_hz: float, writers: tuple[str, ...],
+         rounds: int) -> dict[str | None, tuple[float, int]]:
+    """Best wall time (and the last size) of each writer and of no recording, runs alternating."""
     out: dict[str | None, tuple[float, int]] = {}
-    for _ in range(2):
+    for _ in range(rounds):
         for writer in (None, *writers):
-            took, size = robot_run(seconds, folder, writer=writer, camera_hz=camera_hz)
+            took, size = fresh_run(seconds, folder, writer=writer, camera_hz=camera_hz)
             out[writer] = (min(took, out.get(writer, (float("inf"), 0))[0]), size)
     return out
 
@@ -75,7 +93,7 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
         sizes = {}
         cases = ((0.0, "camera off", ("process", "inline")), (2.0, "camera 10 fps, recorded at 2 fps", ("process",)))
         for camera_hz, label, writers in cases:
-            times = best(seconds, folder, camera_hz, writers)
+            times = best(seconds, folder, camera_hz, writers, rounds=2 if quick else 3)
             plain = times[None][0]
             for writer in writers:
                 recorded = times[writer][0]
@@ -88,3 +106,9 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
             rows.append({"what": f"recording size per hour of robot time, goals back and forth ({label})",
                          "ours": mb, "baseline": None, "ratio": None, "goal": None, "unit": "MB/h"})
     return rows
+
+
+if __name__ == "__main__" and sys.argv[1:2] == ["--trial"]:
+    spec = json.loads(sys.argv[2])
+    print(json.dumps(robot_run(spec["seconds"], Path(spec["folder"]), writer=spec["writer"],
+                               camera_hz=spec["camera_hz"])))
