@@ -5,7 +5,9 @@ across the studio and back, as fast as the CPU allows, once without a recording 
 (`atemr.robot.recorder` → `atemr.io.recording.writer_process`, what a paced robot uses, and the inline writer
 of headless runs, which encodes and writes on the robot's own thread). Each run is a fresh interpreter (runs in
 one process slowed down as robots piled up on its heap, so whichever ran first looked fastest: the order, not the
-recording, made most of the difference), runs alternate, and the best of each is kept (a shared machine).
+recording, made most of the difference). A round runs each case back to back, and the ratio is the median of the
+rounds' ratios: this shared machine's speed drifts by 10-30 % over minutes, more than recording costs, while a
+round's runs follow each other within seconds.
 Rows:
 
 * robot seconds per wall second recorded vs not, camera off, with the paced robot's writer process
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -73,19 +76,19 @@ def fresh_run(seconds: float, folder: Path, *, writer: str | None, camera_hz: fl
     return float(took), int(size)
 
 
-def best(seconds: float, folder: Path, camera_hz: float, writers: tuple[str, ...],
-         rounds: int) -> dict[str | None, tuple[float, int]]:
-    """Best wall time (and the last size) of each writer and of no recording, runs alternating."""
-    out: dict[str | None, tuple[float, int]] = {}
+def paired(seconds: float, folder: Path, camera_hz: float, writers: tuple[str, ...],
+           rounds: int) -> dict[str | None, list[tuple[float, int]]]:
+    """Every round runs no recording and then each writer back to back, each in a fresh interpreter: (wall
+    seconds, size) per round, by writer (None: not recorded)."""
+    out: dict[str | None, list[tuple[float, int]]] = {}
     for _ in range(rounds):
         for writer in (None, *writers):
-            took, size = fresh_run(seconds, folder, writer=writer, camera_hz=camera_hz)
-            out[writer] = (min(took, out.get(writer, (float("inf"), 0))[0]), size)
+            out.setdefault(writer, []).append(fresh_run(seconds, folder, writer=writer, camera_hz=camera_hz))
     return out
 
 
 def run(quick: bool = False) -> list[dict[str, Any]]:
-    seconds = 20.0 if quick else 60.0
+    seconds = 20.0 if quick else 30.0
     span = seconds - 3.0
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -93,15 +96,19 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
         sizes = {}
         cases = ((0.0, "camera off", ("process", "inline")), (2.0, "camera 10 fps, recorded at 2 fps", ("process",)))
         for camera_hz, label, writers in cases:
-            times = best(seconds, folder, camera_hz, writers, rounds=2 if quick else 3)
-            plain = times[None][0]
+            runs = paired(seconds, folder, camera_hz, writers, rounds=3 if quick else 7)
+            plain = [took for took, _ in runs[None]]
             for writer in writers:
-                recorded = times[writer][0]
+                recorded = [took for took, _ in runs[writer]]
+                # the median of each round's ratio: this machine's speed drifts over minutes, a round's two runs
+                # follow each other within seconds
+                ratio = statistics.median(p / r for p, r in zip(plain, recorded, strict=True))
                 how = {"process": "paced robot's writer process", "inline": "headless, written inline"}[writer]
-                rows.append({"what": f"whole robot, robot s per wall s, recording ({how}) vs none ({label})",
-                             "ours": span / recorded, "baseline": span / plain, "ratio": plain / recorded,
-                             "goal": 0.9 if writer == "process" else None, "unit": "x real time"})
-            sizes[label] = times["process"][1] / seconds * 3600 / 1e6
+                rows.append({"what": f"whole robot, robot s per wall s, recording ({how}) vs none ({label}; median "
+                                     f"of {len(plain)} rounds' ratios)",
+                             "ours": span / statistics.median(recorded), "baseline": span / statistics.median(plain),
+                             "ratio": ratio, "goal": 0.9 if writer == "process" else None, "unit": "x real time"})
+            sizes[label] = runs["process"][-1][1] / seconds * 3600 / 1e6
         for label, mb in sizes.items():
             rows.append({"what": f"recording size per hour of robot time, goals back and forth ({label})",
                          "ours": mb, "baseline": None, "ratio": None, "goal": None, "unit": "MB/h"})

@@ -62,12 +62,12 @@ def scenario(tmp_path: Path, kind: str) -> tuple[Path, tuple[float, float, float
 
 
 def run(tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, kind: str,
-        depth_layer: bool) -> tuple[dict, tuple[float, float, float]]:
+        depth_layer: bool, timeout_s: float = 90.0) -> tuple[dict, tuple[float, float, float]]:
     world, _, goal = scenario(tmp_path, kind)
     monkeypatch.setenv("ATEMR_SIM__CAMERA_HZ", "0")  # the colour camera plays no part
     monkeypatch.setenv("ATEMR_NAV__DEPTH_LAYER", "true" if depth_layer else "false")
     main(["--log-level", "ERROR", "mission", "run", "--headless", "--json", "--data-dir", str(tmp_path / "data"),
-          "--world", str(world), "--seed", "1", "--goal", ",".join(map(str, goal)), "--timeout", "90"])
+          "--world", str(world), "--seed", "1", "--goal", ",".join(map(str, goal)), "--timeout", str(timeout_s)])
     result: dict = json.loads(capsys.readouterr().out)
     return result, goal
 
@@ -84,7 +84,9 @@ def at_goal(result: dict, goal: tuple[float, float, float]) -> bool:
 ])
 def test_without_the_depth_layer_the_robot_hits_what_the_lidar_cannot_see(tmp_path, capsys, monkeypatch, kind,
                                                                          what, part):
-    result, goal = run(tmp_path, capsys, monkeypatch, kind, depth_layer=False)
+    # 30 s of robot time: the obstacle stands 3 m or less ahead, hit within about 10 s; the robot then presses on
+    # against it to the timeout, which proves nothing more
+    result, goal = run(tmp_path, capsys, monkeypatch, kind, depth_layer=False, timeout_s=30.0)
     assert result["collisions"] >= 1
     assert {(c["what"], c["part"]) for c in result["collision_list"]} == {(what, part)}
     assert not at_goal(result, goal)
