@@ -190,8 +190,19 @@ class D415(ThreadedDevice[tuple[str, float, Any]]):
         return (f"{self.name}: {error} (is the D415 plugged in, on a USB 3 port? `rs-enumerate-devices` lists the "
                 "cameras the SDK sees)")
 
+    def _present(self) -> None:
+        """Raise `OSError` at once when the camera is not connected: librealsense's ``pipeline.start`` waits about
+        15 s for one to appear, during which the reader could neither report it nor stop."""
+        rs = self._rs
+        serials = [str(d.get_info(rs.camera_info.serial_number)) for d in rs.context().query_devices()]
+        if not serials:
+            raise OSError("no RealSense camera connected")
+        if self.serial and self.serial not in serials:
+            raise OSError(f"no RealSense camera with serial {self.serial} (connected: {', '.join(serials)})")
+
     def _open(self) -> None:
         rs = self._rs
+        self._present()
         pipeline = rs.pipeline()
         config = rs.config()
         if self.serial:

@@ -141,6 +141,11 @@ class FakeD415:
                     fake.running -= 1
                 fake.stopped += 1
 
+        class Context:
+            def query_devices(self) -> list[Device]:
+                return [Device()] if fake.plugged else []
+
+        rs.context = Context  # type: ignore[attr-defined]
         rs.config = Config  # type: ignore[attr-defined]
         rs.pipeline = Pipeline  # type: ignore[attr-defined]
         return rs

@@ -238,3 +238,33 @@ def test_a_stream_cannot_be_asked_for_twice_nor_after_the_camera_started(monkeyp
             reader.depth_stream(config.devices.depth, CameraMount())
     finally:
         stream.shutdown()
+
+
+def test_the_drivers_sdk_calls_are_the_real_pyrealsense2s_and_a_missing_camera_is_said_at_once():
+    """With the realsense extra installed (./test installs it): the names the driver calls, and those the emulator
+    stands in for, exist in the real SDK; with no camera connected (none is, here) the driver says so at once,
+    instead of waiting in ``pipeline.start`` for the 15 s librealsense gives a camera to appear."""
+    rs = pytest.importorskip("pyrealsense2", reason="the realsense extra (pyrealsense2) is not installed")
+    for path in ("pipeline", "config", "context", "stream.depth", "stream.color", "format.z16", "format.rgb8",
+                 "camera_info.name", "camera_info.firmware_version", "camera_info.serial_number"):
+        target = rs
+        for part in path.split("."):
+            target = getattr(target, part)
+    fake = FakeD415().module()
+    for space in ("stream", "format", "camera_info"):
+        assert set(vars(getattr(fake, space))) <= set(dir(getattr(rs, space))), space
+    config = rs.config()  # the calls the driver makes before a camera is needed, with its argument order
+    config.enable_device("822512060000")
+    config.enable_stream(rs.stream.depth, 424, 240, rs.format.z16, 15)
+    config.enable_stream(rs.stream.color, 640, 480, rs.format.rgb8, 15)
+    camera = realsense.D415(now=time.monotonic, serial="822512060000")
+    stream = camera.colour_stream(load_config(environ={}).devices.camera)
+    began = time.monotonic()
+    stream.start()
+    try:
+        assert tick_until([stream], lambda: "no RealSense camera connected"
+                          in (stream.health(time.monotonic()).detail or ""), timeout_s=5.0)
+        assert "USB 3" in (stream.health(time.monotonic()).detail or "")  # and what to check
+    finally:
+        stream.shutdown()
+    assert time.monotonic() - began < 5.0
