@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -43,7 +43,7 @@ from atemr.io.map_store import BUILTIN_MAPS, MapStore
 from atemr.io.motors.driver import RmdDriver
 from atemr.io.recording.mcap_writer import SUFFIX, RecordingWriter
 from atemr.io.secondary_link import SecondaryLink, build_secondary_link
-from atemr.io.sim.simulation import Simulation
+from atemr.io.sim.simulation import FrameSource, Simulation
 from atemr.io.system_monitor import SystemMonitor
 from atemr.msgs import Pose2D, Twist, WheelSpeeds
 from atemr.robot.battery import RATE_HZ as BATTERY_HZ
@@ -328,6 +328,13 @@ def _recording_writer(robot: Robot, meta: dict[str, object]) -> RecordingWriter 
     return RecordingWriter(path, threaded=mode == "thread", **options)  # type: ignore[arg-type]
 
 
+def _render_for_recording(source: FrameSource[Any], next_t: Callable[[], float]) -> None:
+    """A simulated camera renders for the recording only from two of its periods before each frame the recording
+    keeps (``next_t()``: when that is)."""
+    lead_s = 2 * source.period_s
+    source.want("recording", lambda now: now + lead_s >= next_t())
+
+
 def _add_recorder(robot: Robot) -> None:
     """Record the run (`RunRecorder` → `RecordingWriter`) and serve it live (``ui.foxglove``), when asked."""
     cfg, parts = robot.config, robot.parts
@@ -360,12 +367,9 @@ def _add_recorder(robot: Robot) -> None:
         writer.preamble = recorder.preamble
     recorder.attach()
     if sim is not None and driver_name(cfg, "camera") == "sim":
-        # Rendered for the recording only from a camera period before each frame it keeps (trace.camera_hz).
-        lead_s = 2 * sim.camera_source.period_s
-        sim.camera_source.want("recording", lambda now: now + lead_s >= recorder.next_camera_t)
-    if sim is not None and driver_name(cfg, "depth") == "sim":  # the same for the depth frames (trace.depth_hz)
-        depth_lead_s = 2 * sim.depth_source.period_s
-        sim.depth_source.want("recording", lambda now: now + depth_lead_s >= recorder.next_depth_t)
+        _render_for_recording(sim.camera_source, lambda: recorder.next_camera_t)  # trace.camera_hz
+    if sim is not None and driver_name(cfg, "depth") == "sim":
+        _render_for_recording(sim.depth_source, lambda: recorder.next_depth_t)  # trace.depth_hz
     parts.wheels.subscribe(recorder.on_wheels)
     robot.event_listeners.append(recorder.on_event)
     if live is not None:

@@ -22,7 +22,7 @@ from collections import deque
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Generic, Protocol, TypeVar
 
 import can
 import numpy as np
@@ -32,6 +32,7 @@ from atemr.clock import due
 from atemr.domain.maps import OccupancyMap
 from atemr.fsm.agent import Agent
 from atemr.fsm.recording import AgentRecorder, Record
+from atemr.io.devices.base import Device
 from atemr.io.devices.drivers import Devices
 from atemr.io.recording import ros2_convert as ros
 from atemr.io.recording import topics as tp
@@ -39,12 +40,13 @@ from atemr.io.recording.agent_trace import record_entry
 from atemr.io.recording.codec import Codec
 from atemr.io.recording.mcap_writer import Entry
 from atemr.io.sim.simulation import Simulation
-from atemr.msgs import ZERO_TWIST, CameraMount, ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
+from atemr.msgs import ZERO_TWIST, CameraMount, DepthImage, ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.robot.health import HealthBoard
 from atemr.robot.mapping import MapService
 from atemr.robot.navigation import RobotNavigation
 from atemr.skills.localization.pipeline import LocalizationPipeline
 
+F = TypeVar("F")
 log = logging.getLogger(__name__)
 
 #: The recorder's tick rate (the transforms'); odometry, poses and the plan go at half of it.
@@ -100,16 +102,12 @@ class RunRecorder:
         self.sources = sources
         self.sinks = list(sinks)
         self.codec = Codec()
-        self.camera_period_s = 1.0 / camera_hz if camera_hz > 0 else float("inf")
-        self.depth_period_s = 1.0 / depth_hz if depth_hz > 0 else float("inf")
+        self._camera_frames: FrameSampler[Any] = FrameSampler(camera_hz)
+        self._depth_frames: FrameSampler[DepthImage] = FrameSampler(depth_hz)
         self.agent_recorder = AgentRecorder(sources.agent, self._on_record, pose_hz=pose_hz, meta=meta)
         self.messages = 0
         self._ticks = 0
         self._next_health = float("-inf")
-        self._next_camera = float("-inf") if camera_hz > 0 else float("inf")  # 0: no frame at all
-        self._camera_key: object = None
-        self._next_depth = float("-inf") if depth_hz > 0 else float("inf")
-        self._depth_key: object = None
         self._depth_mount: CameraMount | None = None  # the depth camera's, once a frame said where it is
         self._map: OccupancyMap | None = None
         self._map_bytes: Entry | None = None
@@ -230,10 +228,8 @@ class RunRecorder:
             self._next_health = now + HEALTH_PERIOD_S
             self._emit(tp.HEALTH.name, now, lambda: {"t": now, "components": {
                 name: {"ok": h.ok, "reason": h.detail} for name, h in self.sources.health.collect().items()}})
-        if due(now, self._next_camera):
-            self._camera(now)
-        if due(now, self._next_depth):
-            self._depth(now)
+        self._camera(now)
+        self._depth(now)
 
     def _can(self, now: float) -> None:
         """The frames the tap heard since the last tick, as one message (hundreds a second: one each would cost
@@ -324,12 +320,12 @@ class RunRecorder:
     def next_camera_t(self) -> float:
         """When the next camera frame is recorded (-inf: at the first tick): a simulated camera renders for the
         recording only shortly before it."""
-        return self._next_camera
+        return self._camera_frames.next_t
 
     @property
     def next_depth_t(self) -> float:
         """When the next depth frame is recorded (as `next_camera_t`, for the simulated depth camera)."""
-        return self._next_depth
+        return self._depth_frames.next_t
 
     def on_event(self, t: float, kind: str, text: str) -> None:
         """A robot event (`atemr.robot.core.Robot.event`, any thread): recorded at the next tick."""
@@ -341,30 +337,44 @@ class RunRecorder:
             self._emit_message(tp.EVENTS.name, t, {"t": t, "kind": kind, "text": text})
 
     def _camera(self, now: float) -> None:
-        camera, jpeg = self.sources.devices.camera, self.sources.jpeg
-        if camera is None or jpeg is None:
+        jpeg = self.sources.jpeg
+        if jpeg is None:
             return
-        frame = camera.latest
-        if frame is None or frame is self._camera_key:
+        frame = self._camera_frames.take(self.sources.devices.camera, now)
+        if frame is None:
             return
-        self._next_camera = now + self.camera_period_s
-        self._camera_key = frame
         self._emit(tp.CAMERA.name, now, lambda: ros.image_msg(now, jpeg(frame)))
 
     def _depth(self, now: float) -> None:
-        depth = self.sources.devices.depth
-        if depth is None:
+        frame = self._depth_frames.take(self.sources.devices.depth, now)
+        if frame is None:
             return
-        frame = depth.latest
-        if frame is None or frame is self._depth_key:
-            return
-        self._next_depth = now + self.depth_period_s
-        self._depth_key = frame
         if frame.mount != self._depth_mount:
             self._depth_mount = frame.mount
             self._static_transforms(frame.t)
         self._emit(tp.DEPTH_INFO.name, frame.t, lambda: ros.depth_info_msg(frame))
         self._emit(tp.DEPTH.name, frame.t, lambda: ros.depth_image_msg(frame))
+
+
+class FrameSampler(Generic[F]):
+    """A camera's newest frame at most ``rate_hz`` times a second of robot time, never the same frame twice
+    (``rate_hz`` 0: none at all). ``next_t`` is when the next one is due, -inf before the first."""
+
+    def __init__(self, rate_hz: float) -> None:
+        self.period_s = 1.0 / rate_hz if rate_hz > 0 else float("inf")
+        self.next_t = float("-inf") if rate_hz > 0 else float("inf")
+        self._last: object = None
+
+    def take(self, device: Device[F] | None, now: float) -> F | None:
+        """The device's newest frame if one is due and new, else None."""
+        if device is None or not due(now, self.next_t):
+            return None
+        frame = device.latest
+        if frame is None or frame is self._last:
+            return None
+        self.next_t = now + self.period_s
+        self._last = frame
+        return frame
 
 
 def _frame(msg: can.Message) -> dict[str, Any]:

@@ -6,8 +6,6 @@ clock as the real robot runs."""
 from __future__ import annotations
 
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -19,14 +17,8 @@ from atemr.io.can.bus import unique_channel
 from atemr.io.devices.realsense import D415Stream
 from atemr.io.devices.realsense_emulator import LEFT_RGB, RIGHT_RGB, FakeD415
 from atemr.robot import build_robot
-from atemr.robot.core import Robot
 
-
-def run_until(robot: Robot, done: Callable[[], bool], timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not done():
-        assert time.monotonic() < deadline, f"not {what} within {timeout_s} s: {robot.parts.health.collect()}"
-        robot.run(duration=0.1)
+from .test_real_path import run_until
 
 
 @pytest.mark.exclusive  # a robot on the wall clock

@@ -147,14 +147,14 @@ class D415(ThreadedDevice[tuple[str, float, Any]]):
         self._before_start("depth")
         self._depth = _DepthRequest(cfg, mount)
         self._caps["depth"] = RateCap(cfg.keep_hz)
-        return D415Stream(self, "depth", "depth frame", max_age_s=max(1.0, 3.0 / cfg.keep_hz))
+        return D415Stream(self, "depth", "depth", "depth frame", max_age_s=max(1.0, 3.0 / cfg.keep_hz))
 
     def colour_stream(self, cfg: CameraDeviceConfig) -> D415Stream[Frame]:
         """The colour stream as the robot's ``camera`` device (``devices.camera``: width, height, fps)."""
         self._before_start("colour")
         self._colour = cfg
         self._caps["colour"] = RateCap(cfg.fps)
-        return D415Stream(self, "camera", "camera frame", max_age_s=max(1.0, 3.0 / cfg.fps))
+        return D415Stream(self, "colour", "camera", "camera frame", max_age_s=max(1.0, 3.0 / cfg.fps))
 
     def _before_start(self, stream: str) -> None:
         if self._users:
@@ -183,9 +183,6 @@ class D415(ThreadedDevice[tuple[str, float, Any]]):
                           serial_number=info.serial_number)
 
     # -- the reader -----------------------------------------------------------------------------------------
-    def info(self) -> DeviceInfo:
-        return self._info
-
     def missing_hint(self, error: BaseException) -> str:
         return (f"{self.name}: {error} (is the D415 plugged in, on a USB 3 port? `rs-enumerate-devices` lists the "
                 "cameras the SDK sees)")
@@ -267,10 +264,10 @@ class D415Stream(Publishes[R]):
 
     rate_hz: float | None = ThreadedDevice.rate_hz
 
-    def __init__(self, camera: D415, name: str, what: str, *, max_age_s: float) -> None:
+    def __init__(self, camera: D415, stream: str, name: str, what: str, *, max_age_s: float) -> None:
         self.name, self.max_age_s = name, max_age_s
         self._camera, self._what = camera, what
-        self._stream = "depth" if name == "depth" else "colour"
+        self._stream = stream  # the tag of its readings: "depth" or "colour"
         self._out: Subscribers[R] = Subscribers(name)
         self._last_t: float | None = None
         self._started = False

@@ -26,7 +26,7 @@ from atemr.config import MotorsConfig
 from atemr.domain.status import ComponentHealth
 from atemr.errors import BusError, HardwareError, ProtocolError
 from atemr.io.can.protocol import is_protocol_id
-from atemr.io.devices.base import DeviceInfo, Subscribers, fresh
+from atemr.io.devices.base import DeviceInfo, Publishes, Subscribers, fresh
 from atemr.io.motors.rmd_codec import MotorErrorFlags, RmdCommand, RmdRequest, Status1Reply, Status2Reply
 from atemr.io.motors.rmd_protocol import AnyReply, RmdProtocol, rmd_protocol
 from atemr.io.motors.rmd_v4 import V4Status1Reply, V4Status2Reply
@@ -250,7 +250,7 @@ class DriveMotors(ABC):
         self.shutdown()
 
 
-class RmdDriver(DriveMotors):
+class RmdDriver(Publishes[MotorsReading], DriveMotors):
     """Two RMD-L-7015 on ``bus`` (its own Bus instance; closed by `shutdown` when ``close_bus``).
 
     Every tick sends a SPEED_CONTROL to each motor (its reply is status 2: speed, position, current) and
@@ -289,7 +289,7 @@ class RmdDriver(DriveMotors):
         self._by_reply_id = {self.protocol.reply_id(mid): side for side, mid in self.ids.items()}
         self.states = {side: MotorState(side, mid) for side, mid in self.ids.items()}
         self.rate_hz: float | None = None  # the robot ticks it at motors.rate_hz (`from_config` sets it)
-        self._readings: Subscribers[MotorsReading] = Subscribers(name)
+        self._out: Subscribers[MotorsReading] = Subscribers(name)
         self.bad_frames = 0
         self.output_off = False
         self._last_status1_t: float | None = None
@@ -314,18 +314,8 @@ class RmdDriver(DriveMotors):
         return WheelSpeeds(self.states["left"].speed_radps, self.states["right"].speed_radps)
 
     # -- the device interface (`atemr.io.devices.base.Device`) -------------------------------------
-    @property
-    def latest(self) -> MotorsReading | None:
-        """Both motors after the latest replies, or None before the first."""
-        return self._readings.latest
-
-    @property
-    def count(self) -> int:
-        return self._readings.count
-
-    def subscribe(self, callback: Callable[[MotorsReading], None]) -> None:
-        """Call ``callback`` after every tick that brought replies."""
-        self._readings.subscribe(callback)
+    # ``latest`` (both motors after the latest replies), ``count`` and ``subscribe`` (called after every tick
+    # that brought replies): `Publishes`.
 
     def side_health(self, side: str, now: float) -> ComponentHealth:
         """One motor's health (the 0x153 hardware bits are per motor): no latched fault, and a reply within
@@ -382,7 +372,7 @@ class RmdDriver(DriveMotors):
                                          self.directions[side], now)
             replies += 1
         if replies:
-            self._readings.publish(MotorsReading(now, self.states["left"], self.states["right"]))
+            self._out.publish(MotorsReading(now, self.states["left"], self.states["right"]))
 
     def _health(self, now: float) -> HardwareError | None:
         assert self._started_t is not None

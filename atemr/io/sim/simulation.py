@@ -21,14 +21,14 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Generic, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from atemr.config import SimConfig
 from atemr.errors import ConfigError
-from atemr.io.devices.base import Subscribers
+from atemr.io.devices.base import Publishes, Subscribers
 from atemr.io.sim.base import BaseParams, Collision, DiffDriveBase, MountedWheel, WheelMotor
 from atemr.io.sim.camera import Camera, CameraParams
 from atemr.io.sim.cliff import CliffParams, CliffSensors
@@ -104,7 +104,7 @@ class Fall:
     zone: str
 
 
-class PeriodicSource(Generic[T]):
+class PeriodicSource(Publishes[T]):
     """A scheduler component that produces one reading per tick (a scan, an IMU sample, the true pose...),
     keeps the latest and tells subscribers (`atemr.io.devices.base.Subscribers`: one that raises is logged
     and does not stop the others).
@@ -116,18 +116,6 @@ class PeriodicSource(Generic[T]):
         self._out: Subscribers[T] = Subscribers(name)
         #: When the source last ticked (None: never): a simulated device is alive while its source ticks.
         self.last_tick_t: float | None = None
-
-    @property
-    def latest(self) -> T | None:
-        return self._out.latest
-
-    @property
-    def count(self) -> int:
-        return self._out.count
-
-    def subscribe(self, callback: Callable[[T], None]) -> None:
-        """Call ``callback(reading)`` after every tick."""
-        self._out.subscribe(callback)
 
     def tick(self, now: float) -> None:
         self.last_tick_t = now
