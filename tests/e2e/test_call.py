@@ -37,10 +37,14 @@ def call_of(page: Any) -> str:
 
 
 def receiving(page: Any, helpers: Any) -> Any:
-    """The call's inbound counters once both audio and video have arrived and video frames were decoded."""
+    """The call's inbound counters once the connection is up, audio and video have arrived and frames were decoded.
+
+    Chrome can report ``connectionState`` "connecting" for a moment after media already flows (seen on the 2-core
+    CI machine), so the state is waited for with the counters rather than read once.
+    """
     return helpers.wait_for(page, f"""async () => {{
         const s = await ({STATS})();
-        return s && s.audio && s.video && s.audio.bytesReceived > 0 && s.audio.packetsReceived > 0
+        return s && s.state === "connected" && s.audio && s.video && s.audio.bytesReceived > 0 && s.audio.packetsReceived > 0
             && s.video.bytesReceived > 0 && s.video.framesDecoded > 0 ? s : null; }}""", timeout_s=30.0)
 
 

@@ -371,8 +371,10 @@ def test_a_login_flood_from_one_address_gets_429_while_the_state_stream_keeps_10
         # the burst: 64 at once, random names, one address
         assert sum(first.values()) == threads
         assert first.get("401", 0) <= 20, first  # ui.login_max_failures_per_address
+        # refused without hashing: 429 once the address has its failures, 503 while every hashing slot or
+        # connection is taken (on a slow machine more of the burst arrives while the first hashes still run)
         assert first.get("429", 0) >= threads - 20 - first.get("503", 0), first
-        assert first.get("429", 0) >= threads // 2, first
+        assert first.get("429", 0) > 0, first
         # the whole flood: never in, never a server error, never waiting long
         assert set(every) <= {"401", "429", "503"}, every
         assert every.get("401", 0) <= 20 and every["429"] > every.get("503", 0), every
