@@ -44,7 +44,8 @@ def receiving(page: Any, helpers: Any) -> Any:
     """
     return helpers.wait_for(page, f"""async () => {{
         const s = await ({STATS})();
-        return s && s.state === "connected" && s.audio && s.video && s.audio.bytesReceived > 0 && s.audio.packetsReceived > 0
+        return s && s.state === "connected" && s.audio && s.video
+            && s.audio.bytesReceived > 0 && s.audio.packetsReceived > 0
             && s.video.bytesReceived > 0 && s.video.framesDecoded > 0 ? s : null; }}""", timeout_s=30.0)
 
 
