@@ -9,7 +9,9 @@ Each iteration:
 
 1. correspondences: nearest target point of each transformed source point (`scipy.spatial.cKDTree`,
    built once per target); the target's local line normal comes from the principal axes of its
-   ``k`` nearest neighbours (precomputed, closed form for 2×2 covariances);
+   neighbourhood (precomputed, closed form for 2×2 covariances): its ``k`` nearest neighbours for an
+   unordered set (the map's surfaces), or, for a scan (`IcpTarget.from_scan`), the beams beside it that
+   lie within ``normal_max_gap_m`` of it, which needs no search at all;
 2. outlier rejection: pairs farther than ``max_correspondence_m`` are dropped, then pairs whose
    point-to-line residual exceeds ``reject_sigmas`` robust standard deviations (1.4826·MAD), and targets
    that are not on a line (isotropic neighbourhoods: corners, clutter) carry no normal and are dropped;
@@ -26,6 +28,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from atemr.errors import ConfigError
@@ -49,6 +52,9 @@ class IcpParams:
     min_reject_m: float = 0.03
     #: Neighbours used to fit each target point's line.
     normal_neighbours: int = 10
+    #: A scan's neighbouring beam farther than this from a point is across a gap (another surface), not on its
+    #: line (`IcpTarget.from_scan`).
+    normal_max_gap_m: float = 0.3
     #: A target neighbourhood is a line when its smaller spread is below this fraction of the larger.
     max_planarity: float = 0.5
     #: A target point gets a line only when all its neighbours lie this close (m). On a dense target (a grid's
@@ -64,7 +70,7 @@ class IcpParams:
         if self.max_iterations < 1 or self.normal_neighbours < 2 or self.min_inliers < 3:
             raise ConfigError("icp: need max_iterations >= 1, normal_neighbours >= 2, min_inliers >= 3",
                               path="localization.icp")
-        for name in ("max_correspondence_m", "reject_sigmas", "min_reject_m", "max_planarity"):
+        for name in ("max_correspondence_m", "reject_sigmas", "min_reject_m", "max_planarity", "normal_max_gap_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"must be a finite number > 0, got {value!r}", path=f"localization.icp.{name}")
@@ -101,33 +107,63 @@ class IcpTarget:
     """A reference point set prepared once: its k-d tree and per-point line normals.
 
     Matching many scans against one reference (the map's surfaces, a SLAM keyframe) pays for the tree
-    and the normals once.
+    and the normals once. An unordered set takes each point's line from its nearest neighbours (a k-d tree
+    query); a scan, whose points come in beam order, from the beams beside each point (`from_scan`).
     """
 
-    def __init__(self, points: FloatArray, params: IcpParams | None = None) -> None:
+    def __init__(self, points: FloatArray, params: IcpParams | None = None, *, beam_order: bool = False) -> None:
         self.params = p = params or IcpParams()
         self.points = _clean(points, "target")
         n = self.points.shape[0]
         self.tree = cKDTree(self.points) if n else None
         self.normals = np.full((n, 2), np.nan)
-        if n >= p.normal_neighbours:
+        if n < p.normal_neighbours:
+            return
+        if beam_order:
+            nb, used = _beam_neighbourhoods(self.points, p.normal_neighbours, p.normal_max_gap_m)
+            count = used.sum(axis=1)
+            weight = used / np.maximum(count, 1)[:, None]
+            d = nb - np.einsum("nk,nkc->nc", weight, nb)[:, None, :]
+            cov = (np.einsum("nk,nk->n", weight, d[..., 0] ** 2), np.einsum("nk,nk->n", weight, d[..., 1] ** 2),
+                   np.einsum("nk,nk->n", weight, d[..., 0] * d[..., 1]))
+            found = count >= max(3, p.normal_neighbours // 2)
+        else:
             dist, nbr = self.tree.query(self.points, k=p.normal_neighbours)  # type: ignore[union-attr]
             found = (nbr < n).all(axis=1) & (dist[:, -1] <= p.normal_radius_m)
             nb = self.points[np.minimum(nbr, n - 1)]  # (n, k, 2)
             d = nb - nb.mean(axis=1, keepdims=True)
-            cxx = (d[..., 0] ** 2).mean(axis=1)
-            cyy = (d[..., 1] ** 2).mean(axis=1)
-            cxy = (d[..., 0] * d[..., 1]).mean(axis=1)
-            # eigenvalues of [[cxx, cxy], [cxy, cyy]]; the line's direction is the major axis
-            half_tr, det_term = (cxx + cyy) / 2, np.sqrt(((cxx - cyy) / 2) ** 2 + cxy**2)
-            major, minor = half_tr + det_term, half_tr - det_term
-            ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
-            normals = np.column_stack([-np.sin(ang), np.cos(ang)])
-            linear = found & (major > 1e-12) & (minor <= (p.max_planarity**2) * major)
-            self.normals[linear] = normals[linear]
+            cov = ((d[..., 0] ** 2).mean(axis=1), (d[..., 1] ** 2).mean(axis=1), (d[..., 0] * d[..., 1]).mean(axis=1))
+        cxx, cyy, cxy = cov
+        # eigenvalues of [[cxx, cxy], [cxy, cyy]]; the line's direction is the major axis
+        half_tr, det_term = (cxx + cyy) / 2, np.sqrt(((cxx - cyy) / 2) ** 2 + cxy**2)
+        major, minor = half_tr + det_term, half_tr - det_term
+        ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
+        normals = np.column_stack([-np.sin(ang), np.cos(ang)])
+        linear = found & (major > 1e-12) & (minor <= (p.max_planarity**2) * major)
+        self.normals[linear] = normals[linear]
+
+    @classmethod
+    def from_scan(cls, points: FloatArray, params: IcpParams | None = None) -> IcpTarget:
+        """A target of one scan's points in beam order (`atemr.skills.localization.scan.scan_points`): each
+        point's line is fitted to the ``normal_neighbours`` beams round it that lie within ``normal_max_gap_m``
+        of it, at least half of them (a point at a jump in range has fewer on its side and no normal)."""
+        return cls(points, params, beam_order=True)
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
+
+
+def _beam_neighbourhoods(points: FloatArray, k: int, max_gap_m: float) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Each point's window of beams, ``k // 2`` on either side and itself, as ``(n, k', 2)`` points and a mask of
+    those that exist (the scan's ends) and lie within ``max_gap_m`` of the point."""
+    n = points.shape[0]
+    half = k // 2
+    idx = np.arange(n)[:, None] + np.arange(-half, half + 1)[None, :]
+    exists = (idx >= 0) & (idx < n)
+    nb = points[np.clip(idx, 0, n - 1)]
+    gap = nb - points[:, None, :]
+    near = np.einsum("nkc,nkc->nk", gap, gap) <= max_gap_m * max_gap_m
+    return nb, exists & near
 
 
 def icp(
