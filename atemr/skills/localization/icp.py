@@ -10,8 +10,8 @@ Each iteration:
 1. correspondences: nearest target point of each transformed source point (`scipy.spatial.cKDTree`,
    built once per target); the target's local line normal comes from the principal axes of its
    neighbourhood (precomputed, closed form for 2×2 covariances): its ``k`` nearest neighbours for an
-   unordered set (the map's surfaces), or, for a scan (`IcpTarget.from_scan`), the beams beside it that
-   lie within ``normal_max_gap_m`` of it, which needs no search at all;
+   unordered set (the map's surfaces), or, for a scan (`IcpTarget.from_scan`), the beams beside it on the
+   same surface, which needs no search at all (window sums of running totals);
 2. outlier rejection: pairs farther than ``max_correspondence_m`` are dropped, then pairs whose
    point-to-line residual exceeds ``reject_sigmas`` robust standard deviations (1.4826·MAD), and targets
    that are not on a line (isotropic neighbourhoods: corners, clutter) carry no normal and are dropped;
@@ -52,8 +52,8 @@ class IcpParams:
     min_reject_m: float = 0.03
     #: Neighbours used to fit each target point's line.
     normal_neighbours: int = 10
-    #: A scan's neighbouring beam farther than this from a point is across a gap (another surface), not on its
-    #: line (`IcpTarget.from_scan`).
+    #: Two consecutive beams of a scan farther apart than this are on two surfaces (a jump in range): a point's
+    #: line is fitted to the beams of its own run only (`IcpTarget.from_scan`).
     normal_max_gap_m: float = 0.3
     #: A target neighbourhood is a line when its smaller spread is below this fraction of the larger.
     max_planarity: float = 0.5
@@ -120,12 +120,7 @@ class IcpTarget:
         if n < p.normal_neighbours:
             return
         if beam_order:
-            nb, used = _beam_neighbourhoods(self.points, p.normal_neighbours, p.normal_max_gap_m)
-            count = used.sum(axis=1)
-            weight = used / np.maximum(count, 1)[:, None]
-            d = nb - np.einsum("nk,nkc->nc", weight, nb)[:, None, :]
-            cov = (np.einsum("nk,nk->n", weight, d[..., 0] ** 2), np.einsum("nk,nk->n", weight, d[..., 1] ** 2),
-                   np.einsum("nk,nk->n", weight, d[..., 0] * d[..., 1]))
+            count, cov = _beam_covariances(self.points, p.normal_neighbours, p.normal_max_gap_m)
             found = count >= max(3, p.normal_neighbours // 2)
         else:
             dist, nbr = self.tree.query(self.points, k=p.normal_neighbours)  # type: ignore[union-attr]
@@ -145,25 +140,39 @@ class IcpTarget:
     @classmethod
     def from_scan(cls, points: FloatArray, params: IcpParams | None = None) -> IcpTarget:
         """A target of one scan's points in beam order (`atemr.skills.localization.scan.scan_points`): each
-        point's line is fitted to the ``normal_neighbours`` beams round it that lie within ``normal_max_gap_m``
-        of it, at least half of them (a point at a jump in range has fewer on its side and no normal)."""
+        point's line is fitted to the beams round it, ``normal_neighbours // 2`` on either side, within its run
+        of beams (a jump of more than ``normal_max_gap_m`` between consecutive beams ends a run); a point with
+        fewer than half that many (the end of a short run: a chair leg, clutter) has no normal."""
         return cls(points, params, beam_order=True)
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
 
 
-def _beam_neighbourhoods(points: FloatArray, k: int, max_gap_m: float) -> tuple[FloatArray, NDArray[np.bool_]]:
-    """Each point's window of beams, ``k // 2`` on either side and itself, as ``(n, k', 2)`` points and a mask of
-    those that exist (the scan's ends) and lie within ``max_gap_m`` of the point."""
+def _beam_covariances(points: FloatArray, k: int, max_gap_m: float
+                      ) -> tuple[NDArray[np.intp], tuple[FloatArray, FloatArray, FloatArray]]:
+    """For each point of a scan (beam order): how many beams its window holds, and their covariance (xx, yy,
+    xy). The window is ``k // 2`` beams on either side and the point, cut at the ends of its run (consecutive
+    beams at most ``max_gap_m`` apart). Window sums come from running totals: a few passes over the scan, where
+    gathering every window would cost more than the k-d tree query it replaces."""
     n = points.shape[0]
     half = k // 2
-    idx = np.arange(n)[:, None] + np.arange(-half, half + 1)[None, :]
-    exists = (idx >= 0) & (idx < n)
-    nb = points[np.clip(idx, 0, n - 1)]
-    gap = nb - points[:, None, :]
-    near = np.einsum("nkc,nkc->nk", gap, gap) <= max_gap_m * max_gap_m
-    return nb, exists & near
+    jump = np.hypot(*np.diff(points, axis=0).T) > max_gap_m
+    run = np.concatenate([[0], np.cumsum(jump)])  # non-decreasing run number of each point
+    first = np.searchsorted(run, run, side="left")
+    last = np.searchsorted(run, run, side="right") - 1
+    i = np.arange(n)
+    lo, hi = np.maximum(i - half, first), np.minimum(i + half, last) + 1
+    count = hi - lo
+    x, y = (points - points.mean(axis=0)).T  # centred: the squares stay small, the differences exact enough
+
+    def window(v: FloatArray) -> FloatArray:
+        total = np.concatenate([[0.0], np.cumsum(v)])
+        out: FloatArray = (total[hi] - total[lo]) / count
+        return out
+
+    mx, my = window(x), window(y)
+    return count, (window(x * x) - mx * mx, window(y * y) - my * my, window(x * y) - mx * my)
 
 
 def icp(
