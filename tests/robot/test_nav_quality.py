@@ -89,7 +89,9 @@ def test_the_bar_is_judged_from_ground_truth() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("world", "index"), [("studio", 3), ("studio", 18)])
+# 5: the local planner creeps in on its goal; a robot that stopped on the edge of the tolerance
+# by its own account ended 0.251 m from the goal (the navigator's creep_margin_m keeps it inside)
+@pytest.mark.parametrize(("world", "index"), [("studio", 3), ("studio", 5), ("studio", 18)])
 def test_quality_subset(world: str, index: int, capsys: pytest.CaptureFixture[str],
                         monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     pair = quality.pick_pairs(world, index + 1, 0)[index]

@@ -9,7 +9,9 @@ Each iteration:
 
 1. correspondences: nearest target point of each transformed source point (`scipy.spatial.cKDTree`,
    built once per target); the target's local line normal comes from the principal axes of its
-   ``k`` nearest neighbours (precomputed, closed form for 2×2 covariances);
+   neighbourhood (precomputed, closed form for 2×2 covariances): its ``k`` nearest neighbours for an
+   unordered set (the map's surfaces), or, for a scan (`IcpTarget.from_scan`), the beams beside it on the
+   same surface, which needs no search at all (window sums of running totals);
 2. outlier rejection: pairs farther than ``max_correspondence_m`` are dropped, then pairs whose
    point-to-line residual exceeds ``reject_sigmas`` robust standard deviations (1.4826·MAD), and targets
    that are not on a line (isotropic neighbourhoods: corners, clutter) carry no normal and are dropped;
@@ -26,6 +28,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from atemr.errors import ConfigError
@@ -49,6 +52,9 @@ class IcpParams:
     min_reject_m: float = 0.03
     #: Neighbours used to fit each target point's line.
     normal_neighbours: int = 10
+    #: Two consecutive beams of a scan farther apart than this are on two surfaces (a jump in range): a point's
+    #: line is fitted to the beams of its own run only (`IcpTarget.from_scan`).
+    normal_max_gap_m: float = 0.3
     #: A target neighbourhood is a line when its smaller spread is below this fraction of the larger.
     max_planarity: float = 0.5
     #: A target point gets a line only when all its neighbours lie this close (m). On a dense target (a grid's
@@ -64,7 +70,7 @@ class IcpParams:
         if self.max_iterations < 1 or self.normal_neighbours < 2 or self.min_inliers < 3:
             raise ConfigError("icp: need max_iterations >= 1, normal_neighbours >= 2, min_inliers >= 3",
                               path="localization.icp")
-        for name in ("max_correspondence_m", "reject_sigmas", "min_reject_m", "max_planarity"):
+        for name in ("max_correspondence_m", "reject_sigmas", "min_reject_m", "max_planarity", "normal_max_gap_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"must be a finite number > 0, got {value!r}", path=f"localization.icp.{name}")
@@ -101,33 +107,72 @@ class IcpTarget:
     """A reference point set prepared once: its k-d tree and per-point line normals.
 
     Matching many scans against one reference (the map's surfaces, a SLAM keyframe) pays for the tree
-    and the normals once.
+    and the normals once. An unordered set takes each point's line from its nearest neighbours (a k-d tree
+    query); a scan, whose points come in beam order, from the beams beside each point (`from_scan`).
     """
 
-    def __init__(self, points: FloatArray, params: IcpParams | None = None) -> None:
+    def __init__(self, points: FloatArray, params: IcpParams | None = None, *, beam_order: bool = False) -> None:
         self.params = p = params or IcpParams()
         self.points = _clean(points, "target")
         n = self.points.shape[0]
         self.tree = cKDTree(self.points) if n else None
         self.normals = np.full((n, 2), np.nan)
-        if n >= p.normal_neighbours:
+        if n < p.normal_neighbours:
+            return
+        if beam_order:
+            count, cov = _beam_covariances(self.points, p.normal_neighbours, p.normal_max_gap_m)
+            found = count >= max(3, p.normal_neighbours // 2)
+        else:
             dist, nbr = self.tree.query(self.points, k=p.normal_neighbours)  # type: ignore[union-attr]
             found = (nbr < n).all(axis=1) & (dist[:, -1] <= p.normal_radius_m)
             nb = self.points[np.minimum(nbr, n - 1)]  # (n, k, 2)
             d = nb - nb.mean(axis=1, keepdims=True)
-            cxx = (d[..., 0] ** 2).mean(axis=1)
-            cyy = (d[..., 1] ** 2).mean(axis=1)
-            cxy = (d[..., 0] * d[..., 1]).mean(axis=1)
-            # eigenvalues of [[cxx, cxy], [cxy, cyy]]; the line's direction is the major axis
-            half_tr, det_term = (cxx + cyy) / 2, np.sqrt(((cxx - cyy) / 2) ** 2 + cxy**2)
-            major, minor = half_tr + det_term, half_tr - det_term
-            ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
-            normals = np.column_stack([-np.sin(ang), np.cos(ang)])
-            linear = found & (major > 1e-12) & (minor <= (p.max_planarity**2) * major)
-            self.normals[linear] = normals[linear]
+            cov = ((d[..., 0] ** 2).mean(axis=1), (d[..., 1] ** 2).mean(axis=1), (d[..., 0] * d[..., 1]).mean(axis=1))
+        cxx, cyy, cxy = cov
+        # eigenvalues of [[cxx, cxy], [cxy, cyy]]; the line's direction is the major axis
+        half_tr, det_term = (cxx + cyy) / 2, np.sqrt(((cxx - cyy) / 2) ** 2 + cxy**2)
+        major, minor = half_tr + det_term, half_tr - det_term
+        ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
+        normals = np.column_stack([-np.sin(ang), np.cos(ang)])
+        linear = found & (major > 1e-12) & (minor <= (p.max_planarity**2) * major)
+        self.normals[linear] = normals[linear]
+
+    @classmethod
+    def from_scan(cls, points: FloatArray, params: IcpParams | None = None) -> IcpTarget:
+        """A target of one scan's points in beam order (`atemr.skills.localization.scan.scan_points`): each
+        point's line is fitted to the beams round it, ``normal_neighbours // 2`` on either side, within its run
+        of beams (a jump of more than ``normal_max_gap_m`` between consecutive beams ends a run); a point with
+        fewer than half that many (the end of a short run: a chair leg, clutter) has no normal."""
+        return cls(points, params, beam_order=True)
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
+
+
+def _beam_covariances(points: FloatArray, k: int, max_gap_m: float
+                      ) -> tuple[NDArray[np.intp], tuple[FloatArray, FloatArray, FloatArray]]:
+    """For each point of a scan (beam order): how many beams its window holds, and their covariance (xx, yy,
+    xy). The window is ``k // 2`` beams on either side and the point, cut at the ends of its run (consecutive
+    beams at most ``max_gap_m`` apart). Window sums come from running totals: a few passes over the scan, where
+    gathering every window would cost more than the k-d tree query it replaces."""
+    n = points.shape[0]
+    half = k // 2
+    jump = np.hypot(*np.diff(points, axis=0).T) > max_gap_m
+    run = np.concatenate([[0], np.cumsum(jump)])  # non-decreasing run number of each point
+    first = np.searchsorted(run, run, side="left")
+    last = np.searchsorted(run, run, side="right") - 1
+    i = np.arange(n)
+    lo, hi = np.maximum(i - half, first), np.minimum(i + half, last) + 1
+    count = hi - lo
+    x, y = (points - points.mean(axis=0)).T  # centred: the squares stay small, the differences exact enough
+
+    def window(v: FloatArray) -> FloatArray:
+        total = np.concatenate([[0.0], np.cumsum(v)])
+        out: FloatArray = (total[hi] - total[lo]) / count
+        return out
+
+    mx, my = window(x), window(y)
+    return count, (window(x * x) - mx * mx, window(y * y) - my * my, window(x * y) - mx * my)
 
 
 def icp(

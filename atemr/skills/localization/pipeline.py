@@ -5,7 +5,10 @@ Inputs arrive through callbacks (cheap, any order the sources produce them): whe
 until the next tick). Each tick handles the newest scan:
 
 1. ICP of the scan against the previous one, starting from the odometry EKF's own increment, gives
-   the scan-matcher measurement of the twist (`OdometryEkf.update_scan_match`);
+   the scan-matcher measurement of the twist (`OdometryEkf.update_scan_match`), unless odometry says the
+   robot stood still since the previous scan (every wheel measurement in between was zero): a match would
+   only confirm it, and a robot waiting for its next command is most of a day. The previous scan's target
+   (its k-d tree and its normals, from neighbouring beams) is built only when a match needs it;
 2. the `Localizer` gets the scan with the ``odom`` pose of its time (AMCL, map EKF, covariance monitor,
    relocalization).
 
@@ -31,7 +34,7 @@ from atemr.errors import NavigationError, ProtocolError
 from atemr.msgs import ImuSample, LaserScan, Pose2D, Twist, WheelSpeeds
 from atemr.skills.diff_drive import DiffDrive
 from atemr.skills.localization.amcl import PoseEstimate
-from atemr.skills.localization.geometry import as_array, as_pose, compose, relative
+from atemr.skills.localization.geometry import FloatArray, as_array, as_pose, compose, relative
 from atemr.skills.localization.global_search import Hypothesis
 from atemr.skills.localization.icp import IcpTarget, icp
 from atemr.skills.localization.localizer import LocalizationEvent, Localizer, LocalizerParams
@@ -40,6 +43,22 @@ from atemr.skills.localization.scan import scan_points
 
 #: Odometry poses kept to look up the pose at a scan's time (2 s at 50 Hz).
 _HISTORY = 100
+
+
+class _PreviousScan:
+    """The last scan handled, its points and the ``odom`` pose of its time; its ICP target built when first asked
+    (never, while the robot stands still)."""
+
+    def __init__(self, scan: LaserScan, points: FloatArray, odom: Pose2D) -> None:
+        self.scan = scan
+        self.points = points
+        self.odom = odom
+        self._target: IcpTarget | None = None
+
+    def target(self) -> IcpTarget:
+        if self._target is None:
+            self._target = IcpTarget.from_scan(self.points)
+        return self._target
 
 
 class LocalizationPipeline:
@@ -64,10 +83,15 @@ class LocalizationPipeline:
         self._times: deque[float] = deque(maxlen=_HISTORY)
         self._poses: deque[Pose2D] = deque(maxlen=_HISTORY)
         self._pending: LaserScan | None = None
-        self._prev: tuple[LaserScan, IcpTarget, Pose2D] | None = None
+        self._prev: _PreviousScan | None = None
         self._events: list[LocalizationEvent] = []
         self.scans_used = 0
         self.icp_failures = 0
+        #: Scans not matched to the one before because odometry said the robot stood still.
+        self.icp_skipped = 0
+        #: Wheel measurements since the last scan handled, and whether any of them moved.
+        self._wheel_samples = 0
+        self._wheels_moved = False
         if grid is not None:
             self.set_map(grid)
 
@@ -117,6 +141,8 @@ class LocalizationPipeline:
 
     def on_wheel_twist(self, now: float, twist: Twist) -> None:
         """The base twist the wheels measured at ``now`` (a recording keeps this: `atemr.robot.replay`)."""
+        self._wheel_samples += 1
+        self._wheels_moved |= not twist.is_zero
         if self.odometry.update_wheels(now, twist):
             self._remember()
 
@@ -149,19 +175,21 @@ class LocalizationPipeline:
             return
         odom = self.odom_at(scan.t)
         points = scan_points(scan)
-        target = IcpTarget(points)
-        if self._prev is not None and points.shape[0] >= 20:
-            prev_scan, prev_target, prev_odom = self._prev
-            dt = scan.t - prev_scan.t
-            if dt > 0:
-                guess = relative(as_array(prev_odom), as_array(odom))
-                match = icp(points, prev_target, as_pose(guess))
+        prev = self._prev
+        if prev is not None and points.shape[0] >= 20:
+            dt = scan.t - prev.scan.t
+            guess = relative(as_array(prev.odom), as_array(odom))
+            if dt > 0 and self._wheel_samples and not self._wheels_moved:
+                self.icp_skipped += 1
+            elif dt > 0:
+                match = icp(points, prev.target(), as_pose(guess))
                 if match.ok and match.inlier_fraction > 0.5:
                     self.odometry.update_scan_match(max(scan.t, self.odometry.t), match.pose, dt, match.covariance)
                     self._remember()
                 else:
                     self.icp_failures += 1
-        self._prev = (scan, target, odom)
+        self._prev = _PreviousScan(scan, points, odom)
+        self._wheel_samples, self._wheels_moved = 0, False
         if self.localizer is not None:
             self.localizer.update(scan.t, odom, scan)
         self.scans_used += 1

@@ -60,6 +60,9 @@ class NavParams:
     #: Distance at which the approach ends and the final turn begins (inside the tolerance, with margin for
     #: localization error).
     arrive_m: float = 0.1
+    #: A robot that creeps (the local planner cannot get closer: a goal by a wall) is at the goal this far inside
+    #: the tolerance (never farther out than ``arrive_m``): the pose it judges by may be that far off.
+    creep_margin_m: float = 0.05
     #: Plan again this often while following (the obstacle layer changes), and at once when blocked.
     replan_period_s: float = 2.0
     #: How far ahead along the path a blocked cell triggers an immediate replan.
@@ -85,7 +88,8 @@ class NavParams:
     def __post_init__(self) -> None:
         if self.arrive_m > self.xy_tolerance_m:
             raise NavigationError(f"navigator: arrive_m ({self.arrive_m}) must not exceed xy_tolerance_m")
-        for name in ("xy_tolerance_m", "yaw_tolerance_rad", "arrive_m", "replan_period_s", "blocked_lookahead_m",
+        for name in ("xy_tolerance_m", "yaw_tolerance_rad", "arrive_m", "creep_margin_m", "replan_period_s",
+                     "blocked_lookahead_m",
                      "blocked_timeout_s", "path_wait_s", "path_retry_s", "stuck_timeout_s", "progress_m",
                      "recovered_after_m", "localization_timeout_s", "obstacle_wait_s", "timeout_s"):
             value = getattr(self, name)
@@ -362,12 +366,14 @@ class Navigator:
             self.costmap.set_predicted(self.tracker.predicted_points(self.costmap.resolution_m))
 
     def _arrived(self, d_goal: float) -> bool:
-        """Whether the robot is at the goal: within ``arrive_m``, or within the tolerance when the local planner
-        cannot get closer (it creeps), so the robot ends well inside the tolerance, not on its edge. Along a
-        route, only once the route is driven (it may pass by the goal before)."""
+        """Whether the robot is at the goal: within ``arrive_m``, or, when the local planner cannot get closer (it
+        creeps), within the tolerance less ``creep_margin_m``, so that the robot ends inside the tolerance even
+        if its pose is that far off, not on the edge by its own account. Along a route, only once the route is
+        driven (it may pass by the goal before)."""
         p, run = self.params, self._run
         route_driven = self.route is None or self.route.remaining_m <= p.xy_tolerance_m
-        return route_driven and (d_goal <= p.arrive_m or (d_goal <= p.xy_tolerance_m and run.creeping))
+        creep_arrive_m = max(p.arrive_m, p.xy_tolerance_m - p.creep_margin_m)
+        return route_driven and (d_goal <= p.arrive_m or (d_goal <= creep_arrive_m and run.creeping))
 
     # -- the phases ----------------------------------------------------------------------------------------
     def _lost(self, now: float) -> NavStatus:

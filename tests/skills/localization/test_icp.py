@@ -116,6 +116,30 @@ def test_consecutive_simulator_scans(living_room_drive) -> None:  # type: ignore
     assert err[:, 0].max() < 0.03 and err[:, 1].max() < 0.01
 
 
+def test_a_scans_normals_come_from_its_neighbouring_beams_on_the_same_surface() -> None:
+    # beam order: a wall along x at y = 2, then a jump to a post of three points a metre nearer
+    wall = segment((-1.0, 2.0), (1.0, 2.0))
+    post = np.array([[1.05, 1.0], [1.07, 1.0], [1.09, 1.0]])
+    target = IcpTarget.from_scan(np.vstack([wall, post]))
+    normals = target.normals[: len(wall)]
+    assert np.allclose(np.abs(normals[:, 1]), 1.0) and np.allclose(normals[:, 0], 0.0, atol=1e-9)  # across the wall
+    assert np.isnan(target.normals[len(wall):]).all()  # the post's run is too short for a line
+
+
+def test_simulator_scans_match_as_well_with_beam_normals(living_room_drive) -> None:  # type: ignore[no-untyped-def]
+    """What the pipeline builds (normals from neighbouring beams) recovers the motion as the k-d tree's does."""
+    rec = living_room_drive
+    errors = []
+    for i in range(10, len(rec.scans) - 5, 25):
+        true = relative(as_array(rec.truth[i]), as_array(rec.truth[i + 5]))
+        guess = as_pose(relative(as_array(rec.odom[i]), as_array(rec.odom[i + 5])))
+        r = icp(scan_points(rec.scans[i + 5]), IcpTarget.from_scan(scan_points(rec.scans[i])), guess)
+        assert r.converged
+        errors.append((math.hypot(*(as_array(r.pose)[:2] - true[:2])), abs(r.pose.yaw_rad - true[2])))
+    err = np.array(errors)
+    assert err[:, 0].max() < 0.03 and err[:, 1].max() < 0.01
+
+
 def test_pose_algebra() -> None:
     a, b = np.array([1.0, 2.0, 0.5]), np.array([-0.3, 0.4, 2.9])
     assert np.allclose(compose(a, inverse(a)), 0.0, atol=1e-12)
