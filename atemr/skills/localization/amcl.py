@@ -21,7 +21,10 @@ The algorithm is that of ROS amcl and Probabilistic Robotics (ch. 8):
   ``k`` of histogram bins they occupy, ``n = (k−1)/(2ε) · (1 − 2/(9(k−1)) + √(2/(9(k−1))) z)³``, clipped to
   [min_particles, max_particles]. Done vectorised: draw ``max_particles`` once, count the distinct bins
   of every prefix, take the shortest prefix that satisfies the bound;
-* **output**: the weighted mean pose (circular mean for the yaw) and its 3×3 covariance.
+* **output**: the weighted mean pose (circular mean for the yaw) and 3×3 covariance of the heaviest cluster
+  (as ROS amcl reports its best cluster): the particles in KLD bins (``bin_xy_m``) joined to their
+  neighbours, the cluster with the most weight. Recovery particles are scattered over the whole map; in the
+  mean of the whole cloud a few of them pulled the pose metres off in a large building.
 
 Initialisation: from the operator's pose with a covariance (Gaussian cloud), or global (uniform over
 the map's free cells, uniform yaw).
@@ -34,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 from scipy.special import logsumexp
 
 from atemr.domain.maps import OccupancyMap
@@ -133,6 +137,31 @@ def kld_bound(k: NDArray[np.int_] | int, err: float, z: float) -> FloatArray:
     return np.where(kk <= 1, 0.0, n)
 
 
+#: Beyond this many cells the cloud's bounding box is not clustered (a cloud spread over kilometres is one answer).
+_MAX_CLUSTER_CELLS = 4_000_000
+
+
+def heaviest_cluster(particles: FloatArray, weights: FloatArray, cell_m: float) -> NDArray[np.bool_]:
+    """Which particles belong to the heaviest cluster: cells of ``cell_m`` holding particles, joined to their eight
+    neighbours, the one whose particles carry the most weight (all of them when there is one cluster)."""
+    ix = np.floor(particles[:, 0] / cell_m).astype(np.int64)
+    iy = np.floor(particles[:, 1] / cell_m).astype(np.int64)
+    ix -= ix.min()
+    iy -= iy.min()
+    shape = (int(iy.max()) + 1, int(ix.max()) + 1)
+    everything = np.ones(particles.shape[0], dtype=bool)
+    if shape[0] * shape[1] > _MAX_CLUSTER_CELLS:
+        return everything
+    occupied = np.zeros(shape, dtype=bool)
+    occupied[iy, ix] = True
+    labels, count = ndimage.label(occupied, structure=np.ones((3, 3), dtype=bool))
+    if count <= 1:
+        return everything
+    label = labels[iy, ix]
+    totals = np.bincount(label, weights=weights, minlength=count + 1)
+    return np.asarray(label == int(np.argmax(totals)), dtype=bool)
+
+
 def weighted_mean_cov(particles: FloatArray, weights: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Weighted mean (circular for yaw) and covariance of a particle set."""
     w = weights / weights.sum()
@@ -209,7 +238,7 @@ class Amcl:
         odometry drifts while AMCL, rightly, does not update)."""
         if not self.initialized or not (is_finite_pose(pose) and is_finite_pose(odom)):
             return
-        mean, _ = weighted_mean_cov(self.particles, self.weights)
+        mean = as_array(self.estimate.pose)  # the heaviest cluster's mean goes to ``pose``
         moved = compose(as_array(pose), relative(mean, self.particles))
         self.particles = moved
         self._odom_ref = odom
@@ -226,8 +255,7 @@ class Amcl:
         self.w_slow = self.w_fast = 0.0
         self._force = True
         self._last_t = now
-        mean, cov = weighted_mean_cov(self.particles, self.weights)
-        self._estimate = PoseEstimate(now, Pose2D(*map(float, mean)), cov)
+        self._estimate_from(now, self.weights)
 
     def request_update(self) -> None:
         """Weigh the next scan even if the robot has not moved (ROS amcl's ``request_nomotion_update``).
@@ -293,7 +321,8 @@ class Amcl:
         return True
 
     def _estimate_from(self, now: float, w: FloatArray) -> None:
-        mean, cov = weighted_mean_cov(self.particles, w)
+        best = heaviest_cluster(self.particles, w, self.params.bin_xy_m)
+        mean, cov = weighted_mean_cov(self.particles[best], w[best])
         self._estimate = PoseEstimate(now, Pose2D(float(mean[0]), float(mean[1]), float(mean[2])), cov)
         self._last_t = now
 
@@ -310,11 +339,14 @@ class Amcl:
         idx = self.rng.permutation(low_variance_resample(w, n_max, self.rng))
         new = self.particles[idx]
         frac = self.random_fraction
+        inject: NDArray[np.bool_] | None = None
         if frac > 0.0:
             inject = self.rng.random(n_max) < frac
             count = int(inject.sum())
             if count:
                 new[inject] = self._uniform_free(count)
+            else:
+                inject = None
         # KLD: shortest prefix (in this random order) whose size reaches the bound for its bin count.
         bx = np.floor(new[:, 0] / p.bin_xy_m).astype(np.int64) + (1 << 20)
         by = np.floor(new[:, 1] / p.bin_xy_m).astype(np.int64) + (1 << 20)
@@ -328,11 +360,15 @@ class Amcl:
         n = int(sizes[np.argmax(enough)]) if enough.any() else n_max
         new = new[:n]
         if p.roughening > 0.0 and n > 1:
-            spread = np.ptp(new[:, :2], axis=0)
-            yaw_spread = float(np.ptp(wrap_angle(new[:, 2] - new[0, 2])))
-            sigma = p.roughening * np.array([spread[0], spread[1], yaw_spread]) * n ** (-1.0 / 3.0)
-            new = new + self.rng.standard_normal(new.shape) * sigma
-            new[:, 2] = wrap_angle(new[:, 2])
+            # The spread of the resampled cloud only: recovery particles lie anywhere on the map, and their range
+            # (tens of metres in a warehouse) would shake every particle by half a metre at each resampling.
+            drawn = new if inject is None else new[~inject[:n]]
+            if len(drawn) > 1:
+                spread = np.ptp(drawn[:, :2], axis=0)
+                yaw_spread = float(np.ptp(wrap_angle(drawn[:, 2] - drawn[0, 2])))
+                sigma = p.roughening * np.array([spread[0], spread[1], yaw_spread]) * n ** (-1.0 / 3.0)
+                new = new + self.rng.standard_normal(new.shape) * sigma
+                new[:, 2] = wrap_angle(new[:, 2])
         self.particles = new
         self.weights = np.full(n, 1.0 / n)
 
@@ -350,4 +386,5 @@ class Amcl:
         return self._odom_ref
 
 
-__all__ = ["Amcl", "AmclParams", "PoseEstimate", "kld_bound", "low_variance_resample", "weighted_mean_cov"]
+__all__ = ["Amcl", "AmclParams", "PoseEstimate", "heaviest_cluster", "kld_bound", "low_variance_resample",
+           "weighted_mean_cov"]

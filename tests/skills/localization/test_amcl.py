@@ -8,9 +8,17 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError, NavigationError
 from atemr.msgs import Pose2D
-from atemr.skills.localization.amcl import Amcl, AmclParams, kld_bound, low_variance_resample, weighted_mean_cov
+from atemr.skills.localization.amcl import (
+    Amcl,
+    AmclParams,
+    heaviest_cluster,
+    kld_bound,
+    low_variance_resample,
+    weighted_mean_cov,
+)
 from atemr.skills.localization.geometry import as_array, compose, relative
 from atemr.skills.localization.motion_model import OdometryNoise, sample_motion_model_odometry
 from atemr.skills.localization.scan import scan_points
@@ -126,3 +134,75 @@ def test_recovery_particles_find_a_kidnapped_robot(studio_map, simdrive, monkeyp
     monkeypatch.setattr(Amcl, "random_fraction", property(lambda self: 0.0))
     error_without, _ = final_error()
     assert error_without > 1.0, error_without
+
+
+def hall(side_m: float = 40.0) -> OccupancyMap:
+    """An empty square hall, walled: large enough that recovery particles land tens of metres apart."""
+    cells = round(side_m / 0.05)
+    data = np.zeros((cells, cells), dtype=np.int8)
+    data[0, :] = data[-1, :] = data[:, 0] = data[:, -1] = 100
+    return OccupancyMap(data, 0.05, Pose2D(), name="hall")
+
+
+def cluster_and_scatter(rng: np.random.Generator, at: tuple[float, float], n: int = 800, scattered: int = 200,
+                        side_m: float = 40.0) -> np.ndarray:
+    here = rng.normal([at[0], at[1], 0.3], [0.05, 0.05, 0.02], (n, 3))
+    far = np.column_stack([rng.uniform(0, side_m, scattered), rng.uniform(0, side_m, scattered),
+                           rng.uniform(-math.pi, math.pi, scattered)])
+    return np.vstack([here, far])
+
+
+def test_the_heaviest_cluster_leaves_out_particles_scattered_over_the_map() -> None:
+    """Recovery particles land anywhere: the mean of the whole cloud would be metres from the robot (here 3 m)."""
+    rng = np.random.default_rng(3)
+    particles = cluster_and_scatter(rng, (5.0, 5.0))
+    w = np.full(len(particles), 1.0 / len(particles))
+    best = heaviest_cluster(particles, w, 0.25)
+    assert best[:800].all() and best[800:].mean() < 0.05
+    mean, _ = weighted_mean_cov(particles[best], w[best])
+    whole, _ = weighted_mean_cov(particles, w)
+    assert math.hypot(mean[0] - 5.0, mean[1] - 5.0) < 0.02
+    assert math.hypot(whole[0] - 5.0, whole[1] - 5.0) > 2.0
+    # weight decides, not the number of particles: a smaller cluster that fits the scans wins
+    w2 = w.copy()
+    w2[800:900] = 0.0
+    particles2 = particles.copy()
+    particles2[900:] = rng.normal([30.0, 30.0, 0.0], 0.05, (100, 3))
+    w2[900:] = 0.01
+    best2 = heaviest_cluster(particles2, w2 / w2.sum(), 0.25)
+    assert best2[900:].all() and not best2[:800].any()
+    # one broad cloud is one cluster, but for a few stragglers in its tails: the same mean
+    broad = rng.normal([10.0, 10.0, 0.0], [1.0, 1.0, 0.3], (3000, 3))
+    uniform = np.full(3000, 1 / 3000)
+    kept = heaviest_cluster(broad, uniform, 0.25)
+    assert kept.mean() > 0.98, kept.mean()
+    assert np.allclose(weighted_mean_cov(broad[kept], uniform[kept])[0][:2], weighted_mean_cov(broad, uniform)[0][:2],
+                       atol=0.05)
+
+
+def test_a_rebased_cloud_puts_its_heaviest_cluster_on_the_pose() -> None:
+    """A hold correction moves the cloud rigidly onto the matched pose: its heaviest cluster lands there (the mean
+    of the whole cloud, recovery particles included, would put the cluster metres away)."""
+    amcl = Amcl(hall(), np.random.default_rng(0))
+    amcl.initialize(Pose2D(5.0, 5.0, 0.3))
+    rng = np.random.default_rng(4)
+    amcl.particles = cluster_and_scatter(rng, (5.0, 5.0))
+    amcl.weights = np.full(len(amcl.particles), 1.0 / len(amcl.particles))
+    amcl.rebase(Pose2D(6.0, 5.5, 0.3), Pose2D(), now=1.0)
+    assert amcl.estimate.pose.distance_to(Pose2D(6.0, 5.5, 0.3)) < 0.02
+    assert np.hypot(amcl.particles[:800, 0] - 6.0, amcl.particles[:800, 1] - 5.5).mean() < 0.15
+
+
+def test_recovery_particles_do_not_shake_the_cloud_they_join() -> None:
+    """Roughening jitters the resampled particles by the spread of the cloud they came from. Recovery particles,
+    scattered over a 40 m hall, are not part of that spread: counted in, they shook every particle by about half
+    a metre at each resampling, and AMCL lost the robot in a warehouse."""
+    amcl = Amcl(hall(), np.random.default_rng(0))
+    amcl.initialize(Pose2D(20.0, 20.0, 0.3), np.diag([0.02**2, 0.02**2, 0.01**2]))
+    amcl.w_slow, amcl.w_fast = 1.0, 0.8  # the scans fit worse than they used to: 20 % recovery particles
+    assert amcl.random_fraction == pytest.approx(0.2)
+    amcl._resample(amcl.weights)
+    near = np.hypot(amcl.particles[:, 0] - 20.0, amcl.particles[:, 1] - 20.0) < 1.0
+    assert 0.7 < near.mean() < 0.9, near.mean()  # the recovery particles are elsewhere in the hall
+    spread = np.std(amcl.particles[near, :2], axis=0)
+    assert spread.max() < 0.03, spread
