@@ -1,7 +1,8 @@
-"""Messages to the bytes of their channel: CDR through `mcap-ros2-support`, JSON through the standard library.
+"""Messages to the bytes of their channel: CDR (`atemr.io.recording.cdr`: the bytes `mcap-ros2-support` writes,
+compiled per type), JSON through the standard library.
 
 One `Codec` per recording or live server: it keeps the encoder each ROS 2 schema compiles to, so a topic's
-definition is parsed once. JSON has no NaN or infinity, so they become null: a record stays valid JSON for
+definition is compiled once. JSON has no NaN or infinity, so they become null: a record stays valid JSON for
 any reader (Foxglove included).
 """
 
@@ -12,8 +13,8 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from mcap_ros2._dynamic import serialize_dynamic
-
+from atemr.io.recording.cdr import compile_encoder
+from atemr.io.recording.ros2_types import short_name
 from atemr.io.recording.topics import Topic, topic
 
 Encoder = Callable[[Any], bytes]
@@ -44,10 +45,7 @@ class Codec:
     def encoder(self, t: Topic) -> Encoder:
         found = self._encoders.get(t.name)
         if found is None:
-            if t.is_ros2:
-                found = serialize_dynamic(t.schema_name, t.schema_data.decode())[t.schema_name]
-            else:
-                found = encode_json
+            found = compile_encoder(short_name(t.schema_name)) if t.is_ros2 else encode_json
             self._encoders[t.name] = found
         return found
 

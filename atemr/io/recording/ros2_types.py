@@ -73,6 +73,17 @@ def _closure(short: str) -> list[str]:
     return seen
 
 
+def field_lines(short: str) -> list[str]:
+    """The field lines of ``short``'s own definition (``type name [default]``)."""
+    return _FIELDS[short].splitlines()
+
+
+def short_name(full: str) -> str:
+    """``sensor_msgs/msg/LaserScan`` → ``sensor_msgs/LaserScan``."""
+    package, _, name = full.split("/")
+    return f"{package}/{name}"
+
+
 def full_name(short: str) -> str:
     """``sensor_msgs/LaserScan`` → ``sensor_msgs/msg/LaserScan``, the name ROS 2 schemas carry."""
     package, name = short.split("/")
@@ -93,4 +104,4 @@ MESSAGE_TYPES = ("sensor_msgs/LaserScan", "sensor_msgs/Imu", "sensor_msgs/Compre
                  "nav_msgs/OccupancyGrid", "nav_msgs/Path", "tf2_msgs/TFMessage",
                  "geometry_msgs/PoseWithCovarianceStamped", "geometry_msgs/TwistStamped")
 
-__all__ = ["MESSAGE_TYPES", "full_name", "schema_text"]
+__all__ = ["MESSAGE_TYPES", "field_lines", "full_name", "schema_text", "short_name"]
