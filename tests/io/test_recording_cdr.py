@@ -72,3 +72,19 @@ def test_a_fixed_array_of_the_wrong_length_is_an_error_naming_it() -> None:
     encode = compile_encoder("geometry_msgs/PoseWithCovarianceStamped")
     with pytest.raises(ValueError, match=r"float64\[36\] needs 36 values, got 3"):
         encode({"header": {"frame_id": "map"}, "pose": {"covariance": [0.0, 1.0, 2.0]}})
+
+
+def test_defaults_and_an_empty_message_as_mcap_ros2_writes_them(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Definitions beyond the recording's own: defaults of every kind for missing fields, and an empty message
+    (one uint8 in ROS 2's IDL)."""
+    import atemr.io.recording.cdr as cdr
+
+    fields = {"test_msgs/Flags": "bool on true\nbool off false\nint32 n -7\nuint8 u 3\nfloat32 f 1.5\n"
+                                 "string s hello\ntest_msgs/Empty e\nstring[] names\nint16[2] pair",
+              "test_msgs/Empty": ""}
+    monkeypatch.setattr(cdr, "field_lines", lambda short: fields[short].splitlines())
+    schema = fields["test_msgs/Flags"] + "\n" + "=" * 80 + "\nMSG: test_msgs/Empty\n\n"
+    theirs = serialize_dynamic("test_msgs/msg/Flags", schema)["test_msgs/msg/Flags"]
+    ours = compile_encoder("test_msgs/Flags")
+    for message in ({}, {"on": False, "n": 5, "s": "é", "names": ["a", "bc"], "pair": [1, -2]}):
+        assert ours(message) == theirs(message), message

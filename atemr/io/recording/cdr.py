@@ -55,10 +55,15 @@ def _get(msg: Any, name: str) -> Any:
     return getattr(msg, name, None)
 
 
-def _primitive(kind: str, default: Any) -> Writer:
+def _primitive(kind: str, default: str | None) -> Writer:
     code, size, _, cast = _PRIMITIVES[kind]
     packer = struct.Struct("<" + code)
-    fallback = cast(default) if default is not None else cast(0)
+    if default is None:
+        fallback = cast(0)
+    elif kind == "bool":
+        fallback = default.strip().lower() == "true"
+    else:
+        fallback = cast(float(default)) if cast is float else cast(default)
 
     def write(buf: bytearray, value: Any) -> None:
         if size > 1:
@@ -67,7 +72,7 @@ def _primitive(kind: str, default: Any) -> Writer:
     return write
 
 
-def _string(default: Any) -> Writer:
+def _string(default: str | None) -> Writer:
     fallback = "" if default is None else str(default)
 
     def write(buf: bytearray, value: Any) -> None:
@@ -135,7 +140,9 @@ class _Compiler:
         if found is not None:
             return found
         lines = _BUILTIN.get(short) or field_lines(short)
-        fields = [self._field(line, short) for line in lines]
+        # an empty definition is one uint8 in ROS 2's IDL (``structure_needs_at_least_one_member``)
+        fields = [self._field(line, short) for line in lines] or [("structure_needs_at_least_one_member",
+                                                                   _primitive("uint8", None))]
         names = [name for name, _ in fields]
         writers = [writer for _, writer in fields]
 
