@@ -339,14 +339,12 @@ class Amcl:
         idx = self.rng.permutation(low_variance_resample(w, n_max, self.rng))
         new = self.particles[idx]
         frac = self.random_fraction
-        inject: NDArray[np.bool_] | None = None
+        inject = np.zeros(n_max, dtype=bool)  # the recovery particles
         if frac > 0.0:
             inject = self.rng.random(n_max) < frac
             count = int(inject.sum())
             if count:
                 new[inject] = self._uniform_free(count)
-            else:
-                inject = None
         # KLD: shortest prefix (in this random order) whose size reaches the bound for its bin count.
         bx = np.floor(new[:, 0] / p.bin_xy_m).astype(np.int64) + (1 << 20)
         by = np.floor(new[:, 1] / p.bin_xy_m).astype(np.int64) + (1 << 20)
@@ -362,7 +360,7 @@ class Amcl:
         if p.roughening > 0.0 and n > 1:
             # The spread of the resampled cloud only: recovery particles lie anywhere on the map, and their range
             # (tens of metres in a warehouse) would shake every particle by half a metre at each resampling.
-            drawn = new if inject is None else new[~inject[:n]]
+            drawn = new[~inject[:n]]
             if len(drawn) > 1:
                 spread = np.ptp(drawn[:, :2], axis=0)
                 yaw_spread = float(np.ptp(wrap_angle(drawn[:, 2] - drawn[0, 2])))

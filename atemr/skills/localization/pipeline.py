@@ -176,12 +176,12 @@ class LocalizationPipeline:
         odom = self.odom_at(scan.t)
         points = scan_points(scan)
         prev = self._prev
-        if prev is not None and points.shape[0] >= 20:
-            dt = scan.t - prev.scan.t
-            guess = relative(as_array(prev.odom), as_array(odom))
-            if dt > 0 and self._wheel_samples and not self._wheels_moved:
+        if prev is not None and points.shape[0] >= 20 and scan.t > prev.scan.t:
+            if self._wheel_samples and not self._wheels_moved:
                 self.icp_skipped += 1
-            elif dt > 0:
+            else:
+                dt = scan.t - prev.scan.t
+                guess = relative(as_array(prev.odom), as_array(odom))
                 match = icp(points, prev.target(), as_pose(guess))
                 if match.ok and match.inlier_fraction > 0.5:
                     self.odometry.update_scan_match(max(scan.t, self.odometry.t), match.pose, dt, match.covariance)

@@ -89,9 +89,8 @@ class NavParams:
         if self.arrive_m > self.xy_tolerance_m:
             raise NavigationError(f"navigator: arrive_m ({self.arrive_m}) must not exceed xy_tolerance_m")
         for name in ("xy_tolerance_m", "yaw_tolerance_rad", "arrive_m", "creep_margin_m", "replan_period_s",
-                     "blocked_lookahead_m",
-                     "blocked_timeout_s", "path_wait_s", "path_retry_s", "stuck_timeout_s", "progress_m",
-                     "recovered_after_m", "localization_timeout_s", "obstacle_wait_s", "timeout_s"):
+                     "blocked_lookahead_m", "blocked_timeout_s", "path_wait_s", "path_retry_s", "stuck_timeout_s",
+                     "progress_m", "recovered_after_m", "localization_timeout_s", "obstacle_wait_s", "timeout_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise NavigationError(f"navigator: {name} must be a finite number > 0, got {value!r}")
