@@ -79,7 +79,8 @@ class CloseEarly:
         length: list[int | None] = [None]
 
         def capture(status: str, headers: list[tuple[str, str]], exc_info: Any = None) -> Any:
-            length[0] = next((int(v) for k, v in headers if k.lower() == "content-length" and v.isdigit()), None)
+            length[0] = 0 if _has_no_body(environ, status) else next(
+                (int(v) for k, v in headers if k.lower() == "content-length" and v.isdigit()), None)
             return start_response(status, headers, exc_info)
 
         body = self.app(environ, capture)
@@ -89,6 +90,13 @@ class CloseEarly:
             return [b"".join(body)]
         finally:
             body.close()
+
+
+def _has_no_body(environ: dict[str, Any], status: str) -> bool:
+    """Whether HTTP forbids this response a body: a HEAD request's, or a 1xx, 204 or 304 (a browser's
+    revalidated cached asset), which carry no Content-Length although the app may hold an open file."""
+    code = int(status.split(None, 1)[0])
+    return environ.get("REQUEST_METHOD") == "HEAD" or 100 <= code < 200 or code in (204, 304)
 
 
 #: Seconds a client may take to send each line of a request's head (one that sends nothing is dropped).

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import urllib.request
+from pathlib import Path
 
 import pytest
 
@@ -84,3 +85,23 @@ def test_close_early_closes_small_bodies_and_streams_big_ones():
     assert CloseEarly(app_of(big, 20), max_bytes=10)({}, lambda *a: None) is big and closed == [small]
     unknown = Body([b"y"])
     assert CloseEarly(app_of(unknown, None), max_bytes=10)({}, lambda *a: None) is unknown
+
+
+def test_close_early_closes_a_not_modified_static_file_which_has_no_content_length():
+    """A browser revalidating a cached script gets 304 without Content-Length; werkzeug skips close() when
+    the page has moved on, so the static file must be closed here (a CI run saw socket.js leak)."""
+    import time
+
+    from flask import Flask
+    from werkzeug.http import http_date
+    from werkzeug.test import EnvironBuilder
+
+    from atemr.ui.server import CloseEarly
+
+    app = Flask(__name__, static_folder=str(Path(__file__).parents[2] / "atemr" / "ui" / "static"))
+    statuses = []
+    for headers, method in (({"If-Modified-Since": http_date(time.time() + 100)}, "GET"), ({}, "HEAD")):
+        environ = EnvironBuilder(path="/static/js/socket.js", headers=headers, method=method).get_environ()
+        body = CloseEarly(app.wsgi_app)(environ, lambda status, headers, exc_info=None: statuses.append(status))
+        assert isinstance(body, list) and b"".join(body) == b""
+    assert statuses == ["304 NOT MODIFIED", "200 OK"]
