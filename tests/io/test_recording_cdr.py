@@ -88,3 +88,78 @@ def test_defaults_and_an_empty_message_as_mcap_ros2_writes_them(monkeypatch: pyt
     ours = compile_encoder("test_msgs/Flags")
     for message in ({}, {"on": False, "n": 5, "s": "é", "names": ["a", "bc"], "pair": [1, -2]}):
         assert ours(message) == theirs(message), message
+
+
+def random_definitions(rng: np.random.Generator) -> dict[str, str]:
+    """A top type and two nested types of random fields of every kind the generator treats apart: each
+    primitive, strings, sequences, short and long fixed arrays (bytes among them), nested messages and arrays
+    of them, in random order, so fixed-size runs meet variable-length fields at every alignment."""
+    primitives = ["bool", "byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64",
+                  "float32", "float64"]
+
+    def fields(count: int, nested: list[str]) -> str:
+        lines = []
+        for k in range(count):
+            kind = primitives[rng.integers(len(primitives))]
+            shape = rng.integers(8)
+            if shape == 0:
+                lines.append(f"string f{k}")
+            elif shape == 1:
+                lines.append(f"{kind}[] f{k}")
+            elif shape == 2:
+                lines.append(f"{kind}[{rng.choice([1, 3, 9, 70])}] f{k}")
+            elif shape == 3 and nested:
+                lines.append(f"{nested[rng.integers(len(nested))]}{rng.choice(['', '[]', '[2]'])} f{k}")
+            elif shape == 4:
+                lines.append(f"string[] f{k}")
+            else:
+                lines.append(f"{kind} f{k}")
+        return "\n".join(lines)
+
+    return {"rnd/Leaf": fields(5, []), "rnd/Mid": fields(7, ["rnd/Leaf"]),
+            "rnd/Top": fields(14, ["rnd/Leaf", "rnd/Mid"])}
+
+
+def random_message(short: str, defs: dict[str, str], rng: np.random.Generator) -> dict[str, object]:
+    """Values for ``short``'s fields, about one in six left out (its default)."""
+    ranges = {"bool": (0, 2), "byte": (0, 256), "char": (-128, 128), "int8": (-128, 128), "uint8": (0, 256),
+              "int16": (-2**15, 2**15), "uint16": (0, 2**16), "int32": (-2**31, 2**31), "uint32": (0, 2**32),
+              "int64": (-2**62, 2**62), "uint64": (0, 2**63)}
+
+    def one(kind: str) -> object:
+        if kind == "string":
+            return "".join(rng.choice(list("abcé")) for _ in range(rng.integers(0, 6)))
+        if kind.startswith("rnd/"):
+            return random_message(kind, defs, rng)
+        if kind in ("float32", "float64"):
+            return float(rng.integers(-1000, 1000)) / 8.0  # exact in float32
+        low, high = ranges[kind]
+        value = int(rng.integers(low, high, dtype=np.int64 if high <= 2**62 else np.uint64))
+        return bool(value) if kind == "bool" else value
+
+    out: dict[str, object] = {}
+    for line in defs[short].splitlines():
+        spec, name = line.split()
+        if rng.integers(6) == 0:
+            continue
+        if "[" not in spec:
+            out[name] = one(spec)
+            continue
+        kind, bound = spec[:-1].split("[")
+        out[name] = [one(kind) for _ in range(int(bound) if bound else rng.integers(0, 4))]
+    return out
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_random_definitions_give_mcap_ros2s_bytes(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    import atemr.io.recording.cdr as cdr
+
+    rng = np.random.default_rng(seed)
+    defs = random_definitions(rng)
+    monkeypatch.setattr(cdr, "field_lines", lambda short: defs[short].splitlines())
+    schema = defs["rnd/Top"] + "".join(f"\n{'=' * 80}\nMSG: {name}\n{defs[name]}" for name in ("rnd/Mid", "rnd/Leaf"))
+    theirs = serialize_dynamic("rnd/msg/Top", schema)["rnd/msg/Top"]
+    ours = compile_encoder("rnd/Top")
+    for _ in range(20):
+        message = random_message("rnd/Top", defs, rng)
+        assert ours(message) == theirs(message), message

@@ -166,3 +166,13 @@ def test_a_threaded_writer_never_blocks_the_caller_and_counts_what_it_drops(tmp_
     got = texts(tmp_path / "slow.mcap")
     numbers = [int(t[1:]) for t in got]
     assert len(got) == writer.messages and numbers[:40] == list(range(40)) and numbers == sorted(set(numbers))
+
+
+def test_json_messages_carry_non_finite_numbers_as_null_and_stay_valid_json() -> None:
+    import json
+
+    from atemr.io.recording.codec import encode_json
+
+    message = {"t": 1.5, "values": [1.0, float("nan"), {"x": float("inf")}], "name": "é"}
+    assert json.loads(encode_json(message)) == {"t": 1.5, "values": [1.0, None, {"x": None}], "name": "é"}
+    assert encode_json({"t": 2.0, "ok": True}) == b'{"t":2.0,"ok":true}'

@@ -32,8 +32,14 @@ def finite(value: Any) -> Any:
 
 
 def encode_json(message: Any) -> bytes:
-    return json.dumps(finite(message), separators=(",", ":"), ensure_ascii=False, allow_nan=False,
-                      default=str).encode("utf-8")
+    """``message`` as compact UTF-8 JSON, non-finite floats as null. Almost every message has none, so it is
+    encoded as it is first and walked by `finite` only when the encoder refuses a NaN or an infinity."""
+    try:
+        text = json.dumps(message, separators=(",", ":"), ensure_ascii=False, allow_nan=False, default=str)
+    except ValueError:
+        text = json.dumps(finite(message), separators=(",", ":"), ensure_ascii=False, allow_nan=False,
+                          default=str)
+    return text.encode("utf-8")
 
 
 class Codec:

@@ -67,13 +67,18 @@ def pose_from(msg: Any) -> Pose2D:
     return Pose2D(float(msg.position.x), float(msg.position.y), yaw_of(msg.orientation))
 
 
+#: Where the 3×3 (x, y, yaw) covariance's entries go in ROS's row-major 6×6, row by row.
+_COV6_INDEX = (0, 1, 5, 6, 7, 11, 30, 31, 35)
+
+
 def covariance6(cov3: NDArray[np.float64] | None) -> list[float]:
     """A 3×3 (x, y, yaw) covariance as ROS's row-major 6×6 (x, y, z, roll, pitch, yaw); z, roll and pitch 0."""
-    out = np.zeros((6, 6))
+    out = [0.0] * 36
     if cov3 is not None:
-        index = np.array([0, 1, 5])
-        out[np.ix_(index, index)] = np.asarray(cov3, dtype=np.float64)[:3, :3]
-    return [float(v) for v in out.ravel()]
+        for index, value in zip(_COV6_INDEX, np.asarray(cov3, dtype=np.float64)[:3, :3].ravel().tolist(),
+                                strict=True):
+            out[index] = value
+    return out
 
 
 def covariance3(cov6: Any) -> NDArray[np.float64]:
