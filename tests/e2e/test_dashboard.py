@@ -177,6 +177,8 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
     wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
     wait_for(page, "document.getElementById('goal-progress').textContent.startsWith('On the way: ')")
     wait_for(page, "ATEMR.state.goal !== null && ATEMR.state.global_path.length > 2")
+    # the goal's acknowledgement says it was taken, never "done" beside "On the way"
+    assert page.inner_text("#command-result") == "Go here: accepted"
     goal = page.evaluate("ATEMR.state.goal")
     assert abs(goal["x_m"] - gx) < 0.1 and abs(goal["y_m"] - gy) < 0.1 and abs(goal["yaw_rad"]) < 0.3
     page.screenshot(path=str(shots / "control-auto-goal.png"), full_page=True)
@@ -321,7 +323,7 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
     page.screenshot(path=str(shots / "control-kidnap.png"), full_page=True)
     # Localization was not told: FIND POSITION has the robot find itself, and the map shows it where it now is.
     page.click("#localize-global")
-    wait_for(page, "document.getElementById('command-result').textContent === 'Find position: done'")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Find position: searching'")
     wait_for(page, f"ATEMR.state.pose !== null && Math.hypot(ATEMR.state.pose.x_m - {pose.x_m}, "
                    f"ATEMR.state.pose.y_m - {pose.y_m}) < 0.15", timeout=20_000)
 

@@ -36,14 +36,21 @@
       mission_stop: "Stop mission", mapping_begin: "Begin map", mapping_end: "End map", map_save: "Save map",
       map_discard: "Discard map", map_select: "Map", agent_reload: "Reload", autonomy_level: "Autonomy",
       autonomy_confirm: "Confirm", autonomy_deny: "Deny", sim_button: "Power button", sim_obstacle: "Drop obstacle",
-      sim_kidnap: "Kidnap", camera: "Camera", agent_view: "Agent view",
+      sim_kidnap: "Kidnap", camera: "Camera", agent_view: "Agent view", go_to_place: "Go to place",
+      place_save: "Save place", place_delete: "Delete place",
+    },
+    // Commands that start something the robot then does for a while: their acknowledgement says it began, not
+    // "done", which beside "On the way: 1.1 m left" read as the goal's outcome.
+    STARTED: {
+      goal: "accepted", go_to_place: "accepted", mission_start: "started", localize_globally: "searching",
+      mapping_begin: "started",
     },
     report(what, ack) {
       const label = this.LABELS[what] || what;
       if (!ack.ok && this.alert) this.alert(`${label}: ${ack.reason}`, "warning");
       const out = document.getElementById("command-result");
       if (!out) return;
-      out.textContent = ack.ok ? `${label}: done` : `${label}: ${ack.reason}`;
+      out.textContent = ack.ok ? `${label}: ${this.STARTED[what] || "done"}` : `${label}: ${ack.reason}`;
       out.className = ack.ok ? "hint ok" : "hint error";
     },
     fmt(v, digits = 2) { return typeof v === "number" && isFinite(v) ? v.toFixed(digits) : "—"; },
