@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -29,7 +29,7 @@ from atemr.domain.status import ComponentHealth
 from atemr.errors import AtemrError, ConfigError, HardwareError
 from atemr.fsm.agent import DEFAULT_AGENT_FILE, Agent
 from atemr.io.can.supervisor import BusSupervisor
-from atemr.io.devices.base import fresh
+from atemr.io.devices.base import Device, fresh
 from atemr.io.devices.drivers import (
     DeviceContext,
     Devices,
@@ -125,7 +125,8 @@ def _wire(robot: Robot) -> None:
     store, localization, maps, wheels = _add_localization(robot, sim, devices, primary.driver)
     battery, sim_battery = _add_battery(robot, primary.driver, maps, sim)
     port, navigation, agent, watcher = _add_agent(robot, primary, inputs=inputs, health=health,
-                                                  frame=_frame_reader(robot, devices, sim), devices=devices,
+                                                  frame=_frame_reader(robot, devices.camera, "camera", sim),
+                                                  devices=devices,
                                                   localization=localization, maps=maps, battery=battery)
     system_monitor = SystemMonitor(config.data_dir)  # scheduled last of the always-present parts, below
     robot.parts = RobotParts(
@@ -247,15 +248,20 @@ def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
     return store, localization, maps, wheels
 
 
-def _frame_reader(robot: Robot, devices: Devices, sim: Simulation | None) -> Callable[[], Frame | None]:
-    """How the agent reads one camera frame (a mission step storing a picture): the newest; from the simulator's
-    camera, rendered at once when no consumer has kept it rendering (`FrameSource.request`: the agent ticks on
-    the scheduler's thread, where rendering is safe)."""
-    camera = devices.camera
+F = TypeVar("F")
+
+
+def _frame_reader(robot: Robot, camera: Device[F] | None, kind: str, sim: Simulation | None,
+                  ) -> Callable[[], F | None]:
+    """How a part that needs one frame now reads the ``kind`` camera (``camera`` or ``depth``): the agent's mission
+    step storing a picture, the recording when its next frame is due. The device's newest frame; from a simulated
+    camera, rendered at once when no consumer has kept it rendering (`FrameSource.request`: both read on the
+    scheduler's thread, where rendering is safe), so each frame they keep is rendered once."""
     if camera is None:
         return lambda: None
-    if sim is not None and driver_name(robot.config, "camera") == "sim":
-        source, now = sim.camera_source, robot.clock.now
+    if sim is not None and driver_name(robot.config, kind) == "sim":
+        source: FrameSource[Any] = sim.camera_source if kind == "camera" else sim.depth_source
+        now = robot.clock.now
         return lambda: source.request(now())
     return lambda: camera.latest
 
@@ -328,13 +334,6 @@ def _recording_writer(robot: Robot, meta: dict[str, object]) -> RecordingWriter 
     return RecordingWriter(path, threaded=mode == "thread", **options)  # type: ignore[arg-type]
 
 
-def _render_for_recording(source: FrameSource[Any], next_t: Callable[[], float]) -> None:
-    """A simulated camera renders for the recording only from two of its periods before each frame the recording
-    keeps (``next_t()``: when that is)."""
-    lead_s = 2 * source.period_s
-    source.want("recording", lambda now: now + lead_s >= next_t())
-
-
 def _add_recorder(robot: Robot) -> None:
     """Record the run (`RunRecorder` → `RecordingWriter`) and serve it live (``ui.foxglove``), when asked."""
     cfg, parts = robot.config, robot.parts
@@ -360,16 +359,14 @@ def _add_recorder(robot: Robot) -> None:
         return
     sources = RecorderSources(devices=parts.devices, localization=parts.localization, maps=parts.maps,
                               navigation=parts.navigation, agent=parts.agent, health=parts.health, sim=sim,
-                              can_tap=robot.open_bus(), jpeg=jpeg)
+                              can_tap=robot.open_bus(), jpeg=jpeg,
+                              camera_frame=_frame_reader(robot, parts.devices.camera, "camera", sim),
+                              depth_frame=_frame_reader(robot, parts.devices.depth, "depth", sim))
     recorder = RunRecorder(sources, sinks, camera_hz=cfg.trace.camera_hz, depth_hz=cfg.trace.depth_hz,
                            pose_hz=cfg.trace.pose_hz, meta=meta, threaded_maps=robot.scheduler.realtime)
     if writer is not None:
         writer.preamble = recorder.preamble
     recorder.attach()
-    if sim is not None and driver_name(cfg, "camera") == "sim":
-        _render_for_recording(sim.camera_source, lambda: recorder.next_camera_t)  # trace.camera_hz
-    if sim is not None and driver_name(cfg, "depth") == "sim":
-        _render_for_recording(sim.depth_source, lambda: recorder.next_depth_t)  # trace.depth_hz
     parts.wheels.subscribe(recorder.on_wheels)
     robot.event_listeners.append(recorder.on_event)
     if live is not None:

@@ -32,7 +32,6 @@ from atemr.clock import due
 from atemr.domain.maps import OccupancyMap
 from atemr.fsm.agent import Agent
 from atemr.fsm.recording import AgentRecorder, Record
-from atemr.io.devices.base import Device
 from atemr.io.devices.drivers import Devices
 from atemr.io.recording import ros2_convert as ros
 from atemr.io.recording import topics as tp
@@ -89,6 +88,10 @@ class RecorderSources:
     #: A bus on the robot's CAN channel that only listens (None: CAN frames are not recorded).
     can_tap: can.BusABC | None = None
     jpeg: Callable[[NDArray[np.uint8]], bytes] | None = None
+    #: The colour and the depth camera's newest frame, read when the recording's next one is due (None: not
+    #: recorded); a simulated camera renders it then unless a consumer keeps it rendering.
+    camera_frame: Callable[[], NDArray[np.uint8] | None] | None = None
+    depth_frame: Callable[[], DepthImage | None] | None = None
 
 
 class RunRecorder:
@@ -316,17 +319,6 @@ class RunRecorder:
             self._state = state
             self._emit(tp.AGENT_STATE.name, now, lambda: {"t": now, "state": state[0], "mode": state[1]})
 
-    @property
-    def next_camera_t(self) -> float:
-        """When the next camera frame is recorded (-inf: at the first tick): a simulated camera renders for the
-        recording only shortly before it."""
-        return self._camera_frames.next_t
-
-    @property
-    def next_depth_t(self) -> float:
-        """When the next depth frame is recorded (as `next_camera_t`, for the simulated depth camera)."""
-        return self._depth_frames.next_t
-
     def on_event(self, t: float, kind: str, text: str) -> None:
         """A robot event (`atemr.robot.core.Robot.event`, any thread): recorded at the next tick."""
         self._pending_events.append((t, kind, text))
@@ -340,13 +332,13 @@ class RunRecorder:
         jpeg = self.sources.jpeg
         if jpeg is None:
             return
-        frame = self._camera_frames.take(self.sources.devices.camera, now)
+        frame = self._camera_frames.take(self.sources.camera_frame, now)
         if frame is None:
             return
         self._emit(tp.CAMERA.name, now, lambda: ros.image_msg(now, jpeg(frame)))
 
     def _depth(self, now: float) -> None:
-        frame = self._depth_frames.take(self.sources.devices.depth, now)
+        frame = self._depth_frames.take(self.sources.depth_frame, now)
         if frame is None:
             return
         if frame.mount != self._depth_mount:
@@ -365,11 +357,11 @@ class FrameSampler(Generic[F]):
         self.next_t = float("-inf") if rate_hz > 0 else float("inf")
         self._last: object = None
 
-    def take(self, device: Device[F] | None, now: float) -> F | None:
-        """The device's newest frame if one is due and new, else None."""
-        if device is None or not due(now, self.next_t):
+    def take(self, read: Callable[[], F | None] | None, now: float) -> F | None:
+        """The newest frame (``read()``, called only when one is due) if it is new, else None."""
+        if read is None or not due(now, self.next_t):
             return None
-        frame = device.latest
+        frame = read()
         if frame is None or frame is self._last:
             return None
         self.next_t = now + self.period_s

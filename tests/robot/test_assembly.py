@@ -200,9 +200,9 @@ def test_a_headless_robot_renders_no_camera_frame_until_a_picture_is_taken(tmp_p
 
 
 def test_a_recording_alone_renders_the_depth_frames_it_keeps(tmp_path):
-    """With the depth layer off, only the recording wants depth frames: the simulated D415 renders about one a
-    second (trace.depth_hz) rather than ten, and each rendered frame is the one recorded; trace.depth_hz 0
-    records none and renders none."""
+    """With the depth layer off, only the recording wants depth frames: the simulated D415 renders one a second
+    (trace.depth_hz) rather than ten, each when the recording takes it, so every rendered frame is recorded;
+    trace.depth_hz 0 records none and renders none."""
     from mcap.reader import make_reader
 
     from atemr.robot.headless import build_headless_robot
@@ -219,5 +219,5 @@ def test_a_recording_alone_renders_the_depth_frames_it_keeps(tmp_path):
         with open(folder / "run.mcap", "rb") as handle:
             kept = sum(1 for _ in make_reader(handle).iter_messages(topics=["/camera/depth/image_rect_raw"]))
         assert kept in recorded, (depth_hz, kept)
-        # from two periods (0.2 s) before each kept frame: about three rendered per kept one, never all 31
-        assert rendered <= 3 * kept, (depth_hz, rendered, kept)
+        # rendered when the recording's next frame is due, and only then: one rendered per kept one, not 31
+        assert rendered == kept, (depth_hz, rendered, kept)
