@@ -92,3 +92,22 @@ def test_the_page_falls_back_to_mjpeg_when_webrtc_fails(webrtc_robot_site, page,
     assert page.locator("#camera").is_visible() and page.locator("#camera-video").is_hidden()
     assert webrtc_robot_site.server.app.extensions["atemr.drive_video"].peers == 0  # the page let its offer go
     page.screenshot(path=str(shots / "drive-video-mjpeg-fallback.png"))
+
+
+def test_the_camera_starts_when_its_script_runs_after_the_socket_connected(webrtc_robot_site, page, helpers):
+    """The browser delivers the socket's messages while it waits for a page's later scripts to download: on a
+    loaded machine the connection opened before camera.js ran, which then never heard of it and never started the
+    camera (the drive-video benchmark saw it twice). Here camera.js comes two seconds late, the socket connects
+    meanwhile, and the camera must still start."""
+    arrived = []
+
+    def late(route: Any) -> None:
+        time.sleep(2.0)  # the browser runs on: its socket connects meanwhile
+        arrived.append(time.monotonic())
+        route.continue_()
+
+    page.route(re.compile(r".*/camera\.js(\?.*)?$"), late)
+    open_control(page, webrtc_robot_site, helpers)
+    helpers.wait_for(page, "() => window.atemrDriveVideo && atemrDriveVideo.transport === 'webrtc'", WAIT_S)
+    assert arrived, "camera.js was not delayed: the test proves nothing"
+    numbers_rise(page, "#camera-video", helpers)

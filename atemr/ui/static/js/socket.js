@@ -81,6 +81,14 @@ class AtemrSocket {
 
   on(event, f) {
     (this.handlers[event] = this.handlers[event] || []).push(f);
+    // A page's later scripts can register after the connection opened: the browser delivers the socket's
+    // messages while it waits for them to download (seen under load: the Control page's camera never started).
+    // They are told at once, as they would have been.
+    if (event === "connect" && this.status === "ONLINE") {
+      queueMicrotask(() => {
+        try { f(null); } catch (err) { console.error(`handler of ${event}`, err); }
+      });
+    }
   }
 
   // emit(event, data) → Promise of the acknowledgement {ok, reason}
