@@ -8,6 +8,7 @@ any reader (Foxglove included).
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections.abc import Callable
@@ -31,14 +32,17 @@ def finite(value: Any) -> Any:
     return value
 
 
+_compact_json = functools.partial(json.dumps, separators=(",", ":"), ensure_ascii=False, allow_nan=False,
+                                  default=str)
+
+
 def encode_json(message: Any) -> bytes:
     """``message`` as compact UTF-8 JSON, non-finite floats as null. Almost every message has none, so it is
     encoded as it is first and walked by `finite` only when the encoder refuses a NaN or an infinity."""
     try:
-        text = json.dumps(message, separators=(",", ":"), ensure_ascii=False, allow_nan=False, default=str)
+        text = _compact_json(message)
     except ValueError:
-        text = json.dumps(finite(message), separators=(",", ":"), ensure_ascii=False, allow_nan=False,
-                          default=str)
+        text = _compact_json(finite(message))
     return text.encode("utf-8")
 
 

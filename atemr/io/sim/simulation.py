@@ -125,8 +125,8 @@ class PeriodicSource(Publishes[T]):
 class FrameSource(PeriodicSource[T]):
     """A simulated camera's frames. On demand (``on_demand``), a tick renders a frame only while a consumer wants
     it: one that subscribed (it takes every frame: the depth obstacle layer), or one registered with `want`
-    whose test says so at that tick (the dashboard while someone watches, a recording when its next frame is
-    due). A consumer that needs a frame at one moment (a mission step storing a picture) calls `request`.
+    whose test says so at that tick (the dashboard while someone watches). A consumer that needs a frame at one
+    moment (a mission step storing a picture, a recording when its next frame is due) calls `request`.
 
     A frame costs milliseconds where a scan costs a fraction of one, and a headless run nobody watches renders
     none; without demand the frames are skipped, not the clock: `last_tick_t` still says the camera runs.
