@@ -266,18 +266,17 @@ class _Function:
         data = self.generator.constant("_A", _array_data(kind, length))
         count, out = self.var("n"), self.var("b")
         self.emit(f"{count}, {out} = {data}({value})")
-        if length is None:
-            self.align(4)
-            self.fmt.append("I")
-            self.args.append(count)
-            self.advance(4)
-        self.flush()
         if length is not None:  # fixed: its size is known, so is the offset after it
             self.align(size)
             self.flush()
             self.emit(f"buf += {out}")
             self.advance(size * length)
             return
+        self.align(4)
+        self.fmt.append("I")
+        self.args.append(count)
+        self.advance(4)
+        self.flush()
         if size > self.modulus:  # the elements' alignment after the count, when there are any
             self.emit(f"if {count}: buf += _ZEROS[(4 - len(buf)) % {size}]")
         elif -self.rest % size:
