@@ -95,6 +95,8 @@ def test_drive_by_video_and_send_a_goal_on_every_screen(ready_site, sized, shots
         .filter(([, r]) => r.height < {MIN_TARGET_PX} || r.width < {MIN_TARGET_PX})
         .map(([name, r]) => `${{name}} ${{Math.round(r.width)}}x${{Math.round(r.height)}}`)""")
     assert not small, f"tap targets under {MIN_TARGET_PX} px at {page.size_name}: {small}"
+    # the screenshot shows the picture the carer sees, not the black frame before the stream's first image
+    wait_for(page, "document.getElementById('camera').naturalWidth >= 640", timeout=20_000)
     page.screenshot(path=str(shots / f"carer-{page.size_name}-control.png"))
 
     # drive forward with the joystick: by touch on the tablet and the phone, by mouse on the laptop
