@@ -239,14 +239,17 @@ class RobotControl:
     def _follow(self, session: _Session, conn: ControlConnection, *, owner: bool) -> None:
         seen = 0
         while True:
-            events = session.wait(seen, FOLLOW_POLL_S)
+            # Read `stopping` before the events: the robot's shutdown publishes the mission's result before it
+            # stops the server, so a follower that sees the server stopping still sends that result.
+            leaving = conn.gone() or self.server.stopping
+            events = session.wait(seen, 0.0 if leaving else FOLLOW_POLL_S)
             for event in events:
                 if not conn.send(event):
                     break
             seen += len(events)
             if events and events[-1]["event"] == "result":
                 return
-            if conn.gone() or self.server.stopping:
+            if leaving:
                 if owner and not session.finished:
                     self._queue_cancel(session, "the client that started the mission disconnected")
                 return

@@ -28,6 +28,7 @@ from atemr.fsm.spec import AgentSpec
 from atemr.io.can.bus import unique_channel
 from atemr.io.control_client import ControlClient
 from atemr.robot import build_robot
+from atemr.robot import control as control_module
 from atemr.robot.control import RobotControl
 from atemr.robot.core import Robot
 from atemr.scheduler import Scheduler
@@ -198,6 +199,34 @@ def test_the_robots_stop_ends_a_followed_mission_and_removes_the_socket(light: R
         result = until(client, "result")["result"]
     assert result["outcome"] == "interrupted" and result["reason"] == "the robot stopped before the mission ended"
     assert not light.socket.exists()
+
+
+def test_a_follower_whose_wait_ends_as_the_robot_stops_still_sends_the_result(
+        light: Running, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The robot's stop publishes the result, then stops the server. A follower whose wait for events ended just
+    before the result, and who then sees the server stopping, must still send it (CI lost it once)."""
+    original = control_module._Session.wait
+    armed, stopper = threading.Event(), threading.Thread(target=light.stop, name="stopper")
+
+    def wait_then_stop(session: Any, seen: int, timeout_s: float) -> list[dict[str, Any]]:
+        events = original(session, seen, timeout_s)
+        if armed.is_set() and not stopper.is_alive() and not events:
+            armed.clear()
+            stopper.start()
+            for _ in range(1000):  # the robot stops between this follower's wait and its look at the server
+                if light.control.server.stopping:
+                    break
+                threading.Event().wait(0.01)
+        return events
+
+    monkeypatch.setattr(control_module._Session, "wait", wait_then_stop)
+    client, _ = start(light.socket, LONG_WAIT, timeout_s=600000)
+    with client:
+        until(client, "step", status="running")
+        armed.set()
+        result = until(client, "result")["result"]
+    stopper.join(30)
+    assert result["outcome"] == "interrupted" and result["reason"] == "the robot stopped before the mission ended"
 
 
 def test_below_the_missions_autonomy_level_the_start_waits_for_the_operator(tmp_path: Path,
