@@ -37,7 +37,7 @@ from atemr.skills.localization.config import LocalizationConfig
 from atemr.skills.localization.global_search import GlobalResult, GlobalSearch
 from atemr.skills.localization.likelihood_field import LikelihoodField
 from atemr.skills.localization.map_agreement import MapAgreement
-from atemr.skills.localization.scan import scan_points, sensor_origin
+from atemr.skills.localization.scan import open_ray_ends, scan_points, sensor_origin
 
 ROOT = Path(__file__).resolve().parents[1]
 EXTERNAL = ROOT.parent / "shared" / "worlds" / "external"
@@ -137,7 +137,7 @@ def run_world(world_name: str, count: int = 50, seed: int = 0) -> list[Trial]:
             movers.step(1.0, (truth.x_m, truth.y_m), ROBOT_RADIUS_M)
         scan = lidar.scan(0.0, truth, scene, movers.centres, movers.radii)
         start = time.process_time()
-        result = search.localize(scan_points(scan), sensor_origin(scan))
+        result = search.localize(scan_points(scan), sensor_origin(scan), open_ray_ends(scan))
         cpu_s = time.process_time() - start
         trials.append(judge(label, index, truth, result, cpu_s=cpu_s, distinct_xy_m=p.distinct_xy_m,
                             distinct_yaw_rad=p.distinct_yaw_rad))

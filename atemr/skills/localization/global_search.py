@@ -142,13 +142,15 @@ def mcnemar_z(a_hits: NDArray[np.bool_], b_hits: NDArray[np.bool_]) -> float:
 class Hypotheses:
     """Places under consideration (map-frame poses at the first scan's odometry) and their pooled beam hits.
 
-    ``poses``: ``(K, 3)`` at the time of the first scan; ``hits``: one ``(K, M_i)`` boolean array per scan.
+    ``poses``: ``(K, 3)`` at the time of the first scan; ``hits``: one ``(K, M_i)`` boolean array per scan (its
+    beams on the map); ``opens``: one ``(K, F_i)`` array per scan (its open beams clear of walls), or none.
     """
 
     search: GlobalSearch
     poses: FloatArray
     first_odom: FloatArray
     hits: list[NDArray[np.bool_]] = field(default_factory=list)
+    opens: list[NDArray[np.bool_]] = field(default_factory=list)
     #: The odometry motion from the first scan to the latest one added (base frame of the first).
     last_delta: FloatArray = field(default_factory=lambda: np.zeros(3))
 
@@ -159,23 +161,33 @@ class Hypotheses:
             return np.zeros(self.poses.shape[0])
         return np.hstack(self.hits).mean(axis=1)
 
+    @property
+    def evidence(self) -> NDArray[np.bool_]:
+        """Every pooled observation each place explains: the beams on the map, then the open beams kept clear:
+        ``(K, total)``. Places are ranked and told apart on this; the confidence is the beams' share alone."""
+        return np.hstack([*self.hits, *self.opens]) if self.hits else np.zeros((self.poses.shape[0], 0), bool)
+
     def ranked(self, odom_delta: FloatArray | None = None) -> tuple[Hypothesis, ...]:
         """The places, best agreement first: as of the latest scan added, or moved by ``odom_delta`` (the odometry
         since the first scan, base frame of the first) when given."""
         poses = self.current() if odom_delta is None else compose(self.poses, np.asarray(odom_delta, np.float64))
         agreement = self.agreement
-        order = np.argsort(-agreement, kind="stable")
+        order = _rank(self.evidence)
         return tuple(Hypothesis(as_pose(poses[i]), float(agreement[i])) for i in order)
 
-    def add_scan(self, points: FloatArray, sensor_xy: tuple[float, float], odom_delta: FloatArray) -> None:
+    def add_scan(self, points: FloatArray, sensor_xy: tuple[float, float], odom_delta: FloatArray,
+                 open_ends: FloatArray | None = None) -> None:
         """Another scan, taken after the robot moved ``odom_delta`` (``[dx, dy, dyaw]`` in the base frame of the
-        first scan): every place is carried along, refined again near where it lands, and its beams pooled."""
+        first scan): every place is carried along, refined again near where it lands, and its beams pooled
+        (``open_ends``: the scan's open beams, `atemr.skills.localization.scan.open_ray_ends`)."""
         if self.poses.shape[0] == 0:
             return
         moved = compose(self.poses, np.asarray(odom_delta, dtype=np.float64))
         thin = self.search.thin(points)
         refined = self.search.polish(self.search.refine(moved, thin, wide=False), _valid(points), thin)
         self.hits.append(self.search.hit_mask(refined, points, sensor_xy))
+        if open_ends is not None:
+            self.opens.append(self.search.agreement.open_clear(refined, open_ends, sensor_xy))
         self.poses = compose(refined, _inverse_delta(odom_delta))
         self.last_delta = np.asarray(odom_delta, dtype=np.float64)
 
@@ -187,10 +199,16 @@ class Hypotheses:
         """Drop the places not in ``mask``."""
         self.poses = self.poses[mask]
         self.hits = [h[mask] for h in self.hits]
+        self.opens = [o[mask] for o in self.opens]
 
     def decide(self) -> GlobalResult:
         """The three outcomes on the evidence pooled so far (poses as of the first scan)."""
         return self.search.decide(self)
+
+
+def _rank(evidence: NDArray[np.bool_]) -> NDArray[np.intp]:
+    """Places by how much of the pooled evidence each explains, best first (ties keep their order)."""
+    return np.argsort(-evidence.mean(axis=1) if evidence.shape[1] else np.zeros(evidence.shape[0]), kind="stable")
 
 
 def _valid(points: FloatArray) -> FloatArray:
@@ -386,11 +404,15 @@ class GlobalSearch:
         return self.agreement.classify(poses, _valid(points), sensor_xy) == HIT
 
     def hypotheses(self, points: FloatArray, sensor_xy: tuple[float, float] = (0.0, 0.0),
-                   odom: FloatArray | None = None, *, widen: int = 1) -> Hypotheses:
+                   odom: FloatArray | None = None, *, widen: int = 1, open_ends: FloatArray | None = None
+                   ) -> Hypotheses:
         """The ``keep`` best distinct places for the scan (base-frame points), refined and verified.
 
         ``odom``: the odometry pose of the scan, kept so later scans can be added (`Hypotheses.add_scan`);
-        ``widen``: examine that many times more places (`search`, once the scan proved ambiguous).
+        ``widen``: examine that many times more places (`search`, once the scan proved ambiguous);
+        ``open_ends``: the scan's open beams (`atemr.skills.localization.scan.open_ray_ends`), checked at every
+        verified place: where the scan's walls alone look alike (aisles of identical shelves), the open beams
+        often tell the places apart (one aisle runs on past the lidar's range, the other ends in a wall).
         """
         first = np.zeros(3) if odom is None else np.asarray(odom, dtype=np.float64)
         thin = self.thin(points)
@@ -416,7 +438,8 @@ class GlobalSearch:
             refined[polish] = self.polish(refined[polish], pts, thin)
             refined[close] = self.settle(refined[close], pts[:: max(1, pts.shape[0] // SETTLE_POINTS)])
             hits[close] = self.hit_mask(refined[close], pts, sensor_xy)
-        return Hypotheses(self, refined, first, [hits])
+        opens = [] if open_ends is None else [self.agreement.open_clear(refined, open_ends, sensor_xy)]
+        return Hypotheses(self, refined, first, [hits], opens)
 
     def _same_place(self, a: FloatArray, b: FloatArray) -> bool:
         p = self.params
@@ -428,25 +451,28 @@ class GlobalSearch:
         p = self.params
         if hyps.poses.shape[0] == 0 or not hyps.hits:
             return GlobalResult("failed", None, 0.0, (), "the scan has too few valid returns to localize")
-        hits = np.hstack(hyps.hits)
-        agreement = hits.mean(axis=1)
+        agreement = hyps.agreement
+        evidence = hyps.evidence
         poses = hyps.current()
-        order = np.argsort(-agreement, kind="stable")
-        best = int(order[0])
+        if agreement.max() < p.min_agreement:
+            by_share = np.argsort(-agreement, kind="stable")
+            near = [Hypothesis(as_pose(poses[i]), float(agreement[i])) for i in by_share[:3]]
+            return GlobalResult("failed", None, near[0].agreement, tuple(near),
+                                f"no place on the map explains the scan: at best {near[0].agreement:.0%} of it "
+                                f"agrees (at {_where(near[0].pose)}), below {p.min_agreement:.0%}")
+        # Among the places that explain the limit's share of the beams, the best explains the most evidence
+        # (beams and open beams); every other one is a rival unless the best is clearly better on that evidence.
+        order = [int(i) for i in _rank(evidence) if agreement[i] >= p.min_agreement]
+        best = order[0]
         ranked = [Hypothesis(as_pose(poses[i]), float(agreement[i])) for i in order]
-        if agreement[best] < p.min_agreement:
-            where = _where(ranked[0].pose)
-            return GlobalResult("failed", None, float(agreement[best]), tuple(ranked[:3]),
-                                f"no place on the map explains the scan: at best {agreement[best]:.0%} of it agrees "
-                                f"(at {where}), below {p.min_agreement:.0%}")
         rivals: list[int] = []
         margin = math.inf
         for i in order[1:]:
-            if agreement[i] < p.min_agreement or self._same_place(poses[i], poses[best]):
+            if self._same_place(poses[i], poses[best]):
                 continue
             if any(self._same_place(poses[i], poses[j]) for j in rivals):
                 continue
-            z = mcnemar_z(hits[best], hits[i])
+            z = mcnemar_z(evidence[best], evidence[i])
             margin = min(margin, z)
             if z < p.min_z:
                 rivals.append(int(i))
@@ -460,22 +486,24 @@ class GlobalSearch:
                             "clearly better than anywhere else", margin)
 
     def search(self, points: FloatArray, sensor_xy: tuple[float, float] = (0.0, 0.0),
-               odom: FloatArray | None = None) -> tuple[GlobalResult, Hypotheses]:
+               odom: FloatArray | None = None, open_ends: FloatArray | None = None) -> tuple[GlobalResult, Hypotheses]:
         """Search the whole map for one scan and decide. A scan that is ambiguous, or won only narrowly (a rival
         within twice the margin), is searched again examining ``widen_ambiguous`` times more places: where one
         look-alike was found there are often many (aisles of identical shelves), the true place among them
         may not have been examined yet, and every one of them belongs among the candidates."""
-        hyps = self.hypotheses(points, sensor_xy, odom)
+        hyps = self.hypotheses(points, sensor_xy, odom, open_ends=open_ends)
         result = self.decide(hyps)
         narrow = result.outcome == "ambiguous" or result.margin_z < 2 * self.params.min_z
         if narrow and result.outcome != "failed" and self.params.widen_ambiguous > 1:
-            hyps = self.hypotheses(points, sensor_xy, odom, widen=self.params.widen_ambiguous)
+            hyps = self.hypotheses(points, sensor_xy, odom, widen=self.params.widen_ambiguous, open_ends=open_ends)
             result = self.decide(hyps)
         return result, hyps
 
-    def localize(self, points: FloatArray, sensor_xy: tuple[float, float] = (0.0, 0.0)) -> GlobalResult:
-        """Search the whole map for one scan (base-frame points; ``sensor_xy`` where its beams start)."""
-        return self.search(points, sensor_xy)[0]
+    def localize(self, points: FloatArray, sensor_xy: tuple[float, float] = (0.0, 0.0),
+                 open_ends: FloatArray | None = None) -> GlobalResult:
+        """Search the whole map for one scan (base-frame points; ``sensor_xy`` where its beams start;
+        ``open_ends`` its open beams, `atemr.skills.localization.scan.open_ray_ends`)."""
+        return self.search(points, sensor_xy, open_ends=open_ends)[0]
 
 
 def _where(pose: Pose2D) -> str:

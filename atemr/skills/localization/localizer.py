@@ -60,7 +60,7 @@ from atemr.skills.localization.global_search import (
 from atemr.skills.localization.likelihood_field import LikelihoodField
 from atemr.skills.localization.map_agreement import AgreementParams, MapAgreement
 from atemr.skills.localization.odometry_ekf import MapEkf, MapEkfParams
-from atemr.skills.localization.scan import scan_points, sensor_origin
+from atemr.skills.localization.scan import open_ray_ends, scan_points, sensor_origin
 from atemr.skills.localization.scan_to_map import MapMatch, ScanToMapMatcher
 
 EventKind = Literal["initial_pose", "pose_refused", "global_start", "localized", "ambiguous", "failed", "lost",
@@ -147,6 +147,8 @@ class Localizer:
         #: The last global search's answer (None before the first).
         self.result: GlobalResult | None = None
         self._hypotheses: Hypotheses | None = None
+        #: The latest scan's open beams (`open_ray_ends`), base frame.
+        self._opens: FloatArray = np.zeros((0, 2))
         self._search_confidence = 0.0
         self._prior: tuple[Pose2D, Pose2D | None] | None = None  # operator's pose, odometry when it was given
         self._last_good: tuple[Pose2D, Pose2D] | None = None  # (map pose, odometry) when last known good
@@ -223,6 +225,7 @@ class Localizer:
         if not (math.isfinite(now) and is_finite_pose(odom)):
             return self.state
         points, sensor = scan_points(scan), sensor_origin(scan)
+        self._opens = open_ray_ends(scan)  # global localization's evidence besides the returns
         self._odom = odom
         if self.phase is Phase.TRACKING:
             self.map_ekf.predict(now, odom)
@@ -262,7 +265,7 @@ class Localizer:
         self._search(now, odom, points, sensor)
 
     def _search(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
-        result, hypotheses = self.search.search(points, sensor, as_array(odom))
+        result, hypotheses = self.search.search(points, sensor, as_array(odom), self._opens)
         self.result = result
         if result.outcome == "localized" and result.pose is not None:
             self._track_from(now, result.pose, odom, result.confidence)
@@ -291,7 +294,7 @@ class Localizer:
         if hyps is None or not self._moved(odom):
             return
         self._mark = (now, odom)
-        hyps.add_scan(points, sensor, relative(hyps.first_odom, as_array(odom)))
+        hyps.add_scan(points, sensor, relative(hyps.first_odom, as_array(odom)), self._opens)
         hyps.keep(hyps.agreement >= self.params.monitor.min_confidence)
         result = hyps.decide()
         self.result = result

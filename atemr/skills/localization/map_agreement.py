@@ -120,6 +120,14 @@ class MapAgreement:
         near = self.field.distances(poses, pts) <= p.hit_tolerance_m
         return np.where(through, THROUGH, np.where(near, HIT, UNEXPLAINED)).astype(np.int8)
 
+    def open_clear(self, poses: FloatArray, ends: FloatArray, sensor_xy: tuple[float, float] = (0.0, 0.0)
+                   ) -> NDArray[np.bool_]:
+        """For the beams that met nothing within the lidar's range (`scan.open_ray_ends`): whether each passes no
+        occupied cell up to its end, under every pose: ``(N, F)``. A pose that puts a wall across an open beam is
+        contradicted by it as a beam through a wall contradicts it."""
+        ends = np.asarray(ends, dtype=np.float64).reshape(-1, 2)
+        return ~self.field.crossings(poses, sensor_xy, ends, 0.0)
+
     def measure(self, poses: FloatArray, points: FloatArray, sensor_xy: tuple[float, float] = (0.0, 0.0)
                 ) -> ScanAgreement:
         """Beam counts of the scan under every pose (the scan thinned to ``max_beams`` evenly spread beams)."""

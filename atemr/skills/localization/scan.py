@@ -13,6 +13,9 @@ import numpy as np
 from atemr.msgs import LaserScan
 from atemr.skills.localization.geometry import FloatArray
 
+#: An open beam (`open_ray_ends`) is trusted to this far short of the lidar's range (m).
+OPEN_SHORT_M = 0.3
+
 
 def valid_mask(scan: LaserScan) -> np.ndarray:
     """Which beams hold a usable range."""
@@ -39,9 +42,28 @@ def scan_points(scan: LaserScan, *, max_beams: int | None = None) -> FloatArray:
     return np.column_stack([m.x_m + rr * np.cos(angles), m.y_m + rr * np.sin(angles)])
 
 
+def open_ray_ends(scan: LaserScan, *, short_m: float = OPEN_SHORT_M) -> FloatArray:
+    """Where the beams that met nothing within the lidar's range are known to pass freely: ``(F, 2)`` base-frame
+    points ``short_m`` short of ``range_max_m`` along each beam whose range is +inf.
+
+    +inf is a return beyond the range (REP 117; the RPLidar driver and the simulator both report it so): the
+    beam crossed open space all that way, which a pose that puts a wall across it contradicts. A beam with no
+    return at all (NaN: a dark or glossy surface, the RPLidar's distance 0) says nothing and is left out.
+    ``short_m`` keeps a wall just beyond the range, drawn a cell or two nearer on the map, from counting.
+    """
+    r = np.asarray(scan.ranges_m, dtype=np.float64)
+    reach = scan.range_max_m - short_m
+    if reach <= 0:
+        return np.zeros((0, 2))
+    idx = np.flatnonzero(np.isposinf(r))
+    angles = scan.angle_min_rad + scan.angle_increment_rad * idx + scan.sensor_pose.yaw_rad
+    m = scan.sensor_pose
+    return np.column_stack([m.x_m + reach * np.cos(angles), m.y_m + reach * np.sin(angles)])
+
+
 def sensor_origin(scan: LaserScan) -> tuple[float, float]:
     """The sensor's position in the base frame (where every beam starts)."""
     return scan.sensor_pose.x_m, scan.sensor_pose.y_m
 
 
-__all__ = ["scan_points", "sensor_origin", "valid_mask"]
+__all__ = ["OPEN_SHORT_M", "open_ray_ends", "scan_points", "sensor_origin", "valid_mask"]

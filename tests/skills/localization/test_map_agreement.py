@@ -99,3 +99,11 @@ def test_an_empty_scan_and_bad_parameters() -> None:
         AgreementParams(hit_tolerance_m=0.0)
     with pytest.raises(ConfigError, match="agreement_beams"):
         AgreementParams(max_beams=0)
+
+
+def test_an_open_beam_is_clear_unless_the_pose_puts_a_wall_across_it() -> None:
+    agreement = MapAgreement(LikelihoodField(two_rooms()))
+    poses = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, math.pi / 2]])  # the west room: facing east, facing north
+    ends = np.array([[0.8, 0.0], [2.6, 0.0]])  # open to 0.8 m ahead (clear), and to 2.6 m (across the divider)
+    assert agreement.open_clear(poses, ends).tolist() == [[True, False], [True, False]]
+    assert agreement.open_clear(poses, np.zeros((0, 2))).shape == (2, 0)
