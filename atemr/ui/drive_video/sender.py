@@ -20,7 +20,9 @@ import importlib
 import logging
 import threading
 from collections.abc import Callable
+from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
+from concurrent.futures import wait as wait_futures
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -76,6 +78,7 @@ class DriveVideo:
         self._missing: str | None = None
         self._checked = False
         self._peers: dict[str, Any] = {}  # sid → RTCPeerConnection
+        self._closing: set[Future[None]] = set()  # closes under way (`close`), which `shutdown` lets finish
         self._loop = EventLoopThread("atemr-drive-video")
 
     # -- what a page may try ---------------------------------------------------------------------------
@@ -132,19 +135,31 @@ class DriveVideo:
         with self._lock:
             pc = self._peers.pop(sid, None)
         if pc is not None and self._loop.running:
-            self._loop.submit(pc.close())
+            closing = self._loop.submit(pc.close())
+            with self._lock:
+                self._closing.add(closing)
+            closing.add_done_callback(self._closed)
+
+    def _closed(self, closing: Future[None]) -> None:
+        with self._lock:
+            self._closing.discard(closing)
 
     def shutdown(self) -> None:
-        """Close every connection and stop the loop (idempotent)."""
+        """Close every connection, let the closes under way finish, and stop the loop (idempotent).
+
+        A close cut short by the loop's end leaves its sockets open: aioice's shared mDNS resolver (opened for a
+        browser's ``.local`` candidates) among them. So a page that left just before the robot stopped has its
+        close waited for too, up to `CLOSE_TIMEOUT_S` with the rest."""
         with self._lock:
             peers = [pc for pc in self._peers.values() if pc is not None]
             self._peers.clear()
-        if self._loop.running and peers:
-            closing = self._loop.submit(_close_all(peers))
-            try:
-                closing.result(timeout=CLOSE_TIMEOUT_S)
-            except Exception as exc:  # the loop ends anyway, taking what is left with it
-                log.warning("drive video: closing the connections: %s", exc)
+            closing = list(self._closing)
+        if self._loop.running and (peers or closing):
+            if peers:
+                closing.append(self._loop.submit(_close_all(peers)))
+            _, late = wait_futures(closing, timeout=CLOSE_TIMEOUT_S)
+            if late:  # the loop ends anyway, taking what is left with it
+                log.warning("drive video: %d connection(s) did not close within %g s", len(late), CLOSE_TIMEOUT_S)
         self._loop.stop()
 
     # -- the loop's thread -------------------------------------------------------------------------------
