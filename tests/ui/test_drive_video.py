@@ -139,11 +139,16 @@ def test_a_page_receives_the_camera_with_its_frame_number(video_app, gateway, ui
     assert seen["stop"] == {"ok": True, "reason": ""} and seen["after_stop"] == 0
 
 
-def test_a_socket_that_goes_closes_its_connection(video_app, gateway, ui):
+def alices_page(video_app, gateway, ui) -> Any:
+    """Alice's Control page's socket, the camera showing frame 1."""
     gateway.frame = camera_image(1)
     client = video_app.test_client()
     ui.login(client, "alice", ui.USER_PW)
-    socket = sio(video_app, client)
+    return sio(video_app, client)
+
+
+def test_a_socket_that_goes_closes_its_connection(video_app, gateway, ui):
+    socket = alices_page(video_app, gateway, ui)
     video = video_app.extensions["atemr.drive_video"]
     seen: list[int] = []
 
@@ -170,10 +175,7 @@ def test_a_page_that_goes_as_the_robot_stops_has_its_connection_closed(video_app
         await close(self)
 
     monkeypatch.setattr(RTCPeerConnection, "close", slow_close)
-    gateway.frame = camera_image(1)
-    client = video_app.test_client()
-    ui.login(client, "alice", ui.USER_PW)
-    socket = sio(video_app, client)
+    socket = alices_page(video_app, gateway, ui)
     video = video_app.extensions["atemr.drive_video"]
     connections: list[Any] = []
 
