@@ -62,9 +62,15 @@ MAX_OFFSET_Q3 = 3
 MAX_BURST_S = 0.1
 
 
+#: Where a scan says "a return beyond the range" (+inf) without its distance, the device sends one this far
+#: past the range; the driver turns it back into +inf.
+BEYOND_RANGE_M = 1.0
+
+
 def distances_mm(scan: LaserScan | None, angles_cw_deg: NDArray[np.float64]) -> NDArray[np.float64]:
-    """What the device measures at clockwise ``angles_cw_deg``: the nearest beam of ``scan`` in millimetres,
-    0 where it has no valid return (not finite, or outside its [range_min_m, range_max_m])."""
+    """What the device measures at clockwise ``angles_cw_deg``: the nearest beam of ``scan`` in millimetres;
+    for a beam with a return beyond its range (+inf), a distance `BEYOND_RANGE_M` past ``range_max_m``; 0 (no
+    return) for the rest (NaN, -inf, or a range below ``range_min_m``)."""
     if scan is None or len(scan.ranges_m) == 0:
         return np.zeros(len(angles_cw_deg))
     ranges = np.asarray(scan.ranges_m, dtype=np.float64)
@@ -72,7 +78,8 @@ def distances_mm(scan: LaserScan | None, angles_cw_deg: NDArray[np.float64]) -> 
     r = ranges[idx]
     with np.errstate(invalid="ignore"):
         valid = np.isfinite(r) & (r >= scan.range_min_m) & (r <= scan.range_max_m) & (r > 0)
-    return np.where(valid, r * 1000.0, 0.0)
+    beyond = 1000.0 * (scan.range_max_m + BEYOND_RANGE_M)
+    return np.where(valid, r * 1000.0, np.where(np.isposinf(r), beyond, 0.0))
 
 
 class RplidarEmulator(PtyEmulator):

@@ -1,8 +1,9 @@
 """A simulated RPLIDAR A2M8: one revolution per call, all beams cast at once.
 
-Range noise is Gaussian, a small fraction of beams drop out (returned as +inf, as the real sensor's
-missing returns), and a return beyond the maximum range is +inf; closer than the minimum range is -inf
-(REP 117). The scan is instantaneous: the robot's motion during a 0.1 s revolution is not modelled.
+Range noise is Gaussian. As the RPLidar driver reports them (REP 117): a return beyond the maximum range is
++inf, closer than the minimum range -inf, and no return at all NaN: a beam that drops out (a small fraction:
+a dark or glossy spot) or meets nothing within the device's own reach (``reach_m``, farther than the range
+the robot uses). The scan is instantaneous: the robot's motion during a 0.1 s revolution is not modelled.
 """
 
 from __future__ import annotations
@@ -30,6 +31,9 @@ class LidarParams:
     dropout_prob: float = 0.005
     mount: Pose2D = field(default_factory=lambda: Pose2D(0.10, 0.0, 0.0))
     height_m: float = 0.2
+    #: How far the device measures at all: 12 m for the A2M8 (its datasheet; 8 m for units up to revision R3).
+    #: A return between ``range_max_m`` and this is reported beyond the range (+inf), none beyond it (NaN).
+    reach_m: float = 12.0
 
     def __post_init__(self) -> None:
         if not 8 <= self.beams <= 8192:
@@ -41,6 +45,9 @@ class LidarParams:
             raise ConfigError(f"must be within (0, 3) m, got {self.height_m!r}", path="lidar.height_m")
         if not (0 <= self.noise_std_m < 1 and 0 <= self.dropout_prob < 1):
             raise ConfigError("noise_std_m and dropout_prob must be within [0, 1)", path="lidar")
+        if not (math.isfinite(self.reach_m) and self.reach_m >= self.range_max_m):
+            raise ConfigError(f"must be finite and at least range_max_m ({self.range_max_m}), got {self.reach_m!r}",
+                              path="lidar.reach_m")
 
     @property
     def angle_increment_rad(self) -> float:
@@ -57,7 +64,7 @@ class Lidar:
 
     def true_ranges(self, pose: Pose2D, scene: Scene, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """Noise-free distance along each beam to the first wall, object or moving obstacle that crosses the scan
-        plane (inf: none); a shoe under the plane and a table top above it are not seen."""
+        plane (inf: none within ``reach_m``); a shoe under the plane and a table top above it are not seen."""
         p = self.params
         c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
         sx = pose.x_m + c * p.mount.x_m - s * p.mount.y_m
@@ -65,9 +72,9 @@ class Lidar:
         world_angles = pose.yaw_rad + p.mount.yaw_rad + self.angles_rad
         gx, gy, gyaw = scene.to_grid_frame(sx, sy, pose.yaw_rad + p.mount.yaw_rad)
         grid_angles = gyaw + self.angles_rad
-        ranges = scene.caster_at(p.height_m).cast((gx, gy), grid_angles, p.range_max_m).distance_m
+        ranges = scene.caster_at(p.height_m).cast((gx, gy), grid_angles, p.reach_m).distance_m
         if len(centres):
-            d, _ = cast_circles((sx, sy), world_angles, centres, radii, p.range_max_m)
+            d, _ = cast_circles((sx, sy), world_angles, centres, radii, p.reach_m)
             ranges = np.minimum(ranges, d)
         return ranges
 
@@ -77,8 +84,10 @@ class Lidar:
         ranges = self.true_ranges(pose, scene, centres, radii)
         if p.noise_std_m:
             ranges = ranges + self.rng.normal(0.0, p.noise_std_m, ranges.shape)
+        none = ~(ranges <= p.reach_m)  # nothing within the device's reach: no return
         if p.dropout_prob:
-            ranges[self.rng.random(ranges.shape) < p.dropout_prob] = np.inf
+            none |= self.rng.random(ranges.shape) < p.dropout_prob
         ranges[ranges > p.range_max_m] = np.inf
         ranges[ranges < p.range_min_m] = -np.inf
+        ranges[none] = np.nan
         return LaserScan(t, ranges, -math.pi, p.angle_increment_rad, p.range_min_m, p.range_max_m, p.mount)

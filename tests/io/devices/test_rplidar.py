@@ -203,11 +203,12 @@ def test_benchmark_helpers_decode_every_sample():
 
 
 def test_the_emulator_looks_scans_up_clockwise():
-    ranges = np.full(BEAMS, np.inf)
+    ranges = np.full(BEAMS, np.nan)  # no return
     ranges[index_at(math.pi / 2)] = 2.0  # an obstacle on the left
-    ranges[index_at(-math.pi / 2)] = 20.0  # beyond range_max_m: no return
+    ranges[index_at(-math.pi / 2)] = 20.0  # a range the scan itself calls invalid: no return
+    ranges[index_at(math.pi)] = np.inf  # a return beyond the range: the device measures one farther away
     feed = LaserScan(0.0, ranges, -math.pi, INC, 0.15, 12.0)
-    assert distances_mm(feed, np.array([270.0, 90.0, 0.0])).tolist() == [2000.0, 0.0, 0.0]
+    assert distances_mm(feed, np.array([270.0, 90.0, 0.0, 180.0])).tolist() == [2000.0, 0.0, 0.0, 13000.0]
     assert distances_mm(None, np.array([1.0])).tolist() == [0.0]
 
 
@@ -215,10 +216,12 @@ def test_the_emulator_looks_scans_up_clockwise():
 
 
 def known_scan() -> LaserScan:
-    """A smooth room with a few beams without return, in the sensor frame (counter-clockwise)."""
+    """A smooth room with a few beams without return and one whose return lies beyond the range, in the sensor
+    frame (counter-clockwise)."""
     angles = -math.pi + INC * np.arange(BEAMS)
     ranges = 2.0 + 0.8 * np.sin(angles) + 0.3 * np.cos(3 * angles)
-    ranges[[5, 90, 200]] = np.inf
+    ranges[[5, 90]] = np.nan
+    ranges[200] = np.inf
     return LaserScan(0.0, ranges, -math.pi, INC, 0.15, 12.0)
 
 
@@ -263,8 +266,9 @@ def assert_matches_feed(scan: LaserScan, tolerance_m: float) -> None:
     quantisation remains (1/4 mm in SCAN, 1 mm in express capsules)."""
     assert scan.angle_min_rad == -math.pi and scan.angle_increment_rad == pytest.approx(INC)
     assert scan.sensor_pose == Pose2D(0.1, 0.0, 0.0)
-    expected = np.where(np.isfinite(FEED.ranges_m), FEED.ranges_m, np.nan)
+    expected = FEED.ranges_m  # a beam without return stays NaN, one beyond the range +inf (REP 117)
     np.testing.assert_array_equal(np.isnan(scan.ranges_m), np.isnan(expected))
+    np.testing.assert_array_equal(np.isposinf(scan.ranges_m), np.isposinf(expected))
     np.testing.assert_allclose(scan.ranges_m, expected, atol=tolerance_m, rtol=0)
 
 

@@ -61,6 +61,16 @@ def test_lidar_range_limits(make_world, ideal_wheels):
     assert beam(scan, 0.0) == math.inf  # wall 9.8 m away, beyond 3 m
     assert beam(scan, -math.pi / 2) == -math.inf  # 1.4 m, closer than the minimum
     assert beam(scan, math.pi / 2) == pytest.approx(2.4)
+    # a device that measures no farther than 9 m returns nothing from that wall: no return, NaN
+    short = SimParams(base=QUIET_BASE, lidar=LidarParams(range_min_m=2.0, range_max_m=3.0, noise_std_m=0.0,
+                                                          dropout_prob=0.0, reach_m=9.0))
+    sim = build_simulation(make_world("start: [2.0, 1.5, 0.0]\n", width_m=12.0), 0, params=short,
+                           wheels=ideal_wheels)
+    scan = sim.read_lidar(0.0)
+    assert math.isnan(beam(scan, 0.0)) and beam(scan, -math.pi / 2) == -math.inf
+    assert beam(scan, math.pi / 2) == pytest.approx(2.4)
+    with pytest.raises(ConfigError, match="reach_m"):
+        LidarParams(range_max_m=8.0, reach_m=6.0)
 
 
 def test_lidar_noise_and_dropouts(make_world, ideal_wheels):
@@ -68,8 +78,8 @@ def test_lidar_noise_and_dropouts(make_world, ideal_wheels):
     sim = build_simulation(make_world("start: [3.0, 2.0, 0.0]\n"), 5, params=params, wheels=ideal_wheels)
     truth = sim.lidar.true_ranges(sim.pose, sim.scene, sim.movers.centres, sim.movers.radii)
     scan = sim.read_lidar(0.0)
-    dropped = np.isinf(scan.ranges_m)
-    assert 0.07 < dropped.mean() < 0.13
+    dropped = np.isnan(scan.ranges_m)  # no return, as the device reports a dark spot (not +inf: beyond range)
+    assert 0.07 < dropped.mean() < 0.13 and not np.isinf(scan.ranges_m).any()
     err = scan.ranges_m[~dropped] - truth[~dropped]
     assert abs(err.mean()) < 0.003
     assert err.std() == pytest.approx(0.02, rel=0.1)
