@@ -59,8 +59,11 @@ class SimConfig:
     lidar_hz: float = field(default=10.0, metadata={"min": 0.5, "max": 100.0, "help": "lidar revolutions per second"})
     lidar_beams: int = field(default=360, metadata={"min": 8, "max": 8192, "help": "beams per revolution"})
     lidar_noise_m: float = field(default=0.01, metadata={"min": 0.0, "max": 0.5, "help": "lidar range noise (std)"})
+    lidar_range_m: float = field(default=8.0, metadata={
+        "min": 1.0, "max": 40.0, "help": "farthest return the robot uses (the thesis robot: 8 m; the A2M8 measures to "
+                                         "12 m); localization follows it"})
     lidar_dropout: float = field(
-        default=0.005, metadata={"min": 0.0, "max": 0.9, "help": "fraction of beams returned as inf"}
+        default=0.005, metadata={"min": 0.0, "max": 0.9, "help": "fraction of beams with no return (NaN)"}
     )
     imu_hz: float = field(default=50.0, metadata={"min": 1.0, "max": 1000.0})
     cliff_hz: float = field(default=20.0, metadata={"min": 1.0, "max": 1000.0})

@@ -223,13 +223,14 @@ def _add_localization(robot: Robot, sim: Simulation | None, devices: Devices,
         builtins.setdefault(sim.world.name, sim.world.source)
     store = MapStore(cfg.data_dir, builtins=builtins, max_cells=cfg.ui.max_map_cells,
                      max_upload_bytes=int(cfg.ui.max_upload_mb * 1024 * 1024))
+    simulated_lidar = driver_name(cfg, "lidar") == "sim"
+    lidar_range_m = cfg.sim.lidar_range_m if simulated_lidar else cfg.devices.lidar.range_max_m
     rng = np.random.default_rng(cfg.localization.seed)
-    localization = LocalizationPipeline(None, rng, localizer=cfg.localization.localizer_params())
+    localization = LocalizationPipeline(None, rng, localizer=cfg.localization.localizer_params(lidar_range_m))
     maps = MapService(store, localization, cfg.localization.slam_params(), on_event=robot.event)
 
     wheels = WheelOdometryFeed(driver, localization)
     robot.add(wheels, RATES["odometry"])
-    simulated_lidar = driver_name(cfg, "lidar") == "sim"
     robot.add(localization, cfg.sim.lidar_hz if simulated_lidar else RATES["localization"])
     devices.lidar.subscribe(localization.on_scan)
     devices.lidar.subscribe(maps.on_scan)

@@ -184,6 +184,23 @@ def test_motors_with_protocol_v4_drive_the_base_and_answer_on_0x240(tmp_path):
         assert requests and not [m for m in requests if m.data[0] in (0x88, 0x9B)]  # V4.2 has neither
 
 
+@pytest.mark.parametrize(("simulation", "key"), [(True, "sim.lidar_range_m"), (False, "devices.lidar.range_max_m")])
+def test_localization_covers_the_range_the_lidar_is_set_to(tmp_path, simulation, key):
+    """A lidar set to use its returns to 12 m (an A2M8 after revision R3) has localization's likelihood model
+    and global search cover 12 m too, simulated or real."""
+    config = load_config(environ={}, overrides={"data_dir": str(tmp_path), "can.channel": unique_channel("range"),
+                                                "simulation": simulation, "secondary.portal_serve": False,
+                                                "ui.enabled": False, key: 12.0})
+    robot = build_robot(config, realtime=False, clock=SimClock())  # built, not started
+    try:
+        params = robot.parts.localization.localizer_params
+        assert params.global_search.range_max_m == 12.0 and params.amcl.field.range_max_m == 12.0
+        if simulation:
+            assert robot.parts.sim.lidar.params.range_max_m == 12.0
+    finally:
+        robot.shutdown()
+
+
 def test_a_headless_robot_renders_no_camera_frame_until_a_picture_is_taken(tmp_path):
     from atemr.robot.headless import build_headless_robot
 

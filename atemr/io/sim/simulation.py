@@ -424,7 +424,8 @@ def params_from_config(cfg: SimConfig, body: RobotBody = KAY, depth_mount: Camer
     return SimParams(
         base=BaseParams(slip_std=cfg.wheel_slip, odom_noise_std=cfg.odom_noise,
                         footprint_radius_m=body.footprint_radius_m),
-        lidar=LidarParams(beams=cfg.lidar_beams, noise_std_m=cfg.lidar_noise_m, dropout_prob=cfg.lidar_dropout),
+        lidar=LidarParams(beams=cfg.lidar_beams, noise_std_m=cfg.lidar_noise_m, dropout_prob=cfg.lidar_dropout,
+                          range_max_m=cfg.lidar_range_m, reach_m=max(LidarParams().reach_m, cfg.lidar_range_m)),
         camera=CameraParams(width=cfg.camera_width, height=cfg.camera_height),
         physics_hz=cfg.physics_hz, lidar_hz=cfg.lidar_hz, imu_hz=cfg.imu_hz, cliff_hz=cfg.cliff_hz,
         depth=DepthCameraParams() if depth_mount is None else DepthCameraParams(mount=depth_mount),

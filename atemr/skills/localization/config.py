@@ -49,8 +49,9 @@ class LocalizationConfig:
     map_resolution_m: float = field(default=0.05, metadata={"min": 0.01, "max": 0.5, "help": "mapping cell size"})
     map_size_m: float = field(default=30.0, metadata={"min": 2.0, "max": 200.0, "help": "mapping grid side"})
 
-    def localizer_params(self) -> LocalizerParams:
-        """The `Localizer`'s parameters (raises `ConfigError` on inconsistent values)."""
+    def localizer_params(self, lidar_range_m: float = 8.0) -> LocalizerParams:
+        """The `Localizer`'s parameters (raises `ConfigError` on inconsistent values); ``lidar_range_m``: the
+        farthest return the robot's lidar is set to use, which the likelihood model and the global search cover."""
         from atemr.skills.localization.amcl import AmclParams
         from atemr.skills.localization.covariance_monitor import MonitorParams
         from atemr.skills.localization.global_search import GlobalSearchParams
@@ -63,7 +64,8 @@ class LocalizationConfig:
             global_particles=self.global_particles, max_beams=self.max_beams,
             update_min_d_m=self.update_min_d_m, update_min_a_rad=math.radians(self.update_min_a_deg),
             noise=OdometryNoise(self.odom_alpha1, self.odom_alpha2, self.odom_alpha3, self.odom_alpha4),
-            field=FieldParams(sigma_hit_m=self.sigma_hit_m, z_hit=1.0 - self.z_rand, z_rand=self.z_rand),
+            field=FieldParams(sigma_hit_m=self.sigma_hit_m, z_hit=1.0 - self.z_rand, z_rand=self.z_rand,
+                              range_max_m=lidar_range_m),
         )
         monitor = MonitorParams(self.max_std_xy_m, math.radians(self.max_std_yaw_deg), self.min_confidence,
                                 self.confidence_time_s, self.unmapped_allowance)
