@@ -17,7 +17,9 @@ Three stages, each vectorised:
 
    * ``localized``: the best place explains at least ``min_agreement`` of the scan, and it is *clearly*
      better than every other distinct place that does: McNemar's test on the beams that hit the map at one
-     place and not at the other, ``z = (a − b) / √(a + b) ≥ min_z``;
+     place and not at the other, ``z = (a − b) / √(a + b) ≥ min_z``. The scan's open beams (a return beyond
+     the range: `atemr.skills.localization.scan.open_ray_ends`) count in that test and in the ranking too,
+     each explained where no wall crosses it; the confidence is the returns' share alone;
    * ``ambiguous``: another distinct place explains the scan as well (no significant difference: both
      rooms of a symmetric flat, two bays of a warehouse): every such place is a candidate, best first, and
      none is chosen;
