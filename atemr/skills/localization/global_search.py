@@ -170,8 +170,9 @@ class Hypotheses:
         return np.hstack([*self.hits, *self.opens]) if self.hits else np.zeros((self.poses.shape[0], 0), bool)
 
     def ranked(self, odom_delta: FloatArray | None = None) -> tuple[Hypothesis, ...]:
-        """The places, best agreement first: as of the latest scan added, or moved by ``odom_delta`` (the odometry
-        since the first scan, base frame of the first) when given."""
+        """The places, best first (by the pooled evidence, as `decide` ranks them), each with its share of the
+        returns on the map: as of the latest scan added, or moved by ``odom_delta`` (the odometry since the first
+        scan, base frame of the first) when given."""
         poses = self.current() if odom_delta is None else compose(self.poses, np.asarray(odom_delta, np.float64))
         agreement = self.agreement
         order = _rank(self.evidence)
