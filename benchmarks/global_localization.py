@@ -29,9 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
-from atemr.io.sim.lidar import Lidar, LidarParams
+from atemr.config import SimConfig
+from atemr.io.sim.lidar import Lidar
 from atemr.io.sim.movers import Movers
 from atemr.io.sim.scene import Scene
+from atemr.io.sim.simulation import params_from_config
 from atemr.io.sim.world import World, load_world
 from atemr.msgs import Pose2D
 from atemr.skills.localization.config import LocalizationConfig
@@ -130,7 +132,7 @@ def run_world(world_name: str, count: int = 50, seed: int = 0, lidar_range_m: fl
     scene = Scene(world)
     label = world_label(world_name)
     rng = np.random.default_rng([seed, sum(label.encode())])
-    lidar = Lidar(LidarParams(range_max_m=lidar_range_m, reach_m=max(LidarParams().reach_m, lidar_range_m)), rng)
+    lidar = Lidar(params_from_config(SimConfig(lidar_range_m=lidar_range_m)).lidar, rng)  # as the robot's
     search = search_for(world, lidar_range_m=lidar_range_m)
     p = search.params
     trials: list[Trial] = []

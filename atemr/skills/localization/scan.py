@@ -36,10 +36,14 @@ def scan_points(scan: LaserScan, *, max_beams: int | None = None) -> FloatArray:
     idx = np.flatnonzero(ok)
     if max_beams is not None and 0 < max_beams < idx.size:
         idx = idx[np.linspace(0, idx.size - 1, max_beams).round().astype(np.intp)]
+    return _base_points(scan, idx, r[idx])
+
+
+def _base_points(scan: LaserScan, idx: np.ndarray, ranges: FloatArray | float) -> FloatArray:
+    """The base-frame points ``ranges`` along the beams ``idx`` of ``scan`` (through its mounting pose)."""
     angles = scan.angle_min_rad + scan.angle_increment_rad * idx + scan.sensor_pose.yaw_rad
-    rr = r[idx]
     m = scan.sensor_pose
-    return np.column_stack([m.x_m + rr * np.cos(angles), m.y_m + rr * np.sin(angles)])
+    return np.column_stack([m.x_m + ranges * np.cos(angles), m.y_m + ranges * np.sin(angles)])
 
 
 def open_ray_ends(scan: LaserScan, *, short_m: float = OPEN_SHORT_M) -> FloatArray:
@@ -55,10 +59,7 @@ def open_ray_ends(scan: LaserScan, *, short_m: float = OPEN_SHORT_M) -> FloatArr
     reach = scan.range_max_m - short_m
     if reach <= 0:
         return np.zeros((0, 2))
-    idx = np.flatnonzero(np.isposinf(r))
-    angles = scan.angle_min_rad + scan.angle_increment_rad * idx + scan.sensor_pose.yaw_rad
-    m = scan.sensor_pose
-    return np.column_stack([m.x_m + reach * np.cos(angles), m.y_m + reach * np.sin(angles)])
+    return _base_points(scan, np.flatnonzero(np.isposinf(r)), reach)
 
 
 def sensor_origin(scan: LaserScan) -> tuple[float, float]:
