@@ -41,6 +41,25 @@ def test_run_for_a_duration_exits_0(tmp_path, capsys):
     assert "started:" in capsys.readouterr().out
 
 
+def test_run_freezes_the_start_up_heap_while_the_robot_runs(monkeypatch, capsys):
+    """A full garbage collection over the start-up heap would stall the control loop: frozen while it runs."""
+    import gc
+
+    from atemr.robot.core import Robot
+
+    frozen_while_running: list[int] = []
+    real_run = Robot.run
+
+    def run(self, **kwargs):
+        frozen_while_running.append(gc.get_freeze_count())
+        real_run(self, **kwargs)
+
+    monkeypatch.setattr(Robot, "run", run)
+    assert main(["run", "--duration", "0.01", "--speed", "100"]) == 0
+    assert frozen_while_running and frozen_while_running[0] > 10_000, frozen_while_running
+    assert gc.get_freeze_count() == 0, "unfrozen once the robot stopped"
+
+
 def test_run_stops_cleanly_on_sigterm_and_sigint(tmp_path):
     for sig in (signal.SIGTERM, signal.SIGINT):
         env = dict(os.environ, XDG_DATA_HOME=str(tmp_path))

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import gc
 import logging
 import shlex
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -79,9 +82,24 @@ class RunCommand:
             if control is not None:
                 print(f"control socket {control.server.path}: atemr mission run FILE (or status, cancel) "
                       f"from another terminal of this user", flush=True)
-            robot.run(duration=args.duration)
+            with start_up_heap_frozen():
+                robot.run(duration=args.duration)
         print("ATEMR stopped.", flush=True)
         return after_stop(robot)
+
+
+@contextlib.contextmanager
+def start_up_heap_frozen() -> Iterator[None]:
+    """While the robot runs, the objects of its start-up (modules, configuration, trees, maps: most of the
+    heap) are frozen out of the garbage collector (`gc.freeze`), so a full collection walks only what was made
+    since. Otherwise one stalls the control loop for tens of milliseconds (80 ms measured on a simulated robot
+    after 30 s), several 50 Hz ticks, longer as the heap grows. Unfrozen when the robot stops."""
+    gc.collect()
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def after_stop(robot: Robot) -> int:
