@@ -17,7 +17,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Self
+from typing import Any, Self
 
 import can
 
@@ -368,8 +368,7 @@ class RmdDriver(Publishes[MotorsReading], DriveMotors):
                 self.bad_frames += 1
                 log.warning("%s: bad reply from the %s motor: %s", self.name, side, exc)
                 continue
-            self.states[side] = _updated(replace(self.states[side], last_reply_t=now), reply,
-                                         self.directions[side], now)
+            self.states[side] = _updated(self.states[side], reply, self.directions[side], now)
             replies += 1
         if replies:
             self._out.publish(MotorsReading(now, self.states["left"], self.states["right"]))
@@ -489,13 +488,14 @@ class RmdDriver(Publishes[MotorsReading], DriveMotors):
 
 
 def _updated(state: MotorState, reply: AnyReply, sign: int, now: float) -> MotorState:
-    """``state`` with what ``reply`` (of either protocol version) says; speeds and currents signed by ``sign``."""
+    """``state`` with the reply's time and what ``reply`` (of either protocol version) says; speeds and currents
+    signed by ``sign``. One copy of the state per reply: the driver reads about 200 replies a second."""
     if isinstance(reply, Status2Reply | V4Status2Reply):
-        state = replace(state, speed_radps=sign * reply.speed_radps, current_a=sign * reply.current_a,
-                        temperature_c=reply.temperature_c, last_feedback_t=now)
-        if isinstance(reply, V4Status2Reply):
-            return replace(state, angle_rad=sign * reply.angle_rad)
-        return replace(state, encoder=reply.encoder)
+        position: dict[str, Any] = {"angle_rad": sign * reply.angle_rad} if isinstance(reply, V4Status2Reply) \
+            else {"encoder": reply.encoder}
+        return replace(state, last_reply_t=now, speed_radps=sign * reply.speed_radps, current_a=sign * reply.current_a,
+                       temperature_c=reply.temperature_c, last_feedback_t=now, **position)
     if isinstance(reply, Status1Reply | V4Status1Reply):
-        return replace(state, temperature_c=reply.temperature_c, voltage_v=reply.voltage_v, errors=reply.errors)
-    return state
+        return replace(state, last_reply_t=now, temperature_c=reply.temperature_c, voltage_v=reply.voltage_v,
+                       errors=reply.errors)
+    return replace(state, last_reply_t=now)

@@ -105,21 +105,24 @@ class RmdMotorModel:
         if dt_s == 0:
             return
         p = self.params
-        target = self.target_radps
-        tau = p.time_constant_s if self.output_enabled and self.mode is not MotorMode.OFF else p.coast_time_constant_s
+        enabled = self.output_enabled
+        target = self._command_radps if enabled and self.mode is MotorMode.RUNNING else 0.0  # `target_radps`
+        driven = enabled and self.mode is not MotorMode.OFF
+        tau = p.time_constant_s if driven else p.coast_time_constant_s
         decay = math.exp(-dt_s / tau)
         v0 = self._speed_radps
         v1 = target + (v0 - target) * decay
         self._angle_rad += target * dt_s + (v0 - target) * tau * (1.0 - decay)
         self._speed_radps = v1
         accel = (v1 - v0) / dt_s
-        driven = self.output_enabled and self.mode is not MotorMode.OFF
         current = (p.inertia_a_per_radps2 * accel + p.damping_a_per_radps * v1) if driven else 0.0
         self._current_a = max(-p.max_current_a, min(p.max_current_a, current))
         # temperature: exact solution of dT/dt = h·I² − (T − T_amb)/τ with I constant over the step
         t_eq = p.ambient_c + p.heating_c_per_a2s * self._current_a ** 2 * p.cooling_time_constant_s
         self._temperature_c = t_eq + (self._temperature_c - t_eq) * math.exp(-dt_s / p.cooling_time_constant_s)
-        self._latched |= self._conditions()
+        conditions = self._conditions()
+        if conditions:
+            self._latched |= conditions
 
     # -- commands (what the CAN commands do) ----------------------------------------------------
     def set_speed(self, speed_radps: float) -> None:
@@ -198,7 +201,12 @@ class RmdMotorModel:
     @property
     def error_flags(self) -> MotorErrorFlags:
         """The error flags the motor reports (in its 0x9A status-1 reply)."""
-        return self._latched | self._conditions()
+        conditions = self._conditions()
+        # Nearly always one of them is empty: no flag arithmetic then (it is slow, and this runs a few hundred
+        # times a simulated second).
+        if not conditions:
+            return self._latched
+        return conditions if not self._latched else self._latched | conditions
 
     @property
     def output_enabled(self) -> bool:

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -220,8 +220,13 @@ class Costmap:
               ) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_]]:
         """(row, col, inside) of world points; outside points get row/col clipped into the grid."""
         row, col = self.map.world_to_cell(x_m, y_m)
-        inside = self.map.contains(row, col)
-        return np.clip(row, 0, self.shape[0] - 1), np.clip(col, 0, self.shape[1] - 1), inside
+        rows, cols = self.shape
+        if row.ndim == 0:  # one point (the robot's own cell, many times a tick): plain integers, no ufunc calls
+            r, c = int(row), int(col)
+            one: Any = (np.intp(min(max(r, 0), rows - 1)), np.intp(min(max(c, 0), cols - 1)),
+                        np.bool_(0 <= r < rows and 0 <= c < cols))
+            return one  # numpy scalars, as np.clip gives for one point
+        return np.clip(row, 0, rows - 1), np.clip(col, 0, cols - 1), self.map.contains(row, col)
 
     def cost_at(self, x_m: NDArray[np.float64] | float, y_m: NDArray[np.float64] | float) -> NDArray[np.uint8]:
         """Cost at world points; ``LETHAL`` outside the grid (the robot must not leave the map)."""

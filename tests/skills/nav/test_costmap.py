@@ -165,3 +165,24 @@ def test_a_wall_seen_from_a_slightly_wrong_pose_is_not_marked():
     strict = Costmap(sim.world.map, CostmapParams(wall_match_m=0.0, wall_match_per_m=0.0))
     strict.update_from_scan(scan, off)
     assert strict.obstacles.sum() > cm.obstacles.sum()
+
+
+def test_one_point_is_looked_up_as_in_an_array_inside_outside_and_on_edges(make_map):
+    """`Costmap.cells` takes a shortcut for a single point (the robot's own cell, many times a tick): the same
+    row, column and inside flag, and so the same cost, as the array path, on a rotated map, off it on every side and
+    on cell edges."""
+    from atemr.domain.maps import OccupancyMap
+
+    rng = np.random.default_rng(5)
+    data = rng.choice(np.array([0, 100, -1], dtype=np.int8), size=(30, 40), p=[0.8, 0.1, 0.1])
+    rotated = OccupancyMap(data, RES, Pose2D(-0.7, 0.4, 0.3), name="rotated")
+    for cm in (Costmap(make_map(data, RES)), Costmap(rotated)):
+        xs = np.concatenate([rng.uniform(-2.0, 4.0, 300), np.arange(-0.1, 2.1, RES)])
+        ys = np.concatenate([rng.uniform(-2.0, 4.0, 300), np.arange(-0.1, 2.1, RES)[::-1]])
+        rows, cols, inside = cm.cells(xs, ys)
+        costs = cm.cost_at(xs, ys)
+        for k, (x, y) in enumerate(zip(xs.tolist(), ys.tolist(), strict=True)):
+            row, col, ok = cm.cells(x, y)
+            assert (int(row), int(col), bool(ok)) == (rows[k], cols[k], inside[k]), (x, y)
+            assert int(cm.cost_at(x, y)) == costs[k]
+        assert inside.any() and not inside.all()
