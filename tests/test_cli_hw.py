@@ -4,12 +4,14 @@ and against nothing at all (what a user sees with no device attached)."""
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 import can
+import numpy as np
 import pytest
 
 from atemr.cli.main import main
@@ -33,6 +35,7 @@ def emulated(tmp_path: Path):
     """An RPLidar and a WT901 on pseudo-terminals, fed by the studio world standing still."""
     sim = build_simulation("studio", 0)
     scan = sim.read_lidar(0.0)
+    scan.ranges_m[10], scan.ranges_m[20] = np.inf, np.nan  # a return beyond the range; none at all
     sample = sim.read_imu(0.0)
     with RplidarEmulator(lambda: scan, directory=tmp_path) as lidar, \
             Wt901Emulator(lambda: sample, directory=tmp_path) as imu:
@@ -63,13 +66,21 @@ def test_echo_prints_readings_as_json_lines(emulated, capsys) -> None:
     assert len(lines) == 2
     first = json.loads(lines[0])
     assert set(first) == {"t", "angle_min", "angle_increment", "ranges"} and len(first["ranges"]) == 360
-    # the sensor frame, counter-clockwise from the lidar's forward axis, metres, null for no return
+    # the sensor frame, counter-clockwise from the lidar's forward axis, metres; "inf" for a return beyond the
+    # range, null for none (the fixture's scan has beam 10 beyond the range and beam 20 without a return)
     ahead = first["ranges"][180]
     assert ahead is not None and abs(ahead - float(scan.ranges_m[180])) < 0.05
+    assert first["ranges"][10] == "inf" and first["ranges"][20] is None
     assert main(["hw", "echo", "imu", "--config", str(config), "--count", "3"]) == 0
     samples = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert len(samples) == 3 and set(samples[0]) == {"t", "yaw_rate_radps", "acc_mps2"}
     assert abs(samples[-1]["acc_mps2"][2] - 9.81) < 0.2  # standing on a level floor
+
+
+def test_a_beam_keeps_its_non_finite_meaning_in_json() -> None:
+    from atemr.cli.hw import range_json
+
+    assert [range_json(v) for v in (1.23456, math.inf, -math.inf, math.nan)] == [1.2346, "inf", "-inf", None]
 
 
 def test_echo_prints_the_depth_cameras_frames(tmp_path: Path, capsys, monkeypatch) -> None:

@@ -25,12 +25,23 @@ from atemr.io.devices.config import SIMULATED_DRIVERS
 SENSORS = ("lidar", "imu", "camera", "depth")
 
 
+def range_json(r: float) -> float | str | None:
+    """One lidar beam as JSON, keeping what REP 117's non-finite values say (JSON has no infinities): metres,
+    ``"inf"`` for a return beyond the range, ``"-inf"`` for one closer than the minimum, ``null`` for no return
+    (NaN). ``ros2 topic echo`` prints them ``.inf``, ``-.inf`` and ``.nan``."""
+    if math.isfinite(r):
+        return round(r, 4)
+    if math.isnan(r):
+        return None
+    return "inf" if r > 0 else "-inf"
+
+
 def reading_json(kind: str, reading: Any, t: float) -> dict[str, Any]:
     """One reading as ``hw echo`` prints it (the fields: docs/real-robot.md#check-start-power-off)."""
     if kind == "lidar":
         return {"t": round(reading.t, 6), "angle_min": reading.angle_min_rad,
                 "angle_increment": reading.angle_increment_rad,
-                "ranges": [round(float(r), 4) if math.isfinite(r) else None for r in reading.ranges_m]}
+                "ranges": [range_json(float(r)) for r in reading.ranges_m]}
     if kind == "imu":
         return {"t": round(reading.t, 6), "yaw_rate_radps": reading.yaw_rate_radps,
                 "acc_mps2": [reading.accel_x_mps2, reading.accel_y_mps2, reading.accel_z_mps2]}
