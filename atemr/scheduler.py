@@ -161,7 +161,9 @@ class Scheduler:
                 log.exception("error while shutting down %s", comp.name)
 
     def stop(self) -> None:
-        """Ask a running `run` to return after the current tick; safe from a signal handler or thread."""
+        """Ask `run` to return after the current tick; safe from a signal handler or thread. A stop asked while
+        nothing runs holds for the next `run`, which then returns at once: a SIGTERM that comes between a
+        robot's start and its run is not lost."""
         self._stop.set()
 
     @property
@@ -201,20 +203,23 @@ class Scheduler:
     def run(self, *, until: float | None = None, duration: float | None = None) -> None:
         """Tick until ``stop()`` is called, or up to simulated/real time ``until`` (or now+``duration``).
 
-        Ticks due exactly at ``until`` run; the clock ends at ``until``.
+        Ticks due exactly at ``until`` run; the clock ends at ``until``. A stop asked before this call makes it
+        return at once; the stop is used up when it returns, so the next call runs again.
         """
         if until is not None and duration is not None:
             raise ValueError("give either until or duration, not both")
         if duration is not None:
             until = self.clock.now() + duration
-        self._stop.clear()
         if not self._heap:
             raise RuntimeError("nothing to run: no component is scheduled")
-        while not self._stop.is_set():
-            if until is not None and self._heap[0][0] > until:
-                self.clock.sleep_until(until)
-                break
-            self.step()
+        try:
+            while not self._stop.is_set():
+                if until is not None and self._heap[0][0] > until:
+                    self.clock.sleep_until(until)
+                    break
+                self.step()
+        finally:
+            self._stop.clear()
 
     # -- reporting -----------------------------------------------------------------------------
     def _report_overrun(self, overrun: Overrun) -> None:

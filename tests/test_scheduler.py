@@ -192,6 +192,18 @@ def test_stop_from_inside_a_tick():
     assert s.log[-1] == pytest.approx(0.3)
 
 
+def test_a_stop_asked_before_run_makes_it_return_at_once_and_is_used_up():
+    """A SIGTERM between a robot's start and its run (``atemr run``) must not be lost."""
+    sched = Scheduler(SimClock())
+    r = Recorder("r")
+    sched.add(r, 10)
+    sched.stop()
+    sched.run(until=5.0)  # returns at once, before its first tick
+    assert r.log == []
+    sched.run(until=0.2)  # the stop was used up: the next run runs
+    assert r.log == pytest.approx([0.0, 0.1, 0.2])
+
+
 def test_bad_rates_and_duplicate_names_are_refused():
     sched = Scheduler(SimClock())
     with pytest.raises(ValueError, match="rate"):

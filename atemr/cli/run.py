@@ -74,7 +74,7 @@ class RunCommand:
                 return 1
         robot = build_robot(config, realtime=True)
 
-        with stop_on_signals(robot.stop), robot:
+        with start_up_heap_frozen(), stop_on_signals(robot.stop), robot:
             can = f"{config.can.interface}:{config.can.channel}"
             mode = "simulation" if config.simulation else f"real hardware on {can}"
             print(f"ATEMR running in {mode}; started: {', '.join(robot.components)}. Ctrl-C stops.", flush=True)
@@ -82,8 +82,7 @@ class RunCommand:
             if control is not None:
                 print(f"control socket {control.server.path}: atemr mission run FILE (or status, cancel) "
                       f"from another terminal of this user", flush=True)
-            with start_up_heap_frozen():
-                robot.run(duration=args.duration)
+            robot.run(duration=args.duration)
         print("ATEMR stopped.", flush=True)
         return after_stop(robot)
 
@@ -93,7 +92,8 @@ def start_up_heap_frozen() -> Iterator[None]:
     """While the robot runs, the objects of its start-up (modules, configuration, trees, maps: most of the
     heap) are frozen out of the garbage collector (`gc.freeze`), so a full collection walks only what was made
     since. Otherwise one stalls the control loop for tens of milliseconds (80 ms measured on a simulated robot
-    after 30 s), several 50 Hz ticks, longer as the heap grows. Unfrozen when the robot stops."""
+    after 30 s), several 50 Hz ticks, longer as the heap grows. Frozen before the robot starts and its signals
+    are caught (collecting first takes a moment), unfrozen when it stops."""
     gc.collect()
     gc.freeze()
     try:
