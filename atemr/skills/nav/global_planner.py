@@ -216,9 +216,10 @@ class GlobalPlanner:
         # obstacle costs, mostly cost less than 1.75 times the straight line), 1.75 times it for Dijkstra, whose
         # bound is on the path cost itself.
         known = self._known_cost_to_go(s_flat, g_flat)
-        estimate = coarse_cost(cost_grid, passable, s, g, resolution_m=cm.resolution_m, params=p) \
-            if p.algorithm == "astar" and known is None else None
-        if estimate is not None:
+        if p.algorithm == "astar" and known is None:
+            estimate = coarse_cost(cost_grid, passable, s, g, resolution_m=cm.resolution_m, params=p)
+            if estimate is None:  # no path on the coarse grid, so none on this one (`coarse_cost`)
+                return None
             limit = 1.25 * max(estimate - h_start, 0.0) + 2 * COARSE_BLOCK * cm.resolution_m * p.neutral_cost
         else:
             straight = float(octile_m(np.array(s[0]), np.array(s[1]), g, cm.resolution_m)) * p.neutral_cost
@@ -336,6 +337,11 @@ def coarse_cost(cost: NDArray[np.uint8], passable: NDArray[np.bool_], start: tup
                 resolution_m: float, params: PlannerParams) -> float | None:
     """The cost of the cheapest path from the cell ``start`` to ``goal`` on a grid `COARSE_BLOCK` times coarser, or
     None when that grid has none. A block is passable when any of its cells is, at the cost of the cheapest.
+
+    None means the full grid has no path either: every step of a path on it is a step between the blocks of its two
+    cells, or none, and a diagonal step's two corner cells lie in the two blocks the coarse step's corner rule asks
+    for, so every path on the full grid is one on the coarse grid. A plan that has no path (a doorway closed) is
+    known at a sixteenth of the cost of searching the full grid until it stops growing.
 
     An estimate of the full grid's path cost for a sixteenth of the work, which A* takes for its first bound. With
     a fixed share of the straight line instead, the bound was far above a path through open space (the

@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 from atemr.errors import NavigationError
-from atemr.skills.nav import global_planner
 from atemr.skills.nav.costmap import INSCRIBED, Costmap, CostmapParams
 from atemr.skills.nav.global_planner import GlobalPlanner, PlannerParams, coarse_cost, resample
 
@@ -202,20 +201,20 @@ def test_a_replan_to_the_same_goal_searches_only_as_far_as_the_last_path_costs(m
             assert replan.expanded < fresh.expanded / 2
 
 
-def test_the_first_bound_from_a_coarse_plan_reaches_fewer_cells_than_a_share_of_the_straight_line(make_map,
-                                                                                                  monkeypatch):
-    """A* takes its first bound from a plan on a grid four times coarser: round a long wall in an open hall it finds
-    the same path as with the straight-line share it used before, from 40 % fewer cells."""
+def test_the_first_bound_from_a_coarse_plan_reaches_few_more_cells_than_the_exact_bound(make_map):
+    """A* takes its first bound from a plan on a grid four times coarser: round a long wall in an open hall a new
+    plan reaches 1.3 times the cells of a replan bounded by the exact cost to go (with three quarters of the
+    straight line, its bound before, 2.1 times), and finds the same path."""
     data = np.zeros((200, 600), dtype=np.int8)
     data[20:180, 300:303] = 100  # a wall across the hall, to go round at either end
     cm = Costmap(make_map(data, RES))
     start, goal = centre(cm, 100, 5), centre(cm, 60, 595)
-    coarse = GlobalPlanner(cm, PlannerParams(smooth=False)).plan(start, goal)
-    monkeypatch.setattr(global_planner, "coarse_cost", lambda *args, **kwargs: None)  # the straight line's share alone
-    share = GlobalPlanner(cm, PlannerParams(smooth=False)).plan(start, goal)
-    assert coarse is not None and share is not None
-    assert np.array_equal(coarse.cells, share.cells) and coarse.cost == share.cost
-    assert coarse.expanded < 0.7 * share.expanded, (coarse.expanded, share.expanded)  # 0.60 here
+    planner = GlobalPlanner(cm, PlannerParams(smooth=False))
+    cold = planner.plan(start, goal)
+    exact = planner.plan(start, goal)  # a replan: bounded by the cost to go it just found
+    assert cold is not None and exact is not None
+    assert np.array_equal(cold.cells, exact.cells) and cold.cost == exact.cost
+    assert cold.expanded < 1.5 * exact.expanded, (cold.expanded, exact.expanded)
 
 
 @pytest.mark.parametrize("seed", range(3))
