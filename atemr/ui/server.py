@@ -137,6 +137,11 @@ class _RequestHandler(WSGIRequestHandler):
         websocket = self.headers.get("Upgrade", "").strip().lower() == "websocket"
         self.connection.settimeout(None if websocket else IO_TIMEOUT_S)
         super().run_wsgi()
+        if websocket:
+            # The connection was the WebSocket's: once it has ended, what follows on it is not HTTP. Kept open
+            # (HTTP/1.1 keep-alive), the client's closing frames were parsed as a request ("400 Bad request
+            # syntax") and it waited its close timeout (3 s for python clients) for a closing frame that never came.
+            self.close_connection = True
 
 
 class BoundedWSGIServer(ThreadedWSGIServer):

@@ -20,6 +20,7 @@ pushed at 10 Hz by a ticker thread as the robot's scheduler would. The findings:
 
 from __future__ import annotations
 
+import contextlib
 import http.client
 import json
 import logging
@@ -44,7 +45,7 @@ from atemr.config import Config, UiConfig
 from atemr.msgs import Twist
 from atemr.ui.app import create_app
 from atemr.ui.gateway import CommandResult
-from atemr.ui.server import PUSH_RATE_HZ, DashboardServer
+from atemr.ui.server import HEADER_TIMEOUT_S, PUSH_RATE_HZ, DashboardServer
 from atemr.ui.users import HASH_METHOD, PasswordHashBusy, UserStore
 
 socketio = pytest.importorskip("socketio", reason="python-socketio[client] is a test extra")
@@ -282,6 +283,28 @@ def test_a_removed_and_recreated_user_does_not_inherit_the_old_sessions(site: Si
     assert site.get(site.replayed(cookie), "/api/state").status_code == 401
     assert refused_socket(site, cookie)
     assert site.get(site.login("carol", ALICE_PW), "/api/state").status_code == 200
+
+
+def test_a_websocket_that_has_ended_closes_its_connection(site: Site) -> None:
+    """Once a WebSocket has ended, the server closes its TCP connection. Kept open as an HTTP/1.1 keep-alive
+    connection, it held one of the server's bounded connection slots for as long as the client liked, and took
+    the client's next frames for a request ("400 Bad request syntax"; a python client waited 3 s to close)."""
+    import websocket  # websocket-client: python-engineio's own client transport
+
+    cookie = site.login("alice", ALICE_PW).cookies[COOKIE]
+    url = site.url.replace("http://", "ws://", 1) + "/socket.io/?EIO=4&transport=websocket"
+    ws = websocket.create_connection(url, cookie=f"{COOKIE}={cookie}", timeout=HEADER_TIMEOUT_S / 2)
+    try:
+        assert ws.recv().startswith("0")  # engine.io's open packet
+        ws.send_close()
+        while ws.recv_data(control_frame=True)[0] != websocket.ABNF.OPCODE_CLOSE:
+            pass
+        # The end of the connection (end of file, or a reset when the client's last bytes were left unread), not a
+        # wait for another request: that times out, failing the test.
+        with contextlib.suppress(ConnectionResetError):
+            assert ws.sock.recv(1) == b""
+    finally:
+        ws.shutdown()
 
 
 # -- finding 3: no exhaustion from one address --------------------------------------------------------------
