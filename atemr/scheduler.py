@@ -168,6 +168,7 @@ class Scheduler:
 
     @property
     def stopping(self) -> bool:
+        """A stop was asked and not yet used up by a `run` returning (False again once it has)."""
         return self._stop.is_set()
 
     # -- running -------------------------------------------------------------------------------

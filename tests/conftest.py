@@ -98,8 +98,9 @@ def link() -> RecordingLink:
 # The workers decide the units (they see the marks), and write them to a file in a directory the controller
 # made for the run; the controller's scheduler (`_UnitScheduling`) reads it. pytest-xdist's own ``loadgroup``
 # would do this with ``xdist_group`` marks, but pytest 9.2 ignores the node ids it rewrites to carry them
-# (pytest-dev/pytest-xdist#1386). Run serially (``./test -n 0``, or plain ``pytest``), none of this does anything;
-# ``--dist loadfile``, ``loadscope`` or ``worksteal`` use xdist's own schedulers (the lock still holds).
+# (pytest-dev/pytest-xdist#1386). Run serially (``./test -n 0``, or plain ``pytest``), none of this does anything
+# but the frozen heap of exclusive tests (`pytest_runtest_protocol`); ``--dist loadfile``, ``loadscope`` or
+# ``worksteal`` use xdist's own schedulers (the lock still holds).
 
 #: Where the controller tells its workers the run's directory (inherited with its environment; not ATEMR_...,
 #: which the configuration would take for one of its keys).

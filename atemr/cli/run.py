@@ -93,7 +93,9 @@ def start_up_heap_frozen() -> Iterator[None]:
     heap) are frozen out of the garbage collector (`gc.freeze`), so a full collection walks only what was made
     since. Otherwise one stalls the control loop for tens of milliseconds (80 ms measured on a simulated robot
     after 30 s), several 50 Hz ticks, longer as the heap grows. Frozen before the robot starts and its signals
-    are caught (collecting first takes a moment), unfrozen when it stops."""
+    are caught (collecting first takes a moment), unfrozen when it stops. The price: a start-up object that
+    becomes garbage in a reference cycle while the robot runs (a behaviour tree replaced by a reload) is kept
+    until then, at most the start-up heap."""
     gc.collect()
     gc.freeze()
     try:

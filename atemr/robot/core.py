@@ -107,7 +107,8 @@ class Robot:
         self.scheduler.run(duration=duration, until=until)
 
     def stop(self) -> None:
-        """Ask `run` to return; safe from a signal handler or another thread."""
+        """Ask `run` to return; safe from a signal handler or another thread. Asked while the robot is not
+        running, it holds for the next `run`, which returns at once (`Scheduler.stop`)."""
         self.scheduler.stop()
 
     def open_bus(self) -> can.BusABC:

@@ -106,7 +106,7 @@ class RmdMotorModel:
             return
         p = self.params
         enabled = self.output_enabled
-        target = self._command_radps if enabled and self.mode is MotorMode.RUNNING else 0.0  # `target_radps`
+        target = self._target(enabled)
         driven = enabled and self.mode is not MotorMode.OFF
         tau = p.time_constant_s if driven else p.coast_time_constant_s
         decay = math.exp(-dt_s / tau)
@@ -216,9 +216,11 @@ class RmdMotorModel:
     @property
     def target_radps(self) -> float:
         """The speed the driver is steering towards now (zero when stopped, off or faulted)."""
-        if not self.output_enabled or self.mode is not MotorMode.RUNNING:
-            return 0.0
-        return self._command_radps
+        return self._target(self.output_enabled)
+
+    def _target(self, enabled: bool) -> float:
+        """`target_radps` given `output_enabled` (which `step` reads once)."""
+        return self._command_radps if enabled and self.mode is MotorMode.RUNNING else 0.0
 
     @property
     def command_radps(self) -> float:
