@@ -246,19 +246,16 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     fault. Collected once and frozen when an exclusive block begins, unfrozen when it ends."""
     lock = item.config.stash.get(_RUN_LOCK, None)
     exclusive = _exclusive(item)
+    block_goes_on = exclusive and nextitem is not None and _exclusive(nextitem)
     if exclusive and not gc.get_freeze_count():
         gc.collect()
         gc.freeze()
     try:
-        if lock is None:
-            yield
-            return
-        lock.acquire(exclusive)
-        try:
-            yield
-        finally:
-            if not (exclusive and nextitem is not None and _exclusive(nextitem)):
-                lock.release()
+        if lock is not None:
+            lock.acquire(exclusive)
+        yield
     finally:
-        if exclusive and not (nextitem is not None and _exclusive(nextitem)):
+        if lock is not None and not block_goes_on:
+            lock.release()
+        if exclusive and not block_goes_on:
             gc.unfreeze()

@@ -187,8 +187,7 @@ class GlobalPlanner:
         p = self.params
         s = self._cell(*start_xy, what="start")
         g = self._cell(*goal_xy, what="goal")
-        rows, cols = cm.shape
-        indptr, indices = _structure(rows, cols)
+        cols = cm.shape[1]
         if not self._enterable(g):
             near = self._nearest_enterable(g, tolerance_m)
             if near is None:
@@ -196,25 +195,21 @@ class GlobalPlanner:
             g = near
             gx, gy = cm.map.cell_to_world(g[0], g[1])
             goal_xy = (float(gx), float(gy))
-        n = rows * cols
         s_flat, g_flat = s[0] * cols + s[1], g[0] * cols + g[1]
         if s_flat == g_flat:
             pts = np.array([start_xy, goal_xy], dtype=np.float64)
             return GlobalPath(pts, np.array([s_flat]), float(np.hypot(*(pts[1] - pts[0]))), 0.0, 1)
         h: FloatArray | None = None
         h_start = 0.0
-        if p.algorithm == "astar":  # rows and columns broadcast: the numbers np.indices gives, in one pass
-            h = octile_m(np.arange(rows)[:, None], np.arange(cols)[None, :], g, cm.resolution_m) * p.neutral_cost
+        if p.algorithm == "astar":
+            h = _potential(cm.shape, g, cm.resolution_m, p)
             h_start = float(h[s])
         cost_grid, passable = self._grids(s)
-        data = self._weights(cost_grid, passable, h, g)
-        graph = csr_matrix((data.reshape(-1), indices, indptr), shape=(n, n))
+        graph = _graph(self._weights(cost_grid, passable, h, g), cm.shape)
         # The first bound, doubled until the goal is inside (the total work stays within a small factor of the
         # last search's). A replan along the last path knows its cost to go. Otherwise A* takes the cost a plan on
-        # a coarse grid estimates, a quarter above it (`coarse_cost`), and without one (or for Dijkstra) a share
-        # of the straight line: three quarters of the heuristic above it for A* (indoor paths, with their
-        # obstacle costs, mostly cost less than 1.75 times the straight line), 1.75 times it for Dijkstra, whose
-        # bound is on the path cost itself.
+        # a coarse grid estimates, a quarter above it (`coarse_cost`); Dijkstra, or a replan whose known cost
+        # no longer holds, a share of the straight line (`_share_of_straight`).
         known = self._known_cost_to_go(s_flat, g_flat)
         if p.algorithm == "astar" and known is None:
             estimate = coarse_cost(cost_grid, passable, s, g, resolution_m=cm.resolution_m, params=p)
@@ -223,7 +218,7 @@ class GlobalPlanner:
             limit = 1.25 * max(estimate - h_start, 0.0) + 2 * COARSE_BLOCK * cm.resolution_m * p.neutral_cost
         else:
             straight = float(octile_m(np.array(s[0]), np.array(s[1]), g, cm.resolution_m)) * p.neutral_cost
-            limit = (0.75 if p.algorithm == "astar" else 1.75) * straight + 10 * cm.resolution_m
+            limit = _share_of_straight(straight, cm.resolution_m, p.algorithm)
         found = _bounded_search(graph, s_flat, g_flat, limit, known)
         if found is None:
             return None
@@ -360,14 +355,34 @@ def coarse_cost(cost: NDArray[np.uint8], passable: NDArray[np.bool_], start: tup
     if s == g:
         return 0.0
     res = resolution_m * k
-    h = octile_m(np.arange(b_rows)[:, None], np.arange(b_cols)[None, :], g, res) * params.neutral_cost
-    indptr, indices = _structure(b_rows, b_cols)
-    n = b_rows * b_cols
-    weights = edge_weights(blocks, blocks <= MAX_NON_OBSTACLE, res, params, h)
-    graph = csr_matrix((weights.reshape(-1), indices, indptr), shape=(n, n))
+    h = _potential(blocks.shape, g, res, params)
+    graph = _graph(edge_weights(blocks, blocks <= MAX_NON_OBSTACLE, res, params, h), blocks.shape)
     h_start = float(h[s])
-    found = _bounded_search(graph, s[0] * b_cols + s[1], g[0] * b_cols + g[1], 0.75 * h_start + 10 * res)
+    found = _bounded_search(graph, s[0] * b_cols + s[1], g[0] * b_cols + g[1],
+                            _share_of_straight(h_start, res, "astar"))
     return None if found is None else found[0] + h_start
+
+
+def _potential(shape: tuple[int, int], goal: tuple[int, int], resolution_m: float, params: PlannerParams
+               ) -> FloatArray:
+    """A*'s heuristic in every cell: the octile distance to ``goal`` at the cheapest cost per metre (rows and
+    columns broadcast: the numbers np.indices gives, in one pass)."""
+    rows, cols = shape
+    return octile_m(np.arange(rows)[:, None], np.arange(cols)[None, :], goal, resolution_m) * params.neutral_cost
+
+
+def _graph(weights: NDArray[np.float64], shape: tuple[int, int]) -> csr_matrix:
+    """The grid's 8-neighbour graph with these (N, 8) weights, on the structure cached for its shape."""
+    indptr, indices = _structure(*shape)
+    n = shape[0] * shape[1]
+    return csr_matrix((weights.reshape(-1), indices, indptr), shape=(n, n))
+
+
+def _share_of_straight(straight: float, resolution_m: float, algorithm: Algorithm) -> float:
+    """A first bound from the straight line's cost alone: for A* (a bound on the cost above the heuristic) three
+    quarters of it, as indoor paths with their obstacle costs mostly cost less than 1.75 times the straight line;
+    for Dijkstra (a bound on the cost itself) 1.75 times it."""
+    return (0.75 if algorithm == "astar" else 1.75) * straight + 10 * resolution_m
 
 
 def _bounded_search(graph: csr_matrix, s_flat: int, g_flat: int, limit: float, first: float | None = None
