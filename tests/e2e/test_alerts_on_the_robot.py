@@ -70,7 +70,7 @@ def open_control(page: Any, site: RobotSite, helpers: Any) -> Alerts:
     """Log in, wait for the live robot with every part healthy, and return its alert list."""
     helpers.login(page, site.url, "admin", helpers.ADMIN_PW)
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.live "
-                   "&& ATEMR.map.image !== null && document.getElementById('agent-state').textContent === 'IDLE'")
+                   "&& ATEMR.map?.image != null && document.getElementById('agent-state').textContent === 'IDLE'")
     wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)", timeout=15_000)
     return Alerts(page)
 
@@ -241,6 +241,9 @@ def test_goals_missions_refusals_localization_battery_and_offline_are_said(tired
     go_here(page, spot)
     alerts.said("Goal failed: the robot did not get there in time; something may be in the way. Look at the camera, "
                 "then send it again.", timeout=40_000)
+    # the goal's acknowledgement gives way to its outcome: "accepted" beside "Goal failed" read as stale
+    assert page.inner_text("#command-result").startswith("Go here: Goal failed: the robot did not get there")
+    assert page.get_attribute("#command-result", "class") == "hint error"
     page.screenshot(path=str(shots / "alerts-goal-failed.png"))
     alerts.plain()
 
@@ -253,6 +256,7 @@ def test_goals_missions_refusals_localization_battery_and_offline_are_said(tired
     alerts.start()
     page.click("#localize-global")
     alerts.said("The robot knows where it is", timeout=20_000)
+    assert page.inner_text("#command-result").startswith("Find position: The robot knows where it is")
     truth = site.sim.pose
     wait_for(page, f"Math.hypot(ATEMR.state.pose.x_m - {truth.x_m}, ATEMR.state.pose.y_m - {truth.y_m}) < 0.3")
 

@@ -82,7 +82,7 @@ def tap(page: Any, selector: str) -> None:
 def test_drive_by_video_and_send_a_goal_on_every_screen(ready_site, sized, shots, helpers):
     page, robot = sized, ready_site.robot
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map.image !== null")
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map?.image != null")
     assert state_problems(robot.state()) == []
     page.evaluate("window.scrollTo(0, 0)")
     # camera, joystick and STOP on one screen together, with the command feedback beside them

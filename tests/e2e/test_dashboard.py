@@ -91,7 +91,7 @@ def test_control_page_shows_the_robot_and_the_keyboard_drives_it(robot_site, pag
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
     wait_for_camera(page)
-    wait_for(page, "ATEMR.map.image !== null && ATEMR.state.pose !== null && ATEMR.state.scan.length > 100")
+    wait_for(page, "ATEMR.map?.image != null && ATEMR.state.pose !== null && ATEMR.state.scan.length > 100")
     assert page.evaluate("ATEMR.state.active_map") == "studio"
     assert page.evaluate("ATEMR.state.level2.lidar && ATEMR.state.level2.webserver && ATEMR.state.level1.heartbeat")
     x0 = page.evaluate("ATEMR.state.pose.x_m")
@@ -159,7 +159,7 @@ def test_the_joystick_pad_resends_while_held_and_stops_on_release(ready_site, pa
 def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map.image !== null")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map?.image != null")
     # AUTO is refused until every level-1 status is OK (the IR sensors come up after the secondary core boots)
     wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)")
     page.click("#go-here")  # GO HERE: the next press on the map is the goal, a drag its heading
@@ -185,6 +185,8 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
     wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=20000)
     wait_for(page, "document.getElementById('goal-progress').textContent === 'Arrived.'")
     assert "Goal reached." in page.inner_text("#alerts")
+    # the acknowledgement no longer says "accepted" once the goal has its outcome
+    assert page.inner_text("#command-result") == "Go here: Goal reached."
     assert robot_site.sim.pose.distance_to(start) > 0.8  # it drove there
     assert math.hypot(robot_site.sim.pose.x_m - gx, robot_site.sim.pose.y_m - gy) < 0.3
 
@@ -301,7 +303,7 @@ def test_new_user_waits_for_an_admin_to_grant_access(ready_site, browser, page, 
 def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map.image !== null")
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map?.image != null")
     wait_for(page, "document.getElementById('secondary-screen').naturalWidth === 256")
     start = robot_site.sim.pose
     target = next((start.x_m + dx, start.y_m) for dx in (0.6, -0.6, 1.0, -1.0)
@@ -322,10 +324,19 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
     assert abs(pose.yaw_rad - math.pi / 2) < 0.3
     page.screenshot(path=str(shots / "control-kidnap.png"), full_page=True)
     # Localization was not told: FIND POSITION has the robot find itself, and the map shows it where it now is.
+    page.evaluate("""(() => {  // every text the acknowledgement shows from now on
+        const out = document.getElementById('command-result');
+        window.acks = [];
+        new MutationObserver(() => window.acks.push(out.textContent)).observe(out, {childList: true});
+    })()""")
     page.click("#localize-global")
-    wait_for(page, "document.getElementById('command-result').textContent === 'Find position: searching'")
     wait_for(page, f"ATEMR.state.pose !== null && Math.hypot(ATEMR.state.pose.x_m - {pose.x_m}, "
                    f"ATEMR.state.pose.y_m - {pose.y_m}) < 0.15", timeout=20_000)
+    # "Find position: searching" until the search's outcome, which then takes its place
+    wait_for(page, "document.getElementById('command-result').textContent"
+                   ".startsWith('Find position: The robot knows where it is')")
+    acks = page.evaluate("window.acks")
+    assert acks[0] == "Find position: searching" and acks[-1].startswith("Find position: The robot knows"), acks
 
 
 def test_media_captured_and_recorded_then_played_previewed_downloaded_and_deleted(robot_site, page, shots, helpers):
@@ -555,7 +566,7 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
     assert robot_site.agent_state == "IDLE.MANUAL" and page.inner_text("#mode-toggle") == "MANUAL"
 
     page.goto(f"{robot_site.url}/control")  # the operator sets the pose where the robot stands
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map.image !== null")
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map?.image != null")
     truth = robot_site.sim.pose
     page.click("#set-position")  # the next tap on the map is where the robot is, a drag the way it faces
     x, y = screen_point(page, truth.x_m, truth.y_m)

@@ -21,7 +21,7 @@ def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, pag
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map.image !== null")
+    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map?.image != null")
     wait_for(page, "document.querySelectorAll('#place-list li').length === 6")  # the studio's rooms and home
     names = page.eval_on_selector_all("#place-list li", "els => els.map(e => e.dataset.place)")
     assert names == ["home", "living room", "kitchen", "bedroom", "bathroom", "balcony door"]

@@ -103,7 +103,10 @@
       if (!primed) continue;
       for (const f of eventListeners) { try { f(e); } catch (err) { console.error(err); } }
       const said = plain(e);
-      if (said) A.alert(said[0], said[1]);
+      if (said) {
+        A.alert(said[0], said[1]);
+        A.settle(String(e.kind || ""), said[0], said[1] === "ok");
+      }
     }
     primed = true;
   });

@@ -45,6 +45,13 @@
       goal: "accepted", go_to_place: "accepted", mission_start: "started", localize_globally: "searching",
       mapping_begin: "started",
     },
+    // The robot's events that end what a started command began (`alerts.js` hands every new event to
+    // `settle`): an acknowledgement left reading "Go here: accepted" beside "Goal failed" looks stale.
+    ENDED_BY: {
+      goal: /^goal$/, go_to_place: /^goal$/, mission_start: /^mission$/,
+      localize_globally: /^localization (localized|relocalized|ambiguous|failed)$/,
+    },
+    started: null, // the started command whose acknowledgement is shown, until its outcome comes
     report(what, ack) {
       const label = this.LABELS[what] || what;
       if (!ack.ok && this.alert) this.alert(`${label}: ${ack.reason}`, "warning");
@@ -52,6 +59,16 @@
       if (!out) return;
       out.textContent = ack.ok ? `${label}: ${this.STARTED[what] || "done"}` : `${label}: ${ack.reason}`;
       out.className = ack.ok ? "hint ok" : "hint error";
+      this.started = ack.ok && this.ENDED_BY[what] ? what : null;
+    },
+    // The outcome of the started command shown (the event's words as the alert says them, and whether it went
+    // well) replaces its acknowledgement. Other events leave it alone.
+    settle(kind, text, ok) {
+      const out = document.getElementById("command-result");
+      if (!out || !this.started || !this.ENDED_BY[this.started].test(kind)) return;
+      out.textContent = `${this.LABELS[this.started]}: ${text}`;
+      out.className = ok ? "hint ok" : "hint error";
+      this.started = null;
     },
     fmt(v, digits = 2) { return typeof v === "number" && isFinite(v) ? v.toFixed(digits) : "—"; },
   };
