@@ -50,6 +50,7 @@ from atemr.robot.port import jpeg
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
 from atemr.skills.ramp import checked_limits
+from atemr.trees.missions import GOAL_TASK
 from atemr.ui.gateway import CommandResult, MapImage
 from atemr.ui.snapshot import (
     navigation_json,
@@ -253,8 +254,11 @@ class RobotGatewayImpl:
         return nav.last_status, nav.goal
 
     def _mission(self, snapshot: dict[str, Any]) -> MissionJson | None:
+        """The running or last mission; None for a single goal, which runs as a one-step mission (`GOAL_TASK`) but
+        is no mission to the carer: the robot's screen said "Doing the task 'goal'" and the Control page
+        "goal: running 0%" for the whole drive. The state's ``goal`` and ``navigation`` describe it."""
         report = snapshot.get("task_progress")
-        if not isinstance(report, dict):
+        if not isinstance(report, dict) or report.get("mission") == GOAL_TASK:
             return None
         steps = report.get("steps") or []
         done = sum(1 for s in steps if s.get("status") in ("reached", "failed", "not run", "interrupted"))
@@ -704,9 +708,9 @@ class RobotGatewayImpl:
         if not isinstance(name, str) or name not in self.missions():
             known = ", ".join(self.missions()) or "none"
             return CommandResult.refused(f"no mission named {brief(name)}; known: {known}")
-        why = self.agent.precheck("start_mission")
-        if why is not None:
-            return CommandResult.refused("switch to AUTO first" if self.agent.state == "IDLE.MANUAL" else why)
+        if self.agent.precheck("start_mission") is not None:  # the agent's words stay on the Agent page
+            return CommandResult.refused("switch to AUTO first" if self.agent.state == "IDLE.MANUAL"
+                                         else plain_refusal("start_mission", self.agent.state))
         try:
             mission = load_mission(self.missions_dir / f"{name}.yaml")
         except ConfigError as exc:

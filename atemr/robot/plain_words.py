@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from atemr.domain.status import LocalizationStatus
+from atemr.trees.missions import GOAL_TASK
 
 if TYPE_CHECKING:  # types only: the navigator's module loads the planners
     from atemr.skills.nav.goal_check import GoalCheck, GoalRefusal
@@ -134,7 +135,7 @@ def plain_outcome(report: dict[str, Any], navigation: NavStatus | None = None) -
     if outcome == "failed" and navigation is not None and navigation.state == "FAILED" and navigation.message \
             and navigation.message in reason:
         failure = navigation.reason
-    if report.get("mission") == "goal":  # a single goal from the dashboard (`atemr.trees.missions.goal_task`)
+    if report.get("mission") == GOAL_TASK:  # a single goal from the dashboard (`atemr.trees.missions.goal_task`)
         if failure is not None:
             return "goal", f"Goal failed: {NAVIGATION_FAILURES[failure]}"
         if outcome in INTERRUPTIONS:

@@ -147,9 +147,14 @@ def _go_to(target: PoseParams | PlaceParams, name: str, path: str) -> NodeSpec:
     return _leaf(GO_TO_POSE, name, target, path)
 
 
+#: The name of the one-step mission a single goal from the dashboard runs as (`goal_task`): not a mission the carer
+#: started, so its report is said as a goal ("Goal reached.") and the state shows no mission for it.
+GOAL_TASK = "goal"
+
+
 def goal_task(goal: Pose2D) -> Mission:
     """A single goal from the dashboard as a one-step mission (so Exec reports it the same way)."""
-    return mission_from_goals([goal], name="goal")
+    return mission_from_goals([goal], name=GOAL_TASK)
 
 
 def mission_from_goals(goals: list[Pose2D], *, timeout_s: float | None = None, name: str = "goals") -> Mission:

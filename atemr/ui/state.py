@@ -59,7 +59,8 @@ class LimitsJson(TypedDict):
 
 
 class MissionJson(TypedDict):
-    """The running (or last) mission: its name, the share of steps done (0 to 1), and its outcome so far."""
+    """The running (or last) mission: its name, the share of steps done (0 to 1), and its outcome so far. A single
+    goal (GO HERE, a place) is not one: the state's ``goal`` and ``navigation`` say where it goes."""
 
     name: str | None
     progress: float

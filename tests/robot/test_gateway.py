@@ -22,6 +22,7 @@ from atemr.msgs import Pose2D, Twist
 from atemr.robot import Robot, build_robot
 from atemr.robot.gateway import RobotGatewayImpl
 from atemr.ui.gateway import RobotGateway
+from atemr.ui.screen.words import plain_activity
 from atemr.ui.state import state_problems
 
 BOOTED_S = 4.0  # the secondary core boots for 3 s; the agent is IDLE soon after
@@ -147,6 +148,9 @@ def test_modes_goals_and_missions_are_accepted_or_refused_as_the_agent_decides(b
     mission = gateway.state()["mission"]
     assert mission["name"] == "look-around" and mission["state"] == "running" and 0 < mission["progress"] < 1
     assert "busy with a goal or a mission" in gateway.begin_mapping().reason
+    # a second mission while one runs: the carer's words, not the agent's ("'start_mission' is not valid in ...")
+    assert gateway.start_mission("look-around").reason == ("Cannot start a mission now: the robot is busy with a "
+                                                          "goal or a mission; cancel it first.")
     assert gateway.stop_mission().ok
     run(robot, 0.3)
     assert agent_state(robot) == "IDLE.AUTO"
@@ -380,6 +384,8 @@ def test_auto_goal_shows_the_paths_and_is_reached(booted):
     path = np.asarray(state["global_path"])
     assert len(path) > 2 and np.hypot(*(path[-1] - [goal.x_m, goal.y_m])) < 0.2
     assert len(state["local_path"]) > 0
+    # a single goal is no mission: the robot's screen says where it goes, not "Doing the task 'goal'"
+    assert state["mission"] is None and plain_activity(state) == "Going to a goal"
     progress = state["navigation"]
     assert progress is not None and 0.3 < (progress["distance_left_m"] or 0) < 1.6 and (progress["eta_s"] or 0) > 0
     for _ in range(30):
