@@ -220,6 +220,8 @@ def test_goals_missions_refusals_localization_battery_and_offline_are_said(tired
     alerts.start()
     page.click("#mission-start")
     alerts.said("Mission 'look-around' finished.", timeout=40_000)
+    # the line above the map ends with the mission too (it kept "On the way: 0.1 m left" after a mission's last goal)
+    assert page.inner_text("#goal-progress") == "Mission 'look-around' finished."
 
     # a goal reached: GO HERE 1 m ahead
     start = site.sim.pose

@@ -129,6 +129,11 @@ def test_drive_by_video_and_send_a_goal_on_every_screen(ready_site, sized, shots
         touch_drag(page, [(px, py)])
     page.wait_for_selector("#goal-confirm:not([hidden])")
     assert robot.goal is None  # nothing is sent before CONFIRM
+    # CONFIRM is in sight where the map was tapped, not above it under the status bar (it was on the phone)
+    inside(page, "#goal-confirm")
+    assert page.evaluate("""(() => { const r = document.getElementById('goal-go').getBoundingClientRect();
+        return document.elementFromPoint(r.x + r.width / 2, r.y + r.height / 2)?.id; })()""") == "goal-go"
+    page.screenshot(path=str(shots / f"carer-{page.size_name}-goal-confirm.png"))
     tap(page, "#goal-go")
     wait_for(page, "document.getElementById('goal-progress').textContent.startsWith('On the way: ')")
     page.screenshot(path=str(shots / f"carer-{page.size_name}-goal.png"))

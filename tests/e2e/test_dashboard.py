@@ -568,6 +568,13 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
     page.goto(f"{robot_site.url}/control")  # the operator sets the pose where the robot stands
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map?.image != null")
     truth = robot_site.sim.pose
+    # GO HERE now: the switch to AUTO it needs is refused, and the answer is the goal's, not "Mode: ..."
+    page.click("#go-here")
+    page.mouse.click(*screen_point(page, truth.x_m, truth.y_m))
+    page.click("#goal-go")
+    wait_for(page, "document.getElementById('command-result').textContent.startsWith("
+                   "'Go here: Cannot switch to AUTO: the robot is not sure where it is')")
+    page.click("#goal-cancel")
     page.click("#set-position")  # the next tap on the map is where the robot is, a drag the way it faces
     x, y = screen_point(page, truth.x_m, truth.y_m)
     page.mouse.move(x, y)

@@ -52,7 +52,7 @@
     if (!pending) return;
     const goal = pending;
     if (A.state.mode !== "AUTO") {
-      const ack = await A.command("mode", { mode: "AUTO" });
+      const ack = await A.command("mode", { mode: "AUTO" }, "goal");
       if (!ack.ok) return;
       await A.until((s) => s.mode === "AUTO", 3000);
     }
@@ -73,11 +73,13 @@
       const left = n.distance_left_m === null ? "—" : `${n.distance_left_m.toFixed(1)} m`;
       const eta = n.eta_s === null ? "" : `, about ${Math.max(1, Math.round(n.eta_s))} s`;
       progress.textContent = `On the way: ${left} left${eta}.`;
+    } else if (s.agent_state !== "EXEC" && progress.textContent.startsWith("On the way")) {
+      progress.textContent = ""; // a mission's last step, or a goal whose outcome came before this page
     }
   });
   A.onEvent((e) => {
-    if (e.kind !== "goal") return;
-    progress.textContent = e.text === "Goal reached." ? "Arrived." : e.text;
+    if (e.kind === "goal") progress.textContent = e.text === "Goal reached." ? "Arrived." : e.text;
+    else if (e.kind === "mission") progress.textContent = e.text;
   });
 
   $("capture").addEventListener("click", () => A.command("capture_image"));

@@ -69,7 +69,7 @@
 
   async function goTo(name) {
     if (A.state.mode !== "AUTO") {
-      const ack = await A.command("mode", { mode: "AUTO" });
+      const ack = await A.command("mode", { mode: "AUTO" }, "go_to_place");
       if (!ack.ok) { say(ack.reason, false); return; }
       await A.until((s) => s.mode === "AUTO", 3000);
     }

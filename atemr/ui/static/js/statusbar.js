@@ -18,15 +18,21 @@
     csrf: (document.querySelector('meta[name="csrf-token"]') || {}).content || "",
     own: document.body.dataset.robot || "", // this dashboard's robot ("" for a worker without one)
     robot: null, // the robot shown
-    async command(event, data) {
+    // ``on_behalf``: the command a step is taken for, whose label reports it (GO HERE switches to AUTO first; a
+    // refusal of that switch reads "Go here: ...", not "Mode: ..."). Nothing is reported of an accepted step.
+    async command(event, data, on_behalf = null) {
       if (!this.socket) return { ok: false, reason: "no connection on this page" };
+      const said = (ack) => {
+        if (event === "joystick" || (on_behalf && ack.ok)) return;
+        this.report(on_behalf || event, ack);
+      };
       if (this.own && this.robot !== null && this.robot !== this.own && !SUBSCRIPTIONS.has(event)) {
         const ack = { ok: false, reason: `${this.robot} is only watched here: commands go to ${this.own}` };
-        if (event !== "joystick") this.report(event, ack);
+        said(ack);
         return ack;
       }
       const ack = await this.socket.emit(event, data);
-      if (event !== "joystick") this.report(event, ack);
+      said(ack);
       return ack;
     },
     // What each command is called on the page (the event names stay on the Agent page and in the logs).
