@@ -26,7 +26,7 @@ import math
 import queue
 import threading
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from concurrent.futures import CancelledError, Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from pathlib import Path
@@ -563,6 +563,11 @@ class RobotGatewayImpl:
         active = self.maps.active_name
         if active is not None and not self.store.exists(active):
             self.robot.event("map", f"the active map {active} was deleted; it stays in use until another is selected")
+
+    def files_in_use(self) -> Collection[Path]:
+        writer = self.robot.parts.trace
+        parts = [] if writer is None else writer.parts  # appended to on the robot's thread: read its last once
+        return tuple(parts[-1:])
 
     # -- places (`atemr.robot.places`) ---------------------------------------------------------------------
     def go_to_place(self, name: str) -> CommandResult:

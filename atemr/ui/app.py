@@ -121,7 +121,8 @@ def create_app(
     )
     maps = map_store or MapStore(config.data_dir, max_cells=config.ui.max_map_cells)
     app.extensions["atemr.maps"] = maps
-    app.extensions["atemr.media"] = media_files.MediaStore(config.data_dir, maps)
+    app.extensions["atemr.media"] = media_files.MediaStore(
+        config.data_dir, maps, in_use=gateway.files_in_use if gateway is not None else tuple)
     app.extensions["atemr.stopping"] = threading.Event()  # set by the server's shutdown: streams end
 
     app.before_request(check_csrf)

@@ -14,6 +14,7 @@ tests.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
@@ -160,6 +161,11 @@ class RobotGateway(Protocol):
 
     def maps_changed(self) -> None:
         """Tell the robot the map directory changed (an upload or a delete), so its list is fresh."""
+        ...
+
+    def files_in_use(self) -> Collection[Path]:
+        """The files the robot is writing now (its recording's current part): the media page lists them as being
+        recorded and refuses to delete them. Called from the web server's threads; must not block."""
         ...
 
     # -- places ------------------------------------------------------------------------------------

@@ -258,6 +258,9 @@ class KinematicGateway:
     def maps_changed(self) -> None:
         self._record("maps_changed")
 
+    def files_in_use(self) -> tuple[Path, ...]:
+        return ()
+
 
 class Site:
     """A running dashboard + robot stand-in, and where screenshots go."""

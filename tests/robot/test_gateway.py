@@ -479,3 +479,15 @@ def test_global_localization_needs_an_active_map(tmp_path):
         robot.parts.maps.active = None
         assert "no active map" in gateway.localize_globally().reason
     gateway.close()
+
+
+def test_the_recording_being_written_is_the_file_in_use(tmp_path):
+    """The media page keeps the recording's current part (`files_in_use`): the part the writer has open, in the
+    folder the media page lists as traces."""
+    robot, gateway = make_robot(tmp_path / "data", **{"trace.enabled": True, "trace.writer": "inline"})
+    assert tuple(gateway.files_in_use()) == ()  # nothing written before the robot starts
+    with robot:
+        robot.run(until=1.0)
+        (part,) = gateway.files_in_use()
+        assert part.parent == tmp_path / "data" / "traces" and part.suffix == ".mcap" and part.exists()
+    gateway.close()

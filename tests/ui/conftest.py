@@ -51,6 +51,7 @@ class RecordingGateway:
         self.screen: bytes | None = None
         self.agent: dict[str, Any] | None = None
         self.maps_changed_count = 0
+        self.in_use: list[Path] = []  # what files_in_use answers: the files the robot is writing
         self.routine_data: dict[str, Any] | None = {
             "timezone": "Europe/Berlin", "now": "2026-06-03 08:00 CEST", "running": None, "error": None,
             "routines": [{"name": "check-on-resident", "mission": "patrol", "at": "09:00", "enabled": True,
@@ -124,6 +125,9 @@ class RecordingGateway:
 
     def maps_changed(self) -> None:
         self.maps_changed_count += 1
+
+    def files_in_use(self) -> Any:
+        return tuple(self.in_use)
 
     def routines(self) -> dict[str, Any] | None:
         return self.routine_data

@@ -72,6 +72,32 @@ def test_delete_all_of_one_kind(admin, app, ui):
     assert len(list((data_dir(app) / "media/videos").iterdir())) == 2
 
 
+def test_the_recording_being_written_is_listed_but_not_deleted(admin, app, gateway, ui):
+    """The robot's recording keeps its current part open: deleting it lost that part for good (the writer went on
+    into a file nobody could reach, whose disk space stayed taken until the part ended). It is listed as being
+    recorded, refused one by one, and kept by DELETE ALL; the parts already closed go."""
+    folder = data_dir(app) / "traces"
+    folder.mkdir(parents=True, exist_ok=True)
+    closed, current = folder / "run-20261126-145607.mcap", folder / "run-20261126-145607.1.mcap"
+    for path in (closed, current):
+        path.write_bytes(b"\x89MCAP0\r\n")
+    gateway.in_use = [current]
+    html = admin.get("/media").get_data(as_text=True)
+    item = re.search(r'<li data-name="run-20261126-145607.1.mcap">.*?</li>', html, re.S)
+    assert item is not None and "being recorded" in item.group(0) and "delete-one" not in item.group(0)
+    listed = {f["name"]: f["in_use"] for f in admin.get("/api/media/traces").get_json()["files"]}
+    assert listed == {closed.name: False, current.name: True}
+    refused = ui.post(admin, f"/media/traces/{current.name}/delete")
+    assert refused.status_code == 302 and current.exists()
+    assert f"{current.name} is being recorded now" in admin.get("/media").get_data(as_text=True)
+    ui.post(admin, "/media/traces/delete-all")
+    assert not closed.exists() and current.exists()
+    assert "kept the one being recorded now" in admin.get("/media").get_data(as_text=True)
+    gateway.in_use = []  # the recording ended: now it may go
+    ui.post(admin, f"/media/traces/{current.name}/delete")
+    assert not current.exists()
+
+
 @pytest.mark.parametrize("name", ["..%2F..%2Fusers.sqlite3", "..", ".hidden.jpg", "x.txt", "a%00.jpg",
                                   "capture-00.jpg%2F..%2F..%2Fui.key"])
 def test_traversal_and_unlisted_names_are_refused(alice, app, ui, name):

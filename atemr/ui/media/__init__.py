@@ -20,7 +20,7 @@ from flask import Blueprint, abort, current_app, flash, jsonify, redirect, rende
 from werkzeug.wrappers import Response
 
 from atemr.ui.gateway import RobotGateway
-from atemr.ui.media.files import KINDS, PAGE_SIZE, MediaError, MediaStore, mimetype
+from atemr.ui.media.files import KINDS, PAGE_SIZE, MediaError, MediaInUseError, MediaStore, mimetype
 from atemr.ui.security import permission_required, role_required
 
 bp = Blueprint("media", __name__, template_folder="templates")
@@ -120,6 +120,9 @@ def thumbnail(kind: str, name: str) -> Response:
 def delete(kind: str, name: str) -> Response:
     try:
         deleted = _store().delete(kind, name)
+    except MediaInUseError as exc:
+        flash(str(exc), "error")
+        return redirect(url_for("media.page"))
     except MediaError as exc:
         abort(404, description=str(exc))
     _maps_changed(kind)
@@ -135,5 +138,6 @@ def delete_all(kind: str) -> Response:
     except MediaError as exc:
         abort(404, description=str(exc))
     _maps_changed(kind)
-    flash(f"Deleted all {count} {kind}.", "ok")
+    kept = sum(1 for f in _store().newest(kind, 0, 1_000_000)[0] if f.in_use)
+    flash(f"Deleted all {count} {kind}" + ("; kept the one being recorded now." if kept else "."), "ok")
     return redirect(url_for("media.page"))

@@ -16,6 +16,7 @@ from __future__ import annotations
 import io
 import secrets
 import zipfile
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -71,6 +72,12 @@ class MediaError(AtemrError):
     """A media request was refused: unknown kind, bad or unknown file name, invalid upload."""
 
 
+class MediaInUseError(MediaError):
+    """A file the robot is writing now (the recording's current part) cannot be deleted: the writer keeps it open,
+    so what it writes next would go to a file nobody can reach, and its disk space would stay taken until the part
+    ends."""
+
+
 @dataclass(frozen=True)
 class MediaFile:
     """One listed file (for maps: ``name.yaml``, its YAML's size and time, and whether it is a built-in)."""
@@ -80,6 +87,8 @@ class MediaFile:
     size_bytes: int
     modified: float
     builtin: bool = False
+    #: The robot is writing it now (the recording's current part): listed, not deletable.
+    in_use: bool = False
 
     @property
     def viewable(self) -> bool:
@@ -92,7 +101,8 @@ class MediaFile:
 
     def to_json(self) -> dict[str, object]:
         return {"kind": self.kind, "name": self.name, "size_bytes": self.size_bytes, "modified": self.modified,
-                "builtin": self.builtin, "viewable": self.viewable, "thumbnail": self.has_thumbnail}
+                "builtin": self.builtin, "viewable": self.viewable, "thumbnail": self.has_thumbnail,
+                "in_use": self.in_use}
 
 
 def mimetype(name: str) -> str:
@@ -109,8 +119,11 @@ def check_kind(kind: str) -> Kind:
 class MediaStore:
     """Images and videos under ``data_dir``, and the maps of ``maps`` (default: a store over ``data_dir``)."""
 
-    def __init__(self, data_dir: Path, maps: MapStore | None = None) -> None:
+    def __init__(self, data_dir: Path, maps: MapStore | None = None,
+                 in_use: Callable[[], Collection[Path]] = tuple) -> None:
+        """``in_use``: the files the robot is writing now (`atemr.ui.gateway.RobotGateway.files_in_use`)."""
         self.data_dir = Path(data_dir)
+        self.in_use = in_use
         self.maps = maps or MapStore(self.data_dir)
         self.thumbnails = Thumbnails(self.data_dir / "cache" / "thumbnails")
         self.dirs: dict[Kind, Path] = {
@@ -171,7 +184,13 @@ class MediaStore:
         files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in EXTENSIONS[k]]
         stats = sorted(((p, p.stat()) for p in files), key=lambda ps: (ps[1].st_mtime, ps[0].name), reverse=True)
         page = stats[max(0, offset): max(0, offset) + max(0, limit)]
-        return [MediaFile(k, p.name, st.st_size, st.st_mtime) for p, st in page], len(stats)
+        busy = self._busy(k)
+        return [MediaFile(k, p.name, st.st_size, st.st_mtime, in_use=p.name in busy) for p, st in page], len(stats)
+
+    def _busy(self, kind: Kind) -> set[str]:
+        """The names of the files of ``kind`` the robot is writing now."""
+        folder = self.dirs[kind].resolve()
+        return {p.name for p in map(Path, self.in_use()) if p.resolve().parent == folder}
 
     # -- maps: through the map store -------------------------------------------------------------------
     @staticmethod
@@ -248,15 +267,19 @@ class MediaStore:
             except ConfigError as exc:
                 raise MediaError(exc.reason) from None
             return [t.name for t in targets]
+        if path.name in self._busy(check_kind(kind)):
+            raise MediaInUseError(f"{path.name} is being recorded now: it can be deleted once the recording ends (or "
+                             "moves on to its next part)")
         path.unlink(missing_ok=True)
         if kind in THUMBNAIL_KINDS:
             self.thumbnails.forget(kind, name)
         return [path.name]
 
     def delete_all(self, kind: str) -> int:
-        """Delete every listed file of ``kind`` (maps: every stored map, never a built-in); returns how many."""
+        """Delete every listed file of ``kind`` (maps: every stored map, never a built-in; never a file being
+        recorded); returns how many."""
         files, _ = self.newest(kind, 0, 1_000_000)
-        deletable = [f for f in files if not f.builtin]
+        deletable = [f for f in files if not f.builtin and not f.in_use]
         for f in deletable:
             self.delete(kind, f.name)
         return len(deletable)
