@@ -15,6 +15,7 @@
   if (!A || !A.socket) return;
   A.LABELS.call_start = "Call";
   A.LABELS.call_end = "End call";
+  A.STARTED.call_start = "ringing"; // begun, not done: the call's state says when it is answered
 
   function show(state, reason) {
     document.body.dataset.call = state;

@@ -111,7 +111,10 @@
   const panel = $("sim-panel");
   if (panel) {
     const screen = $("secondary-screen");
-    setInterval(() => { if (!document.hidden) screen.src = `/api/secondary-screen.png?t=${Date.now()}`; }, 500);
+    // Not while the robot is silent (ATEMR.live false: alerts.js): each request then failed into the console.
+    setInterval(() => {
+      if (!document.hidden && A.live !== false) screen.src = `/api/secondary-screen.png?t=${Date.now()}`;
+    }, 500);
     screen.onerror = () => { screen.alt = "no secondary-core screen"; };
     for (const b of panel.querySelectorAll("button[data-hold]")) {
       b.addEventListener("click", () => A.command("sim_button", { hold_s: parseFloat(b.dataset.hold) }));

@@ -95,6 +95,7 @@
     if (kind === "component error") return [e.text, "error"];
     return null; // settings, media, maps, autonomy: in the Events list, not worth interrupting for
   }
+  A.plainEvent = plain; // the Events list (panel.js) shows an event in these words where there are some
   A.onState((s) => {
     for (const e of Array.isArray(s.events) ? s.events : []) {
       const key = `${e.t}|${e.kind}|${e.text}`;

@@ -152,9 +152,11 @@ class MapView {
       if (!meta) { this.meta = null; this.image = null; this.draw(); return; }
       const img = new Image();
       img.onload = () => {
-        const first = !this.meta;
+        // Fitted to the view when the first map comes and when another map is chosen (a switch kept the last
+        // map's zoom: a small map then sat tiny in a corner), not when the same map grows (mapping) or changes.
+        const first = !this.meta || this.fittedMap !== this.state.active_map;
         this.meta = meta; this.image = img;
-        if (first) { this.fitted = true; this.reset(); } else this.draw();
+        if (first) { this.fittedMap = this.state.active_map; this.fitted = true; this.reset(); } else this.draw();
       };
       img.src = `/api/map.png?v=${encodeURIComponent(version)}`;
     } catch (err) {

@@ -48,9 +48,17 @@
     const detail = $("localization-detail");
     const places = (loc.candidates || []).length;
     detail.textContent = loc.localized ? `limit ${pct(loc.limit)}`
-      : `${loc.state}${places ? `: ${places} places look alike (drawn on the map); drive a little to tell them apart` : ""}; ` +
+      : `${LOCALIZATION_WORDS[loc.state] || loc.state}` +
+        `${places ? `: ${places} places look alike (drawn on the map); drive a little to tell them apart` : ""}; ` +
         `needs ${pct(loc.limit)} — SET POSITION or FIND POSITION`;
+    detail.title = `localization state: ${loc.state}`; // the engineer's name, on hover
   }
+  // Localization's states (`atemr.domain.status.LocalizationState`) as a carer reads them.
+  const LOCALIZATION_WORDS = {
+    uninitialized: "position not known yet", lost: "lost its position", "pose set": "checking the position set",
+    searching: "searching for its position", ambiguous: "unsure between places", failed: "could not find its position",
+    "no map": "no map chosen",
+  };
 
   $("level2-toggle").addEventListener("click", () => { $("level2").hidden = !$("level2").hidden; });
   $("graph-toggle").addEventListener("click", () => { $("sysgraph").hidden = !$("sysgraph").hidden; graph.draw(); });
@@ -68,7 +76,10 @@
     for (const e of list.slice(-8).reverse()) {
       const li = document.createElement("li");
       li.className = `event ${e.kind || ""}`;
-      li.textContent = `${A.fmt(e.t, 1)} s  ${e.kind || ""}: ${e.text || ""}`;
+      // In the alert's words where it has some ("The robot knows where it is."); the technical text on hover.
+      const said = A.plainEvent ? A.plainEvent(e) : null;
+      li.textContent = `${A.fmt(e.t, 1)} s  ${said ? said[0] : `${e.kind || ""}: ${e.text || ""}`}`;
+      li.title = `${e.kind || ""}: ${e.text || ""}`;
       el.appendChild(li);
     }
   }
