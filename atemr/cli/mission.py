@@ -64,8 +64,10 @@ class MissionCommand:
                               "(the localizer must notice and find it again)")
         run.add_argument("--json", action="store_true", help="print the full result as JSON")
         run.add_argument("--trace", type=Path, metavar="FILE",
-                         help="--headless only: record the agent (transitions, node statuses, blackboard, pose) "
-                              "to FILE (read it with 'atemr trace show FILE' or replay it on the dashboard)")
+                         help="--headless only: record the run to FILE, an MCAP recording (scans, odometry, IMU, "
+                              "camera and depth frames, CAN, the agent's transitions, node statuses and blackboard; "
+                              "see docs/recording.md): 'atemr trace show FILE', 'atemr replay FILE', the dashboard's "
+                              "Agent page or Foxglove read it")
         _robot_options(run)
         status = sub.add_parser("status", help="the running robot's agent: state, mode, task and its progress")
         status.add_argument("--json", action="store_true", help="print the full status as JSON")

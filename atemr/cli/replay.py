@@ -45,17 +45,24 @@ class ReplayCommand:
         if args.speed is not None and not args.speed > 0:
             raise ConfigError(f"must be a number > 0, got {args.speed}", path="--speed")
         if args.localize and not args.map:
-            raise ConfigError("--localize needs the map to localize on: --map NAME", path="atemr replay")
-        if args.save_map and not args.slam:
-            raise ConfigError("--save-map goes with --slam", path="atemr replay")
+            raise ConfigError("--localize needs the map to localize on: give --map NAME", path="--map")
+        if args.save_map is not None and not args.slam:
+            raise ConfigError("goes with --slam", path="--save-map")
         config = load_config(args.config, overrides={"data_dir": args.data_dir})
         store = MapStore(config.data_dir)
+        if args.save_map is not None:  # before the replay, which may take minutes
+            new_map_name(store, args.save_map)
         bar = ProgressBar(sys.stderr)
         options: dict[str, Any] = {"progress": bar.update, "pace": Pacer(args.speed) if args.speed else None}
         if args.slam:
             result = replay_slam(args.file, config.localization.slam_params(), all_scans=args.all_scans, **options)
         else:
-            grid = store.load(args.map)
+            try:
+                grid = store.load(args.map)
+            except ConfigError as exc:
+                if exc.path != "map.name":
+                    raise
+                raise ConfigError(exc.reason, path="--map") from None
             result = Replay(args.file, grid=grid, localizer=config.localization.localizer_params(),
                             seed=config.localization.seed, **options).run()
         bar.done()
@@ -64,6 +71,24 @@ class ReplayCommand:
             assert result.grid is not None
             report["saved_as"] = store.save(args.save_map, result.grid, activate=False)
         return report_and_warn(report, as_json=args.json, printer=print_report, warnings=result.warnings)
+
+
+def new_map_name(store: Any, name: str) -> str:
+    """``name`` as ``--save-map`` takes it: a valid map name as given (not one the store would change: "my map"
+    would have been saved as my_map, and "" nowhere) that no stored or built-in map has."""
+    from atemr.io.map_store import clean_name
+
+    try:
+        clean = clean_name(name)
+    except ConfigError as exc:
+        raise ConfigError(exc.reason, path="--save-map") from None
+    if clean != name:
+        raise ConfigError(f"{name!r} is not a map name: use 1-64 letters, digits, '.', '_' or '-', starting with a "
+                          f"letter or digit (for example {clean!r})", path="--save-map")
+    if store.exists(name):
+        kind = "built in" if name in store.builtins else "stored"
+        raise ConfigError(f"a map named {name!r} exists already ({kind}); choose another name", path="--save-map")
+    return name
 
 
 def summary(result: Any) -> dict[str, Any]:

@@ -193,3 +193,25 @@ def test_a_failed_mapping_mission_says_why_and_drops_its_map(capsys: pytest.Capt
     assert "route" in result["steps"][1]["reason"] and "near (4.00" in result["steps"][1]["reason"]
     assert result["reason"] and "route" in result["reason"], "the JSON says why the mission failed"
     assert not list((tmp_path / "maps").glob("living-room-remap.*")), "the unsaved map was dropped"
+
+
+@pytest.mark.parametrize(("args", "said"), [
+    (["--localize"], "atemr replay: error: --map: --localize needs the map to localize on: give --map NAME"),
+    (["--localize", "--map", "nowhere"], "atemr replay: error: --map: no map named 'nowhere'; known maps: studio"),
+    (["--slam", "--save-map", ""], "atemr replay: error: --save-map: invalid map name ''"),
+    (["--slam", "--save-map", "my map"], "atemr replay: error: --save-map: 'my map' is not a map name: use 1-64 "
+                                         "letters, digits, '.', '_' or '-', starting with a letter or digit (for "
+                                         "example 'my_map')"),
+    (["--slam", "--save-map", "studio"], "atemr replay: error: --save-map: a map named 'studio' exists already "
+                                         "(built in); choose another name"),
+    (["--localize", "--map", "studio", "--save-map", "x"], "atemr replay: error: --save-map: goes with --slam"),
+])
+def test_replay_refuses_its_options_before_reading_the_recording(args: list[str], said: str, tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """What ``atemr replay`` cannot do is said at once, naming the option (not after a replay of minutes, not as a
+    configuration key, not with the command's name twice), and a map name it would change or could not store is
+    refused, never saved under another name or silently skipped."""
+    missing = tmp_path / "not-recorded.mcap"  # never read: the options are refused first
+    assert main(["replay", str(missing), *args, "--data-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith(said), err
