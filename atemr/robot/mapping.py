@@ -209,7 +209,8 @@ class MapService:
                 return None
             grid = slam.to_map(save_as)
             previous = self.active
-            self.localization.set_map(grid)  # raises when the map is unusable: nothing stored yet
+            # Raises when the map is unusable: nothing stored yet. The SLAM pose is set on it below.
+            self.localization.set_map(grid, pose_follows=True)
             try:
                 stored = self.store.save(save_as, grid, activate=True)
             except Exception:

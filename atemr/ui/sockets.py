@@ -289,6 +289,19 @@ def _close(app: Flask, sids: list[str]) -> None:
             hook(sid)
 
 
+def disconnect_all(app: Flask) -> None:
+    """Close every connection, the robot's screens' too: the server is shutting down, and a page must not stay
+    "online" on a connection nothing serves any more. The transports are closed, not only the sockets' namespace
+    (a client told "disconnected" over a transport that stays open waits there for good): each page sees its
+    connection drop and tries again until a server answers, as after the robot's process ended. The sockets'
+    disconnect handler (`_disconnect`) runs for each. Nothing is waited for: engine.io's own ``disconnect()`` waits
+    until each socket's queue is sent, which a client that stopped reading holds up for good (the robot's
+    shutdown hung on it)."""
+    eio = socketio_of(app).server.eio
+    for connection in list(eio.sockets.values()):
+        connection.close(wait=False, reason=eio.reason.SERVER_DISCONNECT)
+
+
 def disconnect_user(app: Flask, username: str) -> None:
     """Close every socket of ``username`` (after a password change, a role change or removal)."""
     _close(app, sessions_of(app).of(username))

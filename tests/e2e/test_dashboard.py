@@ -14,6 +14,7 @@ import av
 import pytest
 from PIL import Image
 
+from atemr.ui.sockets import sessions_of
 from atemr.ui.state import state_problems
 
 pytestmark = pytest.mark.e2e
@@ -589,3 +590,21 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
     page.click("#mode-toggle")
     wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
     assert robot_site.agent_state == "IDLE.AUTO"
+
+
+def test_a_dashboard_that_went_away_reads_offline_not_error(ready_site, page, helpers):
+    """The robot's process ended (the server with it): the status bar says WS:OFFLINE and keeps trying, not
+    WS:ERROR, which means the robot refused this page (logged out, no access)."""
+    helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    page.evaluate("""(() => {  // every status the bar shows from now on
+        const sock = document.getElementById('sock');
+        window.shown = [];
+        new MutationObserver(() => window.shown.push(sock.textContent)).observe(sock, {childList: true});
+    })()""")
+    ready_site.stop()
+    assert len(sessions_of(ready_site.server.app)) == 0  # every connection closed, its session forgotten
+    wait_for(page, "document.getElementById('sock').textContent === 'WS:OFFLINE'")
+    page.wait_for_timeout(2500)  # a retry or two against the closed port
+    shown = page.evaluate("window.shown")
+    assert "WS:ERROR" not in shown and page.inner_text("#sock") == "WS:OFFLINE", shown

@@ -79,6 +79,9 @@ class Robot:
     def agent_snapshot(self) -> dict[str, Any] | None:
         return None
 
+    def files_in_use(self) -> tuple[Path, ...]:
+        return ()
+
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:
         self.calls.append(("set_limits", (linear_mps, angular_radps)))
         return CommandResult.accepted()

@@ -65,6 +65,9 @@ def test_a_map_begun_while_localized_is_in_the_active_maps_frame(robot):
     # cell (5 cm) off the world in places
     assert pose is not None and pose.distance_to(truth) < 0.06, (pose, truth)
     assert abs(math.remainder(pose.yaw_rad - truth.yaw_rad, math.tau)) < 0.01, (pose, truth)
+    # saving the map it made does not say "not localized": the carer read that beside "The robot knows where it is"
+    said = [e.kind for e in robot.parts.localization.drain_events()]
+    assert "initial_pose" in said and "map_changed" not in said, said
 
 
 def test_a_map_begun_unlocalized_starts_at_the_odometry_pose(robot):

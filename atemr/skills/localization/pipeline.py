@@ -102,15 +102,18 @@ class LocalizationPipeline:
         `ConfigError` when the map cannot be localized against (no occupied or no free cell)."""
         return Localizer(grid, self.rng, self.localizer_params)  # the rng is only kept here, drawn from later
 
-    def set_map(self, grid: OccupancyMap, prepared: Localizer | None = None) -> None:
+    def set_map(self, grid: OccupancyMap, prepared: Localizer | None = None, *, pose_follows: bool = False) -> None:
         """Localize against ``grid`` from now on (the operator selected another map): pose unknown again.
 
-        ``prepared``: ``prepare_map(grid)``, built beforehand; the change is then only a swap."""
+        ``prepared``: ``prepare_map(grid)``, built beforehand; the change is then only a swap. ``pose_follows``: the
+        caller sets the pose on it at once (the map just made by SLAM, where the robot's pose is known), so the
+        change is not announced as "not localized": the carer read that beside "The robot knows where it is"."""
         if prepared is not None and prepared.map is not grid:
             raise ValueError("set_map: the prepared localizer belongs to another map")
         localizer = prepared if prepared is not None else self.prepare_map(grid)
         if self.localizer is not None:
             self._events.extend(self.localizer.events)
+        if self.localizer is not None and not pose_follows:
             self._events.append(LocalizationEvent(self.odometry.t, "map_changed",
                                                   f"map {grid.name} selected: not localized until a pose is set "
                                                   "or found (FIND POSITION)"))

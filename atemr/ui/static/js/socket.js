@@ -19,7 +19,9 @@ class AtemrSocket {
     const ws = new WebSocket(`${proto}://${location.host}/socket.io/?EIO=4&transport=websocket`);
     this.ws = ws;
     ws.onmessage = (e) => this.packet(String(e.data));
-    ws.onerror = () => this.setStatus("ERROR");
+    // A connection that fails (the robot's process ended, the network dropped) is OFFLINE, tried again; ERROR is
+    // kept for a refusal (the connect packet answered "4": logged out, no access).
+    ws.onerror = () => { if (!this.refused) this.setStatus("OFFLINE"); };
     ws.onclose = () => {
       if (this.status === "ONLINE") this.setStatus("OFFLINE");
       for (const id of Object.keys(this.acks)) {
