@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from PIL import Image
 
-from atemr.ui.media.files import MediaError, MediaStore
+from atemr.ui.media.files import MediaError, MediaStore, human_size
 
 
 def fill(data_dir: Path, kind_dir: str, count: int, ext: str = ".jpg") -> list[str]:
@@ -107,6 +107,20 @@ def test_traversal_and_unlisted_names_are_refused(alice, app, ui, name):
     assert response.status_code == 404
     assert ui.post(alice, f"/media/images/{name}/delete").status_code in (404, 405)
     assert (data_dir(app) / "ui.key").exists()
+
+
+@pytest.mark.parametrize(("size", "shown"), [(0, "0 bytes"), (640, "640 bytes"), (1000, "1.00 kB"), (12_345, "12.3 kB"),
+                                             (99_950, "100 kB"), (999_500, "1.00 MB"), (58_893_312, "58.9 MB"),
+                                             (1_200_000_000, "1.20 GB")])
+def test_sizes_read_as_a_phone_says_them(size, shown):
+    assert human_size(size) == shown
+
+
+def test_a_listed_size_is_in_plain_units(alice, app, ui):
+    folder = data_dir(app) / "traces"
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "run-20261126-145607.mcap").write_bytes(b"\0" * 58_893_312)  # was listed as "57513.0 KiB"
+    assert "58.9 MB" in alice.get("/media").get_data(as_text=True)
 
 
 def test_store_refuses_names_outside(tmp_path):

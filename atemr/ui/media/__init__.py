@@ -20,13 +20,16 @@ from flask import Blueprint, abort, current_app, flash, jsonify, redirect, rende
 from werkzeug.wrappers import Response
 
 from atemr.ui.gateway import RobotGateway
-from atemr.ui.media.files import KINDS, PAGE_SIZE, MediaError, MediaInUseError, MediaStore, mimetype
+from atemr.ui.media.files import KINDS, PAGE_SIZE, MediaError, MediaInUseError, MediaStore, human_size, mimetype
 from atemr.ui.security import permission_required, role_required
 
 bp = Blueprint("media", __name__, template_folder="templates")
 #: How long a browser keeps a thumbnail without asking again (a medium's name is never reused for other content
 #: by the robot: names carry the time).
 THUMBNAIL_MAX_AGE_S = 3600
+
+
+bp.add_app_template_filter(human_size, "size")
 
 
 def _store() -> MediaStore:

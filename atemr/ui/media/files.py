@@ -68,6 +68,21 @@ def _shown(name: str, limit: int = 80) -> str:
     return repr(name) if len(name) <= limit else repr(name[:limit]) + f"... ({len(name)} characters)"
 
 
+def human_size(size_bytes: int) -> str:
+    """A file's size as a phone or a file manager says it (decimal units, three figures at most): "640 bytes",
+    "12.3 kB", "58.9 MB", "1.20 GB". "57512.0 KiB" for an hour's recording read as a puzzle."""
+    if size_bytes < 1000:
+        return f"{size_bytes} bytes"
+    value = float(size_bytes)
+    units = ("kB", "MB", "GB", "TB")
+    for i, unit in enumerate(units):
+        value = float(f"{value / 1000:.3g}")  # three figures, rounded once: 999,500 bytes is 1.00 MB
+        if value < 1000 or i == len(units) - 1:
+            decimals = 0 if value >= 100 else 1 if value >= 10 else 2
+            return f"{value:.{decimals}f} {unit}"
+    raise AssertionError("unreachable")
+
+
 class MediaError(AtemrError):
     """A media request was refused: unknown kind, bad or unknown file name, invalid upload."""
 
