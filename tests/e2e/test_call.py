@@ -124,6 +124,7 @@ def test_a_call_between_an_operator_and_the_robots_screen(robot_site, media_brow
     assert operator.evaluate(STATS) is None or operator.evaluate(STATS)["state"] == "closed"
 
     # the operator's page closing ends a call too
+    screen.evaluate("() => { document.body.dataset.callReasonMs = '1500'; }")  # why it ended stays 20 s on the robot
     carol.click("#call-start")
     wait_for(screen, "() => document.body.dataset.call === 'ringing'")
     screen.click("#answer")
@@ -131,6 +132,8 @@ def test_a_call_between_an_operator_and_the_robots_screen(robot_site, media_brow
     carol.context.close()
     wait_for(screen, "() => document.body.dataset.call === 'idle'")
     assert "the caller left" in screen.text_content("#call-state")
+    # why it ended is news for a while, not for hours: then the screen says "No call" again
+    wait_for(screen, "() => document.getElementById('call-state').textContent === 'No call'")
 
     for page in (stranger, screen, operator):
         page.context.close()

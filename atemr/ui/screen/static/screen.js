@@ -17,13 +17,25 @@
   });
   const send = (signal) => sock.emit("screen_signal", signal);
 
+  // Why the last call ended stays this long, then the screen says "No call" again: in the screen's largest type,
+  // "No call (you declined the call)" read as news hours later. <body data-call-reason-ms> may shorten it.
+  // The call's state comes again and again; only a change is shown (and starts that while).
+  let settle = null, shown = null;
   function show(state, reason) {
+    const key = `${state}|${reason || ""}|${caller || ""}`;
+    if (key === shown) return;
+    shown = key;
     document.body.dataset.call = state;
     buttons.answer.hidden = buttons.decline.hidden = state !== "ringing";
     buttons.hangup.hidden = state !== "active";
     callText.textContent = state === "ringing" ? `${caller || "Someone"} is calling`
       : state === "active" ? `In a call with ${caller || "your carer"}`
       : reason ? `No call (${reason})` : "No call";
+    clearTimeout(settle);
+    if (state === "idle" && reason) {
+      settle = setTimeout(() => { callText.textContent = "No call"; },
+                          Number(document.body.dataset.callReasonMs) || 20000);
+    }
   }
 
   const battery = $("battery");
