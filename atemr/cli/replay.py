@@ -74,20 +74,15 @@ class ReplayCommand:
 
 
 def new_map_name(store: Any, name: str) -> str:
-    """``name`` as ``--save-map`` takes it: a valid map name as given (not one the store would change: "my map"
+    """``name`` as ``--save-map`` takes it: a map name the store keeps as given (not one it would change: "my map"
     would have been saved as my_map, and "" nowhere) that no stored or built-in map has."""
-    from atemr.io.map_store import clean_name
-
     try:
-        clean = clean_name(name)
+        clean = store.name_to_save(name)
     except ConfigError as exc:
         raise ConfigError(exc.reason, path="--save-map") from None
     if clean != name:
         raise ConfigError(f"{name!r} is not a map name: use 1-64 letters, digits, '.', '_' or '-', starting with a "
                           f"letter or digit (for example {clean!r})", path="--save-map")
-    if store.exists(name):
-        kind = "built in" if name in store.builtins else "stored"
-        raise ConfigError(f"a map named {name!r} exists already ({kind}); choose another name", path="--save-map")
     return name
 
 

@@ -226,17 +226,23 @@ class MapStore:
         tmp.replace(self._active_file)
 
     # -- changes -----------------------------------------------------------------------------------
-    def save(self, name: str, grid: OccupancyMap, *, overwrite: bool = False, activate: bool = False,
-             places: Places | None = None) -> str:
-        """Store ``grid`` as ``name`` (cleaned; the stored name is returned), with its ``places`` when given
-        (otherwise a replaced map's places are dropped: they were in the old map's frame); built-in names
-        are refused."""
+    def name_to_save(self, name: str, *, overwrite: bool = False) -> str:
+        """``name`` as `save` stores it (cleaned), or `ConfigError` when it cannot be: a built-in map's, or a stored
+        map's unless ``overwrite``. For a caller that must know before making the map (a replay of minutes)."""
         clean = clean_name(name)
         if clean in self.builtins:
             raise ConfigError(f"'{clean}' is a built-in map and cannot be replaced; choose another name",
                               path="map.name")
         if not overwrite and (self.dir / f"{clean}.yaml").exists():
             raise ConfigError(f"a map named '{clean}' already exists", path="map.name")
+        return clean
+
+    def save(self, name: str, grid: OccupancyMap, *, overwrite: bool = False, activate: bool = False,
+             places: Places | None = None) -> str:
+        """Store ``grid`` as ``name`` (cleaned; the stored name is returned), with its ``places`` when given
+        (otherwise a replaced map's places are dropped: they were in the old map's frame); built-in names
+        are refused."""
+        clean = self.name_to_save(name, overwrite=overwrite)
         save_map(grid, self.dir / f"{clean}.yaml")
         if places is not None and len(places):
             self.save_places(clean, places)

@@ -566,8 +566,8 @@ class RobotGatewayImpl:
 
     def files_in_use(self) -> Collection[Path]:
         writer = self.robot.parts.trace
-        parts = [] if writer is None else writer.parts  # appended to on the robot's thread: read its last once
-        return tuple(parts[-1:])
+        writing = None if writer is None else writer.writing
+        return () if writing is None else (writing,)
 
     # -- places (`atemr.robot.places`) ---------------------------------------------------------------------
     def go_to_place(self, name: str) -> CommandResult:

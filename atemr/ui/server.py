@@ -287,8 +287,8 @@ class DashboardServer:
         self.app.extensions["atemr.stopping"].set()  # ends the open camera streams
         self.app.extensions["atemr.drive_video"].shutdown()  # and the WebRTC ones, with their loop
         if server is not None:
-            sockets.disconnect_all(self.app)  # pages see the connection end (they said ONLINE to a dead server)
-            server.shutdown()
+            server.shutdown()  # no new connection from here on (a page retrying now would stay on a dead server)
+            sockets.disconnect_all(self.app)  # pages see theirs end (they said ONLINE to a dead server)
             server.server_close()
         if thread is not None:
             thread.join(timeout=5.0)

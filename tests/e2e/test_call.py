@@ -87,7 +87,7 @@ def test_a_call_between_an_operator_and_the_robots_screen(robot_site, media_brow
     assert "admin is calling" in screen.text_content("#call-state")
     assert screen.is_visible("#answer") and screen.is_visible("#decline")
     assert call_of(operator) == "ringing"
-    assert operator.text_content("#command-result") == "Call: ringing"  # begun, not "done"
+    wait_for(operator, "() => document.getElementById('command-result').textContent === 'Call: ringing'")  # not done
 
     # a second operator is refused while the call rings, with the reason
     carol = operator_page(media_browser, site, "carol", "carol-pass-1", helpers, problems)

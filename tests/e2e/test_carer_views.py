@@ -135,6 +135,9 @@ def test_drive_by_video_and_send_a_goal_on_every_screen(ready_site, sized, shots
     inside(page, "#goal-confirm")
     assert page.evaluate("""(() => { const r = document.getElementById('goal-go').getBoundingClientRect();
         return document.elementFromPoint(r.x + r.width / 2, r.y + r.height / 2)?.id; })()""") == "goal-go"
+    if page.size_name != "laptop":  # fixed at the bottom, where the alerts' toasts come: above them
+        assert page.evaluate("+getComputedStyle(document.getElementById('goal-confirm')).zIndex > "
+                             "+getComputedStyle(document.getElementById('alerts')).zIndex")
     page.screenshot(path=str(shots / f"carer-{page.size_name}-goal-confirm.png"))
     tap(page, "#goal-go")
     wait_for(page, "document.getElementById('goal-progress').textContent.startsWith('On the way: ')")

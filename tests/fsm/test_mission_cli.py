@@ -202,8 +202,8 @@ def test_a_failed_mapping_mission_says_why_and_drops_its_map(capsys: pytest.Capt
     (["--slam", "--save-map", "my map"], "atemr replay: error: --save-map: 'my map' is not a map name: use 1-64 "
                                          "letters, digits, '.', '_' or '-', starting with a letter or digit (for "
                                          "example 'my_map')"),
-    (["--slam", "--save-map", "studio"], "atemr replay: error: --save-map: a map named 'studio' exists already "
-                                         "(built in); choose another name"),
+    (["--slam", "--save-map", "studio"], "atemr replay: error: --save-map: 'studio' is a built-in map and cannot "
+                                         "be replaced; choose another name"),
     (["--localize", "--map", "studio", "--save-map", "x"], "atemr replay: error: --save-map: goes with --slam"),
 ])
 def test_replay_refuses_its_options_before_reading_the_recording(args: list[str], said: str, tmp_path: Path,

@@ -490,4 +490,5 @@ def test_the_recording_being_written_is_the_file_in_use(tmp_path):
         robot.run(until=1.0)
         (part,) = gateway.files_in_use()
         assert part.parent == tmp_path / "data" / "traces" and part.suffix == ".mcap" and part.exists()
+    assert tuple(gateway.files_in_use()) == ()  # the recording ended with the robot: the file may go now
     gateway.close()

@@ -89,10 +89,10 @@ def test_the_recording_being_written_is_listed_but_not_deleted(admin, app, gatew
     assert listed == {closed.name: False, current.name: True}
     refused = ui.post(admin, f"/media/traces/{current.name}/delete")
     assert refused.status_code == 302 and current.exists()
-    assert f"{current.name} is being recorded now" in admin.get("/media").get_data(as_text=True)
+    assert f"{current.name} is still being recorded" in admin.get("/media").get_data(as_text=True)
     ui.post(admin, "/media/traces/delete-all")
     assert not closed.exists() and current.exists()
-    assert "kept the one being recorded now" in admin.get("/media").get_data(as_text=True)
+    assert "Deleted 1 of the traces; kept the one still being recorded." in admin.get("/media").get_data(as_text=True)
     gateway.in_use = []  # the recording ended: now it may go
     ui.post(admin, f"/media/traces/{current.name}/delete")
     assert not current.exists()

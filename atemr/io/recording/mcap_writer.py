@@ -147,6 +147,14 @@ class RecordingWriter:
         self._thread: threading.Thread | None = None
         self._closed = False
 
+    @property
+    def writing(self) -> Path | None:
+        """The part being written now: None before the first is opened and once the recording stopped (closed, or
+        an error such as a full disk: that part is closed then, and its space may be wanted back). Any thread may
+        read it."""
+        parts = self.parts[-1:]
+        return parts[0] if parts and self.error is None and not self._closed else None
+
     # -- the robot's side -------------------------------------------------------------------------------------
     def wants(self, topic: str) -> bool:
         """A recording keeps every topic (while it is not stopped by an error)."""

@@ -137,10 +137,10 @@ def delete(kind: str, name: str) -> Response:
 @permission_required("delete_all", back="media.page")
 def delete_all(kind: str) -> Response:
     try:
-        count = _store().delete_all(kind)
+        count, kept = _store().delete_all(kind)
     except MediaError as exc:
         abort(404, description=str(exc))
     _maps_changed(kind)
-    kept = sum(1 for f in _store().newest(kind, 0, 1_000_000)[0] if f.in_use)
-    flash(f"Deleted all {count} {kind}" + ("; kept the one being recorded now." if kept else "."), "ok")
+    flash(f"Deleted {count} of the {kind}; kept the one still being recorded." if kept
+          else f"Deleted all {count} {kind}.", "ok")
     return redirect(url_for("media.page"))

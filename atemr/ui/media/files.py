@@ -283,21 +283,20 @@ class MediaStore:
                 raise MediaError(exc.reason) from None
             return [t.name for t in targets]
         if path.name in self._busy(check_kind(kind)):
-            raise MediaInUseError(f"{path.name} is being recorded now: it can be deleted once the recording ends (or "
-                             "moves on to its next part)")
+            raise MediaInUseError(f"{path.name} is still being recorded: it can be deleted once it is finished")
         path.unlink(missing_ok=True)
         if kind in THUMBNAIL_KINDS:
             self.thumbnails.forget(kind, name)
         return [path.name]
 
-    def delete_all(self, kind: str) -> int:
+    def delete_all(self, kind: str) -> tuple[int, int]:
         """Delete every listed file of ``kind`` (maps: every stored map, never a built-in; never a file being
-        recorded); returns how many."""
+        recorded); returns how many were deleted and how many are being recorded (kept)."""
         files, _ = self.newest(kind, 0, 1_000_000)
         deletable = [f for f in files if not f.builtin and not f.in_use]
         for f in deletable:
             self.delete(kind, f.name)
-        return len(deletable)
+        return len(deletable), sum(1 for f in files if f.in_use)
 
     # -- uploading maps -------------------------------------------------------------------------------
     def upload_map(self, yaml_name: str, yaml_bytes: bytes, image_name: str, image_bytes: bytes,

@@ -32,7 +32,8 @@
   A.onState((s) => {
     if (replay.name) return;  // the replay draws its own task and pose
     const m = s.mission;
-    $("agent-mission").textContent = m ? `${m.name}: ${m.state || ""}` : "no mission";
+    $("agent-mission").textContent = m ? `${m.name}: ${m.state || ""}` : s.goal ? "a single goal (no mission)"
+      : "no mission";
     $("agent-mission-progress").value = m && typeof m.progress === "number" ? m.progress : 0;
     if (A.map) A.map.update(s);
   });

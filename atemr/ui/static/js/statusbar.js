@@ -57,6 +57,9 @@
       goal: /^goal$/, go_to_place: /^goal$/, mission_start: /^mission$/,
       localize_globally: /^localization (localized|relocalized|ambiguous|failed)$/,
     },
+    // Outcomes that are said but not final: an ambiguous search resolves once the robot is driven a little, a failed
+    // one is tried again by itself; "The robot knows where it is" then takes their place.
+    NOT_FINAL: /^localization (ambiguous|failed)$/,
     started: null, // the started command whose acknowledgement is shown, until its outcome comes
     report(what, ack) {
       const label = this.LABELS[what] || what;
@@ -72,9 +75,10 @@
     settle(kind, text, ok) {
       const out = document.getElementById("command-result");
       if (!out || !this.started || !this.ENDED_BY[this.started].test(kind)) return;
+      if (this.own && this.robot !== null && this.robot !== this.own) return; // another robot's news
       out.textContent = `${this.LABELS[this.started]}: ${text}`;
       out.className = ok ? "hint ok" : "hint error";
-      this.started = null;
+      if (!this.NOT_FINAL.test(kind)) this.started = null;
     },
     fmt(v, digits = 2) { return typeof v === "number" && isFinite(v) ? v.toFixed(digits) : "—"; },
   };
