@@ -31,6 +31,20 @@ def wait_for(page, js: str, timeout: float = 8000) -> None:
     raise AssertionError(f"still false after {timeout / 1000:.0f} s: {js}")
 
 
+def watch_texts(page, element_id: str) -> None:
+    """Record every text the element ``element_id`` shows from now on, even one replaced before a poll could see
+    it (`watched_texts` reads them)."""
+    page.evaluate(f"""(() => {{
+        const el = document.getElementById('{element_id}');
+        const seen = ((window.watched ||= {{}})['{element_id}'] = []);
+        new MutationObserver(() => seen.push(el.textContent)).observe(el, {{childList: true}});
+    }})()""")
+
+
+def watched_texts(page, element_id: str) -> list[str]:
+    return page.evaluate(f"window.watched['{element_id}']")
+
+
 def test_first_start_sets_the_admin_password_then_login_remembers_the_user(site, page, shots, helpers):
     page.goto(site.url)
     assert page.url.endswith("/auth/first-start")
@@ -327,18 +341,14 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
     assert abs(pose.yaw_rad - math.pi / 2) < 0.3
     page.screenshot(path=str(shots / "control-kidnap.png"), full_page=True)
     # Localization was not told: FIND POSITION has the robot find itself, and the map shows it where it now is.
-    page.evaluate("""(() => {  // every text the acknowledgement shows from now on
-        const out = document.getElementById('command-result');
-        window.acks = [];
-        new MutationObserver(() => window.acks.push(out.textContent)).observe(out, {childList: true});
-    })()""")
+    watch_texts(page, "command-result")
     page.click("#localize-global")
     wait_for(page, f"ATEMR.state.pose !== null && Math.hypot(ATEMR.state.pose.x_m - {pose.x_m}, "
                    f"ATEMR.state.pose.y_m - {pose.y_m}) < 0.15", timeout=20_000)
     # "Find position: searching" until the search's outcome, which then takes its place
     wait_for(page, "document.getElementById('command-result').textContent"
                    ".startsWith('Find position: The robot knows where it is')")
-    acks = page.evaluate("window.acks")
+    acks = watched_texts(page, "command-result")
     assert acks[0] == "Find position: searching" and acks[-1].startswith("Find position: The robot knows"), acks
 
 
@@ -597,14 +607,10 @@ def test_a_dashboard_that_went_away_reads_offline_not_error(ready_site, page, he
     WS:ERROR, which means the robot refused this page (logged out, no access)."""
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    page.evaluate("""(() => {  // every status the bar shows from now on
-        const sock = document.getElementById('sock');
-        window.shown = [];
-        new MutationObserver(() => window.shown.push(sock.textContent)).observe(sock, {childList: true});
-    })()""")
+    watch_texts(page, "sock")
     ready_site.stop()
     assert len(sessions_of(ready_site.server.app)) == 0  # every connection closed, its session forgotten
     wait_for(page, "document.getElementById('sock').textContent === 'WS:OFFLINE'")
     page.wait_for_timeout(2500)  # a retry or two against the closed port
-    shown = page.evaluate("window.shown")
+    shown = watched_texts(page, "sock")
     assert "WS:ERROR" not in shown and page.inner_text("#sock") == "WS:OFFLINE", shown

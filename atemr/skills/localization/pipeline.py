@@ -113,10 +113,10 @@ class LocalizationPipeline:
         localizer = prepared if prepared is not None else self.prepare_map(grid)
         if self.localizer is not None:
             self._events.extend(self.localizer.events)
-        if self.localizer is not None and not pose_follows:
-            self._events.append(LocalizationEvent(self.odometry.t, "map_changed",
-                                                  f"map {grid.name} selected: not localized until a pose is set "
-                                                  "or found (FIND POSITION)"))
+            if not pose_follows:
+                self._events.append(LocalizationEvent(self.odometry.t, "map_changed",
+                                                      f"map {grid.name} selected: not localized until a pose is set "
+                                                      "or found (FIND POSITION)"))
         self.localizer = localizer
 
     def _need(self) -> Localizer:

@@ -74,13 +74,12 @@ def human_size(size_bytes: int) -> str:
     if size_bytes < 1000:
         return f"{size_bytes} bytes"
     value = float(size_bytes)
-    units = ("kB", "MB", "GB", "TB")
-    for i, unit in enumerate(units):
+    for unit in ("kB", "MB", "GB", "TB"):
         value = float(f"{value / 1000:.3g}")  # three figures, rounded once: 999,500 bytes is 1.00 MB
-        if value < 1000 or i == len(units) - 1:
-            decimals = 0 if value >= 100 else 1 if value >= 10 else 2
-            return f"{value:.{decimals}f} {unit}"
-    raise AssertionError("unreachable")
+        if value < 1000 or unit == "TB":
+            break
+    decimals = 0 if value >= 100 else 1 if value >= 10 else 2
+    return f"{value:.{decimals}f} {unit}"
 
 
 class MediaError(AtemrError):

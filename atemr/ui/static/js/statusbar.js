@@ -18,6 +18,8 @@
     csrf: (document.querySelector('meta[name="csrf-token"]') || {}).content || "",
     own: document.body.dataset.robot || "", // this dashboard's robot ("" for a worker without one)
     robot: null, // the robot shown
+    // Another robot than this dashboard's own is shown: commands are refused, its events settle nothing here.
+    get watchingAnother() { return this.own !== "" && this.robot !== null && this.robot !== this.own; },
     // ``on_behalf``: the command a step is taken for, whose label reports it (GO HERE switches to AUTO first; a
     // refusal of that switch reads "Go here: ...", not "Mode: ..."). Nothing is reported of an accepted step.
     async command(event, data, on_behalf = null) {
@@ -26,7 +28,7 @@
         if (event === "joystick" || (on_behalf && ack.ok)) return;
         this.report(on_behalf || event, ack);
       };
-      if (this.own && this.robot !== null && this.robot !== this.own && !SUBSCRIPTIONS.has(event)) {
+      if (this.watchingAnother && !SUBSCRIPTIONS.has(event)) {
         const ack = { ok: false, reason: `${this.robot} is only watched here: commands go to ${this.own}` };
         said(ack);
         return ack;
@@ -75,7 +77,7 @@
     settle(kind, text, ok) {
       const out = document.getElementById("command-result");
       if (!out || !this.started || !this.ENDED_BY[this.started].test(kind)) return;
-      if (this.own && this.robot !== null && this.robot !== this.own) return; // another robot's news
+      if (this.watchingAnother) return; // another robot's news
       out.textContent = `${this.LABELS[this.started]}: ${text}`;
       out.className = ok ? "hint ok" : "hint error";
       if (!this.NOT_FINAL.test(kind)) this.started = null;
