@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -29,9 +30,12 @@ class RobotEvent:
     t: float
     kind: str
     text: str
+    #: The wall-clock time it happened (Unix seconds): what the carer's Events list shows. Robot time ``t`` is
+    #: what the trace and the agent go by; in a simulation running faster than real time the two part ways.
+    unix_s: float = 0.0
 
     def as_dict(self) -> EventJson:
-        return {"t": self.t, "kind": self.kind, "text": self.text}
+        return {"t": self.t, "kind": self.kind, "text": self.text, "unix_s": self.unix_s}
 
 
 class Ticker:
@@ -60,6 +64,8 @@ class Robot:
     buses: list[can.BusABC] = field(default_factory=list)
     #: Called with ``(t, kind, text)`` for every event, on the thread that raised it (the recorder queues them).
     event_listeners: list[Callable[[float, str, str], None]] = field(default_factory=list)
+    #: The wall clock events are stamped with for the dashboard (never for the trace, which stays seeded).
+    wall_clock: Callable[[], float] = time.time
     _parts: RobotParts | None = None
     _events_lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -86,7 +92,7 @@ class Robot:
 
     def event(self, kind: str, text: str) -> None:
         """Record an event for the dashboard (thread-safe) and log it."""
-        event = RobotEvent(self.clock.now(), kind, text)
+        event = RobotEvent(self.clock.now(), kind, text, round(self.wall_clock(), 3))
         with self._events_lock:
             self.events.append(event)
         log.info("%s: %s", kind, text)

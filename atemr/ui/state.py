@@ -76,11 +76,13 @@ class NavigationJson(TypedDict):
 
 
 class EventJson(TypedDict):
-    """Something an operator should see (`atemr.robot.core.RobotEvent`): robot time, kind, text."""
+    """Something an operator should see (`atemr.robot.core.RobotEvent`): robot time, kind, text, and the
+    wall-clock time it happened (Unix seconds), which the Events list shows as a time of day."""
 
     t: float
     kind: str
     text: str
+    unix_s: float
 
 
 class AutonomyJson(TypedDict):

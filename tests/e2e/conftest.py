@@ -72,7 +72,8 @@ class KinematicGateway:
         self.limits = (0.5, 1.0)
         self.awareness = False
         self.stop_cause: str | None = None
-        self.events: list[dict[str, Any]] = [{"t": 0.5, "kind": "info", "text": "agent started"}]
+        self.events: list[dict[str, Any]] = [{"t": 0.5, "kind": "info", "text": "agent started",
+                                                   "unix_s": time.time()}]
         self.active_map = "room"
         self.maps = ["other", "room"]
         grid = Image.new("L", (120, 80), 254)
@@ -96,7 +97,8 @@ class KinematicGateway:
                 dist = math.hypot(dx, dy)
                 if dist < 0.25:
                     self.goal, self.agent = None, "IDLE"
-                    self.events.append({"t": round(now, 2), "kind": "goal", "text": "Goal reached."})
+                    self.events.append({"t": round(now, 2), "kind": "goal", "text": "Goal reached.",
+                                        "unix_s": time.time()})
                     twist = Twist()
                 else:
                     step = min(dist, self.limits[0] * dt)

@@ -69,16 +69,24 @@ class Alerts:
 def open_control(page: Any, site: RobotSite, helpers: Any) -> Alerts:
     """Log in, wait for the live robot with every part healthy, and return its alert list."""
     helpers.login(page, site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.live "
-                   "&& ATEMR.map?.image != null && document.getElementById('agent-state').textContent === 'IDLE'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE' && ATEMR.live "
+                   "&& ATEMR.map?.image != null && document.getElementById('agent-state').dataset.state === 'IDLE'")
     wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)", timeout=15_000)
     return Alerts(page)
 
 
+#: The emergency indicator's words for each ``stop_cause`` (what to do is on hover).
+STOP_WORDS = {"obstacle": "Stopped: too close", "heartbeat": "Stopped: lost contact", "motor": "Stopped: motor fault",
+              "bus": "Stopped: motors silent", "cliff": "Stopped: a drop"}
+
+
 def stop_shown(page: Any, cause: str) -> None:
-    """The emergency indicator names ``cause`` (as the state's ``stop_cause`` is shown). A generous wait: on a
-    busy machine the robot runs slower than real time, and the heartbeat alone takes 2 s of its time."""
-    wait_for(page, f"document.getElementById('emergency').textContent === {'STOPPED: ' + cause!r}", timeout=15_000)
+    """The emergency indicator says why the robot is held stopped (the state's ``stop_cause``), with what to do on
+    hover. A generous wait: on a busy machine the robot runs slower than real time, and the heartbeat alone takes
+    2 s of its time."""
+    wait_for(page, f"document.getElementById('emergency').dataset.cause === {cause!r}", timeout=15_000)
+    assert page.inner_text("#emergency") == STOP_WORDS[cause]
+    assert page.get_attribute("#emergency", "title").startswith("Stopped: ")  # alerts.js's sentence, what to do
 
 
 def hold(page: Any, key: str) -> None:
@@ -109,7 +117,7 @@ def test_every_stop_is_said_with_its_cause_and_what_to_do(robot_site, page, help
     alerts.start()
     on_map(page, "#sim-obstacle", Pose2D(start.x_m + 1.0, start.y_m, 0.0))
     hold(page, "ArrowUp")
-    stop_shown(page, "OBSTACLE")
+    stop_shown(page, "obstacle")
     alerts.said("Stopped: something is too close. Drive away from it: reverse or turn.")
     assert "reverse" in page.get_attribute("#emergency", "title")
     page.screenshot(path=str(shots / "alerts-obstacle.png"))
@@ -117,14 +125,14 @@ def test_every_stop_is_said_with_its_cause_and_what_to_do(robot_site, page, help
     hold(page, "ArrowDown")  # what the alert says to do
     alerts.said("The robot may move again.")
     page.keyboard.up("ArrowDown")
-    wait_for(page, "document.getElementById('emergency').textContent === 'NO EMERGENCY'")
+    wait_for(page, "document.getElementById('emergency').textContent === 'No emergency'")
     alerts.plain()
 
     # the cores' heartbeat: the secondary core falls silent (its floor-sensor frames stop first)
     alerts.start()
     board = site.robot.components["secondary_core"]
     monkeypatch.setattr(board, "tick", lambda now: None)
-    stop_shown(page, "HEARTBEAT")
+    stop_shown(page, "heartbeat")
     alerts.said("Stopped: the robot's two computers lost contact. It moves again when they talk again")
     monkeypatch.undo()
     alerts.said("The robot may move again.", timeout=15_000)
@@ -134,7 +142,7 @@ def test_every_stop_is_said_with_its_cause_and_what_to_do(robot_site, page, help
     motor = site.robot.components["left_motor_emulator"].model  # type: ignore[attr-defined]
     alerts.start()
     site.sim.submit(motor.unplug)
-    stop_shown(page, "MOTOR")
+    stop_shown(page, "motor")
     alerts.said("Stopped: a motor reports a fault. The robot moves again when both motors answer without error.")
     site.sim.submit(motor.plug)
     alerts.said("The robot may move again.", timeout=15_000)
@@ -151,13 +159,13 @@ def test_every_stop_is_said_with_its_cause_and_what_to_do(robot_site, page, help
 
     monkeypatch.setattr(supervised, "recv", nothing)
     alerts.start()
-    stop_shown(page, "BUS")
+    stop_shown(page, "bus")
     alerts.said("Stopped: the motors' connection (CAN bus) failed. The robot moves again when it works again.")
     # the motors fall silent behind the bus and the driver latches that too: the cause to mend stays the bus
     wait_for(page, "ATEMR.state.agent_state === 'ERROR' && !ATEMR.state.level2.left_motor "
                    "&& !ATEMR.state.level2.right_motor", timeout=15_000)
     assert site.robot.parts.driver.fault is not None
-    assert page.inner_text("#emergency") == "STOPPED: BUS"
+    assert page.inner_text("#emergency") == STOP_WORDS["bus"]
     assert not [t for t in alerts.since_mark() if "motor reports a fault" in t], alerts.since_mark()
     off[0] = False
     monkeypatch.undo()
@@ -165,11 +173,11 @@ def test_every_stop_is_said_with_its_cause_and_what_to_do(robot_site, page, help
     alerts.plain()
 
     # a drop: carried onto the balcony facing its open edge (the simulation panel), the carer drives on
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=15_000)
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'", timeout=15_000)
     on_map(page, "#sim-kidnap", Pose2D(4.25, -0.3, -math.pi / 2))
     alerts.start()
     hold(page, "ArrowUp")
-    stop_shown(page, "CLIFF")
+    stop_shown(page, "cliff")
     alerts.said("Stopped: a drop (stairs, a step) is under the robot's edge. Drive it back, away from the edge.")
     page.screenshot(path=str(shots / "alerts-cliff.png"))
     page.keyboard.up("ArrowUp")
@@ -250,7 +258,7 @@ def test_goals_missions_refusals_localization_battery_and_offline_are_said(tired
     alerts.plain()
 
     # lost and found: carried off to the bedroom (the simulation panel), then FIND POSITION
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=15_000)
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'", timeout=15_000)
     alerts.start()
     on_map(page, "#sim-kidnap", Pose2D(6.3, 1.5, 0.0))
     alerts.said("The robot is no longer sure where it is.", timeout=20_000)

@@ -7,6 +7,7 @@ import io
 import math
 import os
 import re
+import time
 from pathlib import Path
 from typing import Any
 
@@ -105,12 +106,30 @@ def wait_for_camera(page) -> None:
 def test_control_page_shows_the_robot_and_the_keyboard_drives_it(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'")
     wait_for_camera(page)
     wait_for(page, "ATEMR.map?.image != null && ATEMR.state.pose !== null && ATEMR.state.scan.length > 100")
     assert page.evaluate("ATEMR.state.active_map") == "studio"
     assert page.evaluate("ATEMR.state.level2.lidar && ATEMR.state.level2.webserver && ATEMR.state.level1.heartbeat")
+    # the status bar in a carer's words, the engineer's names on hover
+    bar = page.evaluate("""() => Object.fromEntries(["sock", "agent-state", "emergency", "autonomy-level", "battery"]
+        .map((id) => [id, [document.getElementById(id).textContent, document.getElementById(id).title]]))""")
+    assert bar["sock"][0] == "Connected" and "WebSocket ONLINE" in bar["sock"][1], bar
+    assert bar["agent-state"][0] == "Ready" and "agent state IDLE" in bar["agent-state"][1], bar
+    assert bar["emergency"][0] == "No emergency" and bar["autonomy-level"][0] == "Autonomy full", bar
+    assert "never waits for you" in bar["autonomy-level"][1], bar
+    assert re.fullmatch(r"Battery \d+ %", bar["battery"][0]) and " V)" in bar["battery"][1], bar
+    assert page.inner_text("#state-agent") == "Ready" and "IDLE" in page.get_attribute("#state-agent", "title")
+    assert page.inner_text("#level1 [data-name=auto]") == "MODE MANUAL"
+    assert "knows where it is" in page.get_attribute("#level1 [data-name=localization]", "title")
+    # each event at the time of day it happened (this page's clock), its robot time on hover
+    first = page.locator("#events li").first
+    assert re.match(r"\d\d:\d\d:\d\d", first.inner_text()), first.inner_text()
+    recent = [time.localtime(time.time() - ago) for ago in range(0, 181, 30)]  # 24 h or 12 h, as the locale says
+    at = first.inner_text()
+    assert at[:5] in {time.strftime(f, t) for t in recent for f in ("%H:%M", "%I:%M")}, at
+    assert "robot time" in first.get_attribute("title")
     x0 = page.evaluate("ATEMR.state.pose.x_m")
     truth0 = robot_site.sim.pose
     page.focus("#joystick")
@@ -130,7 +149,7 @@ def test_control_page_shows_the_robot_and_the_keyboard_drives_it(robot_site, pag
 def test_the_joystick_pad_resends_while_held_and_stops_on_release(ready_site, page, shots, helpers):
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
     wait_for(page, "document.querySelectorAll('#level1 .led.ok').length === 4")
     # the keyboard resends while a key is held and sends an explicit stop on release
     page.focus("#joystick")
@@ -175,8 +194,8 @@ def test_the_joystick_pad_resends_while_held_and_stops_on_release(ready_site, pa
 
 def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map?.image != null")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE' && ATEMR.map?.image != null")
     # AUTO is refused until every level-1 status is OK (the IR sensors come up after the secondary core boots)
     wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)")
     page.click("#go-here")  # GO HERE: the next press on the map is the goal, a drag its heading
@@ -191,7 +210,7 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
     assert page.is_visible("#goal-confirm") and robot_site.agent_state == "IDLE.MANUAL"  # nothing sent yet
     page.click("#goal-go")  # CONFIRM: switches to AUTO, then sends the goal
     wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'EXEC'")
     wait_for(page, "document.getElementById('goal-progress').textContent.startsWith('On the way: ')")
     wait_for(page, "ATEMR.state.goal !== null && ATEMR.state.global_path.length > 2")
     # the goal's acknowledgement says it was taken, never "done" beside "On the way"
@@ -199,7 +218,7 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
     goal = page.evaluate("ATEMR.state.goal")
     assert abs(goal["x_m"] - gx) < 0.1 and abs(goal["y_m"] - gy) < 0.1 and abs(goal["yaw_rad"]) < 0.3
     page.screenshot(path=str(shots / "control-auto-goal.png"), full_page=True)
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=20000)
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'", timeout=20000)
     wait_for(page, "document.getElementById('goal-progress').textContent === 'Arrived.'")
     assert "Goal reached." in page.inner_text("#alerts")
     # the acknowledgement no longer says "accepted" once the goal has its outcome
@@ -211,12 +230,12 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
 def test_mapping_begin_end_and_save_on_the_robot(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{robot_site.url}/mapping")
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'")
     version = page.evaluate("ATEMR.state.map_version")
     page.click("#mapping-toggle")
     wait_for(page, "document.getElementById('mapping-toggle').textContent === 'END MAP'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'MAPPING'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'MAPPING'")
     page.focus("#joystick")
     page.keyboard.down("a")  # turn on the spot: the lidar sweeps the room (a redraw every 5 scans)
     wait_for(page, f"ATEMR.state.map_version > {version} + 7 && ATEMR.map.meta.version > {version} + 7",
@@ -228,7 +247,7 @@ def test_mapping_begin_end_and_save_on_the_robot(robot_site, page, shots, helper
     page.screenshot(path=str(shots / "mapping-save-dialog.png"))
     page.fill("#save-name", "kitchen")
     page.click("#save-map")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'")
     wait_for(page, "document.getElementById('map-select').value === 'kitchen'")
     assert (robot_site.data_dir / "maps" / "kitchen.yaml").is_file()
     assert robot_site.robot.parts.maps.active_name == "kitchen"
@@ -320,7 +339,7 @@ def test_new_user_waits_for_an_admin_to_grant_access(ready_site, browser, page, 
 def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map?.image != null")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE' && ATEMR.map?.image != null")
     wait_for(page, "document.getElementById('secondary-screen').naturalWidth === 256")
     start = robot_site.sim.pose
     target = next((start.x_m + dx, start.y_m) for dx in (0.6, -0.6, 1.0, -1.0)
@@ -355,7 +374,7 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
 def test_media_captured_and_recorded_then_played_previewed_downloaded_and_deleted(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
     wait_for_camera(page)
     images = robot_site.data_dir / "media" / "images"
     for _ in range(2):
@@ -436,7 +455,7 @@ def test_phone_sized_screen(ready_site, browser, shots, helpers):
     page = context.new_page()
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
     width = page.evaluate("document.documentElement.scrollWidth")
     assert width <= 400  # one column, no sideways scrolling
     joystick = page.locator("#joystick").bounding_box()
@@ -462,7 +481,7 @@ def test_several_robots_on_one_dashboard_are_told_apart(ready_site, page, shots,
 
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'")
     assert page.locator("#robot").is_hidden()  # one robot: the view is as it always was
     socketio = ready_site.server.app.extensions["socketio"]
     stop = threading.Event()
@@ -478,15 +497,15 @@ def test_several_robots_on_one_dashboard_are_told_apart(ready_site, page, shots,
         wait_for(page, "!document.getElementById('robot').hidden "
                        "&& document.getElementById('robot').options.length === 2")
         assert page.evaluate("ATEMR.robot") == "KAY"  # this dashboard's own robot stays shown
-        assert page.inner_text("#agent-state") == "IDLE"
+        assert page.get_attribute("#agent-state", "data-state") == "IDLE"
         page.select_option("#robot", "BRAVO")
-        wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
+        wait_for(page, "document.getElementById('agent-state').dataset.state === 'EXEC'")
         page.click("#capture")
         wait_for(page, "document.getElementById('command-result').textContent.includes('BRAVO is only watched here')")
         assert ready_site.robot.count("capture_image") == 0
         page.screenshot(path=str(shots / "control-two-robots.png"), full_page=True)
         page.select_option("#robot", "KAY")
-        wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+        wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'")
         page.click("#capture")
         wait_for(page, "document.getElementById('command-result').textContent === 'Capture: done'")
     finally:
@@ -498,17 +517,17 @@ def test_several_robots_on_one_dashboard_are_told_apart(ready_site, page, shots,
 def test_a_gated_transition_is_confirmed_from_the_page(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{robot_site.url}/agent")
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, "document.getElementById('autonomy-level').textContent === 'AUTONOMY:FULL'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('autonomy-level').dataset.level === 'full'")
     page.click("#agent-reload")  # the explicit reload: the file is the running version
     wait_for(page, "document.getElementById('reload-status').dataset.status === 'unchanged'")
     page.screenshot(path=str(shots / "agent-studio.png"), full_page=True)
     page.select_option("#autonomy-select", "off")
     page.click("#autonomy-set")
-    wait_for(page, "document.getElementById('autonomy-level').textContent === 'AUTONOMY:OFF'")
+    wait_for(page, "document.getElementById('autonomy-level').dataset.level === 'off'")
     assert "begin_mapping → MAPPING (low)" in page.inner_text("#autonomy-gated")
     page.goto(f"{robot_site.url}/mapping")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'")
     page.click("#mapping-toggle")
     wait_for(page, "!document.getElementById('autonomy-request').hidden")
     assert page.inner_text("#autonomy-what") == "may it start mapping?"
@@ -517,7 +536,7 @@ def test_a_gated_transition_is_confirmed_from_the_page(robot_site, page, shots, 
     wait_for(page, "ATEMR.state.events.some((e) => e.kind === 'autonomy' && e.text.includes('waits for the operator'))")
     page.screenshot(path=str(shots / "autonomy-request.png"), full_page=True)
     page.click("#autonomy-confirm")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'MAPPING'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'MAPPING'")
     wait_for(page, "document.getElementById('autonomy-request').hidden")
     confirmed = [r for r in robot_site.robot.components["agent"].trace if r.decision == "confirmed"]
     assert [(r.trigger, r.dest, r.decided_by) for r in confirmed] == [("begin_mapping", "MAPPING", "admin")]
@@ -558,8 +577,8 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
     robot_site.gateway.maps_changed()
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{robot_site.url}/mapping")
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' "
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE' "
                    "&& ATEMR.state.localization.localized")
     assert page.inner_text("#localization").startswith("LOCALIZED")
     wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)")  # every level-1 state but the pose OK
@@ -580,7 +599,7 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
     assert robot_site.agent_state == "IDLE.MANUAL" and page.inner_text("#mode-toggle") == "MANUAL"
 
     page.goto(f"{robot_site.url}/control")  # the operator sets the pose where the robot stands
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE' && ATEMR.map?.image != null")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE' && ATEMR.map?.image != null")
     truth = robot_site.sim.pose
     # GO HERE now: the switch to AUTO it needs is refused, and the answer is the goal's, not "Mode: ..."
     page.click("#go-here")
@@ -603,14 +622,14 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
 
 
 def test_a_dashboard_that_went_away_reads_offline_not_error(ready_site, page, helpers):
-    """The robot's process ended (the server with it): the status bar says WS:OFFLINE and keeps trying, not
-    WS:ERROR, which means the robot refused this page (logged out, no access)."""
+    """The robot's process ended (the server with it): the status bar says Offline and keeps trying, not
+    Refused, which means the robot refused this page (logged out, no access)."""
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
     watch_texts(page, "sock")
     ready_site.stop()
     assert len(sessions_of(ready_site.server.app)) == 0  # every connection closed, its session forgotten
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:OFFLINE'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'OFFLINE'")
     page.wait_for_timeout(2500)  # a retry or two against the closed port
     shown = watched_texts(page, "sock")
-    assert "WS:ERROR" not in shown and page.inner_text("#sock") == "WS:OFFLINE", shown
+    assert "Refused" not in shown and page.inner_text("#sock") == "Offline", shown

@@ -20,8 +20,8 @@ pytestmark = pytest.mark.e2e
 def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE' && ATEMR.map?.image != null")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE' && ATEMR.map?.image != null")
     wait_for(page, "document.querySelectorAll('#place-list li').length === 6")  # the studio's rooms and home
     names = page.eval_on_selector_all("#place-list li", "els => els.map(e => e.dataset.place)")
     assert names == ["home", "living room", "kitchen", "bedroom", "bathroom", "balcony door"]
@@ -58,10 +58,10 @@ def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, pag
     # "Go to": the robot switches to AUTO and drives to the place by itself
     page.click("#place-list li[data-place=\"Mum's armchair\"] .place-go")
     wait_for(page, "document.getElementById('mode-toggle').textContent === 'AUTO'")
-    wait_for(page, "document.getElementById('agent-state').textContent === 'EXEC'")
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'EXEC'")
     goal = page.evaluate("ATEMR.state.goal")
     assert abs(goal["x_m"] - stored.pose.x_m) < 0.01 and abs(goal["y_m"] - stored.pose.y_m) < 0.01
-    wait_for(page, "document.getElementById('agent-state').textContent === 'IDLE'", timeout=30000)
+    wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'", timeout=30000)
     truth = robot_site.sim.pose
     assert math.hypot(truth.x_m - px, truth.y_m - py) < 0.3, truth
     page.screenshot(path=str(shots / "places-arrived.png"), full_page=True)
@@ -80,7 +80,7 @@ def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, pag
 def test_create_a_routine_on_the_routines_page(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))  # logged in: the Control page, with its status bar
-    wait_for(page, "document.getElementById('sock').textContent === 'WS:ONLINE'")
+    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
     page.click("nav.tabs a:has-text('Routines')")
     page.wait_for_url(re.compile(r"/routines$"))
     assert "No routines yet." in page.inner_text("#routine-list")

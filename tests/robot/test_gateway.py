@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import math
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -396,7 +397,9 @@ def test_auto_goal_shows_the_paths_and_is_reached(booted):
     assert robot.parts.sim.pose.distance_to(goal) < 0.3
     after = gateway.state()
     assert after["goal"] is None and after["global_path"] == [] and after["navigation"] is None
-    assert after["events"][-1] == {"t": after["events"][-1]["t"], "kind": "goal", "text": "Goal reached."}
+    last = after["events"][-1]
+    assert last == {"t": last["t"], "kind": "goal", "text": "Goal reached.", "unix_s": last["unix_s"]}
+    assert time.time() - 120 < last["unix_s"] <= time.time()  # the wall clock the carer's Events list shows
 
 
 def test_the_state_says_why_the_robot_is_held_stopped(booted):

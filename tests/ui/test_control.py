@@ -59,6 +59,7 @@ def test_the_state_contract_names_what_is_wrong_and_where(gateway):
         "state.level2.lidar: expected bool, got 1",
         "state.limits.linear_mps: expected float, got 'fast'",
         "state.events[0]: missing key 'text'",
+        "state.events[0]: missing key 'unix_s'",
     ]
 
 

@@ -23,6 +23,17 @@
     await A.command("mode", { mode: want });
   });
 
+  // The level-1 and level-2 bits of CAN 0x153 (`RobotState.level1`, `level2`): what each one watches, on hover.
+  const LED_WORDS = {
+    heartbeat: "the robot's two computers hear each other (CAN heartbeat 0x157)",
+    hardware: "every part below (Level 2) answers",
+    connectivity: "the robot has a network address you can reach it on",
+    localization: "the robot knows where it is on the map",
+    left_motor: "the left wheel's motor answers", right_motor: "the right wheel's motor answers",
+    imu: "the motion sensor (IMU) reports", lidar: "the laser scanner reports", camera: "the camera sends frames",
+    webserver: "this dashboard's server runs",
+    ir_front: "the front floor sensors (stairs) report", ir_rear: "the rear floor sensors (stairs) report",
+  };
   function leds(el, states) {
     if (!el) return;
     const entries = Object.entries(states || {});
@@ -31,7 +42,11 @@
       const span = document.createElement("span");
       span.className = `led ${ok ? "ok" : "bad"}`;
       span.textContent = name.replace(/_/g, " ").toUpperCase();
-      if (name.toLowerCase() === "auto") { span.className = "led mode"; span.textContent = `M/A ${ok ? "AUTO" : "MANUAL"}`; }
+      span.title = `${LED_WORDS[name] || name}: ${ok ? "yes" : "NO"}`;
+      if (name === "auto") {
+        span.className = "led mode"; span.textContent = `MODE ${ok ? "AUTO" : "MANUAL"}`;
+        span.title = ok ? "AUTO: the robot drives itself to goals and on missions" : "MANUAL: you drive it with the joystick";
+      }
       span.dataset.name = name;
       el.appendChild(span);
     }
@@ -65,6 +80,14 @@
 
 
   // -- the latest events, newest first -------------------------------------------------------------
+  // When it happened, on this device's clock: the time of day, with the date once it is not today's.
+  function clock(unixS) {
+    if (typeof unixS !== "number") return "—";
+    const at = new Date(unixS * 1000);
+    const time = at.toLocaleTimeString([], { hour: "2-digit", minute: "2-digit", second: "2-digit" });
+    return at.toDateString() === new Date().toDateString() ? time
+      : `${at.toLocaleDateString([], { day: "numeric", month: "short" })} ${time}`;
+  }
   let lastEvents = "";
   function events(list) {
     const el = $("events");
@@ -78,8 +101,8 @@
       li.className = `event ${e.kind || ""}`;
       // In the alert's words where it has some ("The robot knows where it is."); the technical text on hover.
       const said = A.plainEvent ? A.plainEvent(e) : null;
-      li.textContent = `${A.fmt(e.t, 1)} s  ${said ? said[0] : `${e.kind || ""}: ${e.text || ""}`}`;
-      li.title = `${e.kind || ""}: ${e.text || ""}`;
+      li.textContent = `${clock(e.unix_s)}  ${said ? said[0] : `${e.kind || ""}: ${e.text || ""}`}`;
+      li.title = `${e.kind || ""}: ${e.text || ""} (robot time ${A.fmt(e.t, 1)} s)`;
       el.appendChild(li);
     }
   }
@@ -256,7 +279,7 @@
   A.onState((s) => {
     modeBtn.textContent = s.mode || "MANUAL";
     modeBtn.classList.toggle("on", s.mode === "AUTO");
-    $("state-agent").textContent = s.agent_state || "—";
+    [$("state-agent").textContent, $("state-agent").title] = A.agentWords(s.agent_state);
     $("state-map").textContent = s.active_map || "—";
     localization(s.localization);
     leds($("level1"), s.level1);

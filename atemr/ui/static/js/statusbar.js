@@ -100,21 +100,54 @@
   const agent = document.getElementById("agent-state");
   const emergency = document.getElementById("emergency");
 
+  // The bar in a carer's words; the engineer's names (the socket's status, the agent state) stay in data-status and
+  // data-state for scripts and tests, and in each indicator's hover text.
+  const CONNECTION = {
+    ONLINE: ["Connected", "live: what the page shows is the robot now"],
+    OFFLINE: ["Offline", "no connection to the robot; the page keeps trying"],
+    ERROR: ["Refused", "the robot refused this page (logged out, or no access): log in again"],
+  };
   function showStatus(status) {
-    sock.textContent = `WS:${status}`;
+    const [word, why] = CONNECTION[status] || [status, ""];
+    sock.textContent = word;
+    sock.dataset.status = status;
+    sock.title = `the page's connection to the robot (WebSocket ${status}): ${why}`;
     sock.className = `ind ${status.toLowerCase()}`;
   }
 
+  // What the robot's agent is doing (`RobotState.agent_state`), as a carer reads it.
+  const AGENT_WORDS = {
+    UNDEFINED: ["Starting up", "the robot has not reported yet"],
+    STARTUP: ["Starting up", "checking its motors, sensors and map"],
+    IDLE: ["Ready", "waiting: drive it, or send it to a place or on a mission"],
+    EXEC: ["Busy", "driving to a goal or doing a mission"],
+    MAPPING: ["Mapping", "learning the rooms as it is driven"],
+    ERROR: ["Needs help", "a fault stopped it; see the alerts"],
+    SHUTDOWN: ["Shutting down", "the robot is switching off"],
+  };
+  /** [words, hover text] for an agent state: the status bar's, and the Control page's drive panel's. */
+  ATEMR.agentWords = (state) => {
+    const [word, why] = AGENT_WORDS[state] || [state || "—", ""];
+    return [word, state ? `${why} (agent state ${state})` : "agent state"];
+  };
+  // Why the robot is held stopped (`RobotState.stop_cause`), in two words; what to do is on hover (alerts.js).
+  const STOPPED = { cliff: "a drop", floor_sensors: "floor sensors", obstacle: "too close", heartbeat: "lost contact",
+                    motor: "motor fault", bus: "motors silent" };
+
   function showState(s) {
-    agent.textContent = s.agent_state || "—";
+    [agent.textContent, agent.title] = ATEMR.agentWords(s.agent_state);
     agent.dataset.state = s.agent_state || "";
     if (s.stop_cause) {
-      emergency.textContent = `STOPPED: ${String(s.stop_cause).replace("_", " ").toUpperCase()}`; emergency.className = "ind error";
+      emergency.textContent = `Stopped: ${STOPPED[s.stop_cause] || s.stop_cause}`; emergency.className = "ind error";
       emergency.title = ATEMR.stopText ? ATEMR.stopText(s.stop_cause) : "";
-    } else if (s.emergency === true) { emergency.textContent = "EMERGENCY"; emergency.className = "ind error"; }
-    else if (s.emergency === false) {
-      emergency.textContent = "NO EMERGENCY"; emergency.className = "ind online"; emergency.title = "emergency (brakes)";
+    } else if (s.emergency === true) {
+      emergency.textContent = "Emergency"; emergency.className = "ind error";
+      emergency.title = "the brakes hold the robot (emergency stop)";
+    } else if (s.emergency === false) {
+      emergency.textContent = "No emergency"; emergency.className = "ind online";
+      emergency.title = "no emergency: the brakes are off";
     }
+    emergency.dataset.cause = s.stop_cause || (s.emergency === true ? "emergency" : s.emergency === false ? "" : "unknown");
     showAutonomy(s.autonomy);
     showBattery(s.battery);
   }
@@ -123,8 +156,8 @@
   function showBattery(b) {
     const battery = document.getElementById("battery");
     if (!battery) return;
-    if (!b) { battery.textContent = "BAT:—"; battery.className = "ind"; return; }
-    battery.textContent = `BAT:${Math.round(b.percent)}%`;
+    if (!b) { battery.textContent = "Battery —"; battery.className = "ind"; return; }
+    battery.textContent = `Battery ${Math.round(b.percent)} %`;
     battery.className = `ind ${b.level === "ok" ? "online" : b.level === "low" ? "warning" : "error"}`;
     battery.title = `battery ${b.percent.toFixed(0)} % (${b.voltage_v.toFixed(1)} V)` +
       (b.level === "return" ? ": going home to charge" : b.level === "critical" ? ": critical, stopped" : "");
@@ -133,14 +166,22 @@
   // Operator autonomy: the level in the bar, and a transition waiting for the operator with Confirm/Deny.
   const level = document.getElementById("autonomy-level");
   const request = document.getElementById("autonomy-request");
+  // What each autonomy level (`atemr.fsm.autonomy.LEVELS`) lets the robot do without asking.
+  const AUTONOMY_WORDS = {
+    off: "off: it asks you before every step that can wait for an answer",
+    low: "low: it asks you before most steps",
+    high: "high: it asks you only before the steps marked for full autonomy",
+    full: "full: it never waits for you (safety steps never wait at any level)",
+  };
   function showAutonomy(a) {
     if (!a) { // a robot that does not report autonomy (another robot's dashboard): nothing to answer here
-      level.textContent = "AUTONOMY:—";
+      level.textContent = "Autonomy —";
       if (request) request.hidden = true;
       return;
     }
-    level.textContent = `AUTONOMY:${String(a.level || "—").toUpperCase()}`;
+    level.textContent = `Autonomy ${a.level || "—"}`;
     level.dataset.level = a.level || "";
+    level.title = `${AUTONOMY_WORDS[a.level] || "the robot's autonomy level"} (the Agent page changes it)`;
     if (!request) return;
     const p = a.pending;
     request.hidden = !p;
