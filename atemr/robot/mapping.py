@@ -223,7 +223,10 @@ class MapService:
             self.version += 1
             for user in self._users:
                 user.use_map(grid, None)
-            self.localization.set_initial_pose(now, slam.current_pose)
+            try:
+                self.localization.set_initial_pose(now, slam.current_pose)
+            except NavigationError as exc:  # the map is stored and in use: say the robot is not localized on it
+                self.localization.announce_not_localized(stored, f"the pose mapping ended at is not usable: {exc}")
         self.on_event("mapping", f"map saved as {stored}")
         return stored
 

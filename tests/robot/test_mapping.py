@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from atemr.clock import SimClock
@@ -68,6 +69,26 @@ def test_a_map_begun_while_localized_is_in_the_active_maps_frame(robot):
     # saving the map it made does not say "not localized": the carer read that beside "The robot knows where it is"
     said = [e.kind for e in robot.parts.localization.drain_events()]
     assert "initial_pose" in said and "map_changed" not in said, said
+
+
+def test_a_saved_map_whose_end_pose_is_unusable_is_kept_and_says_not_localized(robot):
+    """SLAM may end believing the robot stands where its own map is occupied (the edge of a wall). The map is
+    stored and in use all the same (nothing half-saved), and the carer reads that the robot does not know where
+    it is on it, instead of nothing at all."""
+    maps = robot.parts.maps
+    robot.run(until=6.0)
+    maps.begin()
+    drive(robot, 12.0)
+    assert maps.slam is not None
+    x, y = maps.slam.occupied_points()[0]
+    maps.slam.pose = np.array([x, y, 0.0])
+    robot.parts.localization.drain_events()
+    assert maps.end("hall", robot.clock.now()) == "hall"
+    assert maps.active_name == "hall" and robot.parts.map_store.active_name() == "hall" and maps.slam is None
+    assert robot.parts.localization.map_pose() is None
+    said = {e.kind: e.detail for e in robot.parts.localization.drain_events()}
+    assert "map hall selected (the pose mapping ended at is not usable: " in said["map_changed"], said
+    assert "initial_pose" not in said
 
 
 def test_a_map_begun_unlocalized_starts_at_the_odometry_pose(robot):

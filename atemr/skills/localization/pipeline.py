@@ -114,10 +114,15 @@ class LocalizationPipeline:
         if self.localizer is not None:
             self._events.extend(self.localizer.events)
             if not pose_follows:
-                self._events.append(LocalizationEvent(self.odometry.t, "map_changed",
-                                                      f"map {grid.name} selected: not localized until a pose is set "
-                                                      "or found (FIND POSITION)"))
+                self.announce_not_localized(grid.name)
         self.localizer = localizer
+
+    def announce_not_localized(self, map_name: str, why: str = "") -> None:
+        """Tell the operator the robot does not know where it is on ``map_name``: after a map change, or when the
+        pose `set_map`'s ``pose_follows`` promised could not be set (``why``)."""
+        self._events.append(LocalizationEvent(self.odometry.t, "map_changed",
+                                              f"map {map_name} selected{f' ({why})' if why else ''}: not localized "
+                                              "until a pose is set or found (FIND POSITION)"))
 
     def _need(self) -> Localizer:
         if self.localizer is None:
