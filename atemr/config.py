@@ -232,6 +232,9 @@ class AgentConfig:
         "help": "robot autonomy level at start: a transition above it waits for the operator (full: none wait)"})
     confirm_timeout_s: float = field(default=30.0, metadata={
         "min": 1.0, "max": 3600.0, "help": "robot seconds a gated transition waits for the operator (then: deny)"})
+    routines: bool = field(default=True, metadata={
+        "help": "start the care routines of data_dir/routines.yaml when they are due (false: never, as in "
+                "atemr mission run --headless, which runs its mission alone)"})
 
 
 @dataclass(frozen=True)

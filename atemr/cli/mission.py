@@ -150,6 +150,8 @@ def run_command(args: argparse.Namespace) -> int:
     config = load_config(args.config, overrides={
         "simulation": True, "ui.enabled": False, "sim.world": args.world, "sim.seed": args.seed,
         "data_dir": args.data_dir, "trace.file": args.trace,
+        # the run is this mission alone: no routine of the data directory starts or is written down in its history
+        "agent.routines": False,
     })
     robot = build_headless_robot(config)  # no dashboard, no portal, a private CAN channel
     with robot:

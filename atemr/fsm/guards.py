@@ -119,6 +119,13 @@ def level1_ok(g: GuardInput) -> str | None:
     return f"level-1 status not OK ({'; '.join(problems)})" if problems else None
 
 
+@guards.register("task_failed")
+def task_failed(g: GuardInput) -> str | None:
+    """The error being handled is a goal or a mission that failed in AUTO (`remember_task_failed`), not a fault:
+    leaving Error, the robot may take up AUTO again (a carer's routines start only from AUTO)."""
+    return None if g.context.task_failed else "the error was not a failed goal or mission in AUTO"
+
+
 @guards.register("map_name_valid")
 def map_name_valid(g: GuardInput) -> str | None:
     """A map name that is safe as a file name (it becomes ``name.pgm`` + ``name.yaml``)."""
@@ -198,7 +205,16 @@ def record_error(g: GuardInput) -> None:
     g.context.error = NavigationError(text) if "goal" in g.kwargs else AtemrError(text)
 
 
+@callbacks.register("remember_task_failed")
+def remember_task_failed(g: GuardInput) -> None:
+    """A goal or a mission failed in AUTO (no path, stuck, an invalid goal): Error may hand back AUTO once it is
+    handled (the ``task_failed`` guard, beside ``level1_ok``, which still refuses AUTO after a fault that came on
+    meanwhile). `clear_error` forgets it."""
+    g.context.task_failed = True
+
+
 @callbacks.register("clear_error")
 def clear_error(g: GuardInput) -> None:
     """The error is handled: forget it."""
     g.context.error = None
+    g.context.task_failed = False

@@ -135,7 +135,8 @@ def _wire(robot: Robot) -> None:
         wheels=wheels, port=port, navigation=navigation, agent=agent, reload_watcher=watcher,
         system_monitor=system_monitor, sim=sim, secondary_board=board, battery=battery, sim_battery=sim_battery,
     )
-    _add_routines(robot)
+    if config.agent.routines:
+        _add_routines(robot)
     _add_recorder(robot)
     if config.ui.enabled:
         from atemr.robot.dashboard import add_dashboard  # lazy: headless runs never import Flask

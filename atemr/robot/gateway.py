@@ -590,9 +590,10 @@ class RobotGatewayImpl:
         runner = self.robot.parts.routines
         return None if runner is None else runner.snapshot()
 
-    def _change_routines(self, change: Callable[[RoutineBook], RoutineBook], what: str) -> CommandResult:
+    def _change_routines(self, change: Callable[[RoutineBook], RoutineBook], what: str, done: str) -> CommandResult:
         """Apply ``change`` to the routines in force and store the result (the runner reads it at its next tick);
-        a refusal stores nothing."""
+        a refusal (``what``: its reason) stores nothing. ``done`` is the event, which the alerts show after
+        "Routine"."""
         runner = self.robot.parts.routines
         if runner is None:
             return CommandResult.refused("this robot runs no routines")
@@ -604,7 +605,7 @@ class RobotGatewayImpl:
             return CommandResult.refused(f"{what}: {exc.reason}")
         except OSError as exc:
             return CommandResult.refused(f"{what}: not saved: {exc.strerror}")
-        self.robot.event("routine", f"{what}: done")
+        self.robot.event("routine", done)
         return CommandResult.accepted()
 
     def save_routine(self, routine: dict[str, Any], previous: str | None = None) -> CommandResult:
@@ -624,10 +625,12 @@ class RobotGatewayImpl:
             return book.with_routine(new)
 
         name = routine.get("name") if isinstance(routine, dict) else routine
-        return self._change_routines(change, f"routine {brief(name)}")
+        renamed = f" (was {brief(previous)})" if previous not in (None, name) else ""
+        return self._change_routines(change, f"routine {brief(name)}", f"{brief(name)} saved{renamed}")
 
     def delete_routine(self, name: str) -> CommandResult:
-        return self._change_routines(lambda book: book.without(name), f"delete routine {brief(name)}")
+        return self._change_routines(lambda book: book.without(name), f"delete routine {brief(name)}",
+                                     f"{brief(name)} deleted")
 
     def set_routines_timezone(self, timezone: str) -> CommandResult:
         from atemr.domain.routines import zone
@@ -636,7 +639,7 @@ class RobotGatewayImpl:
             zone(timezone)
             return RoutineBook(timezone, book.routines)
 
-        return self._change_routines(change, f"routines time zone {brief(timezone)}")
+        return self._change_routines(change, f"routines time zone {brief(timezone)}", f"time zone {timezone} set")
 
     # -- settings ----------------------------------------------------------------------------------------
     def set_limits(self, linear_mps: float, angular_radps: float) -> CommandResult:

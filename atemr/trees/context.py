@@ -49,6 +49,9 @@ class AgentContext:
     state: str = ""
     mode: str = "MANUAL"
     error: AtemrError | None = None
+    #: The error being handled is a goal or a mission that failed in AUTO (not a fault): once it is handled the
+    #: robot may go back to AUTO, holding still, ready for the next (`recover` with ``task_failed``).
+    task_failed: bool = False
     task: Any = None
     mapping_active: bool = False
     halted: bool = False

@@ -384,7 +384,7 @@ def role_required(role: Role) -> Callable[[F], F]:
                     abort(403)
                 return html_response(
                     current_app.jinja_env.get_template("auth/no_access.html").render(
-                        **_template_context(), user=user
+                        **_template_context(), user=user, needed=role
                     ),
                     403,
                 )

@@ -110,7 +110,19 @@ def test_create_a_routine_on_the_routines_page(robot_site, page, shots, helpers)
     assert "across midnight" in page.inner_text("#routine-error")
     assert page.input_value("#routine-name") == "night patrol"
     assert len(RoutineStore(robot_site.data_dir).load().routines) == 1
+    # CHANGE puts the routine in the form; saving replaces it (no second routine, no name to retype)
+    page.goto(f"{robot_site.url}/routines")
+    page.click("#routine-list tr[data-routine=\"check-on-resident\"] a.routine-change")
+    assert page.inner_text("#routine-form-title") == "Change the routine 'check-on-resident'"
+    assert page.input_value("#routine-name") == "check-on-resident" and page.input_value("#routine-at") == "09:00"
+    page.fill("#routine-at", "10:30")
+    page.click("#routine-save")
+    page.wait_for_selector("p.flash:has-text('Routine check-on-resident saved.')")
+    assert [r.to_json()["at"] for r in RoutineStore(robot_site.data_dir).load().routines] == ["10:30"]
     page.screenshot(path=str(shots / "routines.png"), full_page=True)
     page.set_viewport_size({"width": 390, "height": 844})  # a carer's phone: nothing scrolls sideways
     page.goto(f"{robot_site.url}/routines")
-    assert page.evaluate("document.scrollingElement.scrollWidth") <= 390
+    page.screenshot(path=str(shots / "routines-phone.png"), full_page=True)
+    wide = page.evaluate("""() => [...document.querySelectorAll('main *')].filter((e) =>
+        e.getBoundingClientRect().right > 391).map((e) => `${e.tagName}#${e.id}.${e.className}`).slice(0, 8)""")
+    assert page.evaluate("document.scrollingElement.scrollWidth") <= 390, wide

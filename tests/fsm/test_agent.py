@@ -123,7 +123,8 @@ def test_an_invalid_goal_goes_through_error_back_to_idle(rig: Rig) -> None:
     result = rig.command("goal", goal=Pose2D(math.nan, 0.0, 0.0))
     assert result.dest == "ERROR" and "non-finite" in result.reason  # type: ignore[attr-defined]
     rig.run(0.2)
-    assert rig.agent.state == "IDLE.MANUAL"
+    assert rig.agent.state == "IDLE.AUTO"  # a failed goal in AUTO hands AUTO back: the next goal needs no switch
+    assert not rig.agent.context.task_failed
     triggers = [r.trigger for r in rig.agent.trace if r.accepted]
     assert triggers[-2:] == ["goal", "recover"]
     codes = [k for k, _ in itertools.groupby(s.state for _, s in rig.link.statuses)]
@@ -246,7 +247,27 @@ def test_a_step_timeout_fails_the_mission_into_error(rig: Rig) -> None:
     assert report["outcome"] == "failed" and report["steps"][0]["status"] == "failed"
     assert report["steps"][0]["duration_s"] == pytest.approx(1.0, abs=0.11)
     rig.run(0.2)
+    assert rig.agent.state == "IDLE.AUTO"  # back to AUTO: the carer's next routine may start
+
+
+def test_a_goal_sent_in_manual_or_a_failure_with_level1_not_ok_recovers_to_manual(rig: Rig) -> None:
+    """Error hands AUTO back only after a goal or a mission that failed in AUTO, and only while the level-1
+    statuses are OK: a goal sent in MANUAL stays in MANUAL, and so does a failure after which a motor is bad."""
+    idle(rig)
+    assert rig.command("goal", goal=Pose2D(1.0, 0.0, 0.0)).dest == "ERROR"  # type: ignore[attr-defined]
+    rig.run(0.2)
     assert rig.agent.state == "IDLE.MANUAL"
+    rig.port.is_localized = True
+    rig.command("set_auto")
+    text = "mission:\n  name: too-slow\n  steps:\n    - wait: {duration_s: 5}\n      timeout_s: 1\n"
+    start_mission(rig, text)
+    rig.run(0.5)
+    rig.port.is_localized = False  # lost on the way: AUTO would drive by a map it is not on
+    rig.run(1.0)
+    failed = next(r for r in rig.agent.trace if r.trigger == "failed")
+    recover = next(r for r in reversed(rig.agent.trace) if r.trigger == "recover")
+    assert failed.dest == "ERROR" and recover.t > failed.t
+    assert recover.dest == "IDLE.MANUAL" and rig.agent.state == "IDLE.MANUAL"
 
 
 def test_cancel_stops_the_task(rig: Rig) -> None:
@@ -398,7 +419,7 @@ def test_a_leaf_bug_fails_the_task_and_the_agent_carries_on(agent_spec: AgentSpe
     start_mission(rig, text)
     rig.run(0.5)
     failed = next(r for r in rig.agent.trace if r.trigger == "failed")
-    assert "driver bug" in failed.reason and rig.agent.state == "IDLE.MANUAL"
+    assert "driver bug" in failed.reason and rig.agent.state == "IDLE.AUTO"
     assert any("driver bug" in e for e in rig.agent.errors)
 
 

@@ -26,7 +26,7 @@ def edges(spec: AgentSpec) -> int:
 def test_ascii_lists_states_transitions_and_trees(agent_spec: AgentSpec) -> None:
     text = exporters.get("ascii")(drawing_of(agent_spec))
     assert isinstance(text, str)
-    assert "IDLE.AUTO --goal [not goal_valid]--> ERROR  (before record_error)" in text
+    assert "IDLE.AUTO --goal [not goal_valid]--> ERROR  (before record_error, before remember_task_failed)" in text
     assert "  STARTUP  (code 0x01;" in text and "    MANUAL  (tree 'manual')" in text
     assert "--> left motor (CheckComponent component=left_motor timeout_s=5.0 critical=True)" in text
     assert text.count("\ntree ") == 9  # eight state trees and the monitor
@@ -76,7 +76,7 @@ def test_state_selection_errors(agent_spec: AgentSpec) -> None:
 
 def test_cli_tree_validate_and_export(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     assert main(["tree", "validate", str(AGENT)]) == 0
-    assert "OK, agent: 10 states (8 leaf states), 21 transitions" in capsys.readouterr().out
+    assert "OK, agent: 10 states (8 leaf states), 22 transitions" in capsys.readouterr().out
     assert main(["tree", "export", str(AGENT), "--format", "mermaid", "--state", "IDLE.MANUAL"]) == 0
     assert capsys.readouterr().out.startswith("flowchart TD")
     out = tmp_path / "agent.json"

@@ -20,14 +20,23 @@ from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigati
 from atemr.trees.missions import parse_mission
 from atemr.yamlsafe import load_yaml
 
-TESTED_GUARDS = {"goal_valid", "auto_mode", "mission_runnable", "level1_ok", "map_name_valid"}
+TESTED_GUARDS = {"goal_valid", "auto_mode", "mission_runnable", "level1_ok", "map_name_valid", "task_failed"}
 TESTED_CALLBACKS = {"begin_mapping", "save_map", "discard_map", "abandon_mapping", "stop_motors", "set_goal_task",
-                    "set_mission_task", "clear_task", "record_error", "clear_error"}
+                    "set_mission_task", "clear_task", "record_error", "clear_error", "remember_task_failed"}
 
 
 def test_every_registered_guard_and_callback_is_tested_here() -> None:
     assert set(guards) == TESTED_GUARDS
     assert set(callbacks) == TESTED_CALLBACKS
+
+
+def test_task_failed_holds_from_a_failed_task_until_the_error_is_cleared() -> None:
+    g = GuardInput(AgentContext(port=RecordingPort()), {})
+    assert guards.get("task_failed")(g) == "the error was not a failed goal or mission in AUTO"
+    callbacks.get("remember_task_failed")(g)
+    assert guards.get("task_failed")(g) is None
+    callbacks.get("clear_error")(g)
+    assert guards.get("task_failed")(g) is not None and g.context.error is None
 
 
 def check(guard: str, port: RecordingPort | None = None, link: RecordingLink | None = None, /,

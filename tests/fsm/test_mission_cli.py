@@ -56,6 +56,21 @@ def test_a_mission_file_in_the_simulated_robot(capsys: pytest.CaptureFixture[str
     assert [r["dest"] for r in result["trace"]][-3:] == ["IDLE.AUTO", "EXEC", "IDLE.AUTO"]
 
 
+def test_a_headless_mission_starts_no_routine_of_the_data_directory(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """The robot's own data directory may hold routines: a headless run of one mission neither starts them nor
+    writes its skips into the robot's routine history (the carer's Routines page reads it)."""
+    (tmp_path / "routines.yaml").write_text('timezone: UTC\nroutines:\n  - {name: r, mission: look-around, '
+                                            'at: "09:00"}\n')
+    monkeypatch.setenv("ATEMR_SIM__START_TIME", "2026-06-03T08:59:59+00:00")  # due 1 s into the mission
+    mission = tmp_path / "quarter-turn.yaml"
+    mission.write_text(QUARTER_TURN)
+    code, result = run(capsys, str(mission), "--headless", "--json", "--data-dir", str(tmp_path))
+    assert code == 0 and result["outcome"] == "reached", result.get("reason")
+    assert result["duration_s"] > 2.0  # the routine's time came during the run (the start-up takes some too)
+    assert not (tmp_path / "routines-history.jsonl").exists()
+
+
 def test_goals_from_a_start_pose(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     code, result = run(capsys, "--goal", "3.8,3.2,0", "--start", "3.0,3.2,0", "--headless", "--json",
                        "--data-dir", str(tmp_path))

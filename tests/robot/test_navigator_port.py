@@ -80,7 +80,9 @@ def test_a_goal_in_a_wall_is_refused_with_the_navigators_reason(agent_spec: Agen
     scheduler.run(duration=0.2)
     refused = next(r for r in agent.trace if r.trigger == "goal")
     assert refused.dest == "ERROR" and "obstacle" in refused.reason
-    assert agent.state == "IDLE.MANUAL"  # the error handled
+    assert agent.state == "IDLE.AUTO"  # the error handled: AUTO again, ready for a goal that is not in a wall
+    agent.submit("set_manual")
+    scheduler.run(duration=0.2)
     agent.submit("goal", goal=Pose2D(4.0, 1.5, 0.0))  # a good goal, but in MANUAL: an invalid goal as well
     scheduler.run(duration=0.2)
     assert agent.results[-1].dest == "ERROR" and "AUTO mode only" in agent.results[-1].reason
