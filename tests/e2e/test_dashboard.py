@@ -468,9 +468,14 @@ def test_agent_view_draws_the_lifecycle_and_tree(ready_site, page, shots, helper
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{ready_site.url}/agent")
     wait_for(page, "document.querySelector('#machine .mstate.active') !== null")
-    assert page.inner_text("#machine .mstate.active") == "IDLE.MANUAL"
+    active = page.eval_on_selector_all("#machine .mstate.active", "(chips) => chips.map((c) => c.textContent)")
+    chips = page.eval_on_selector_all("#machine .mstate", "(chips) => chips.map((c) => c.textContent)")
+    assert active[-1] == "IDLE.MANUAL" and len(chips) == len(set(chips)), chips  # each state named once
     wait_for(page, "document.querySelectorAll('#agent-tree li.node').length === 3")
     assert "all checks passed" in page.inner_text("#agent-transitions")
+    # subscribing to the view is no command of the carer's: no "Agent view: done", no "not connected" toast
+    page.wait_for_timeout(500)
+    assert "Agent view" not in page.inner_text("#command-result") + page.inner_text("#alert-items")
     page.screenshot(path=str(shots / "agent.png"), full_page=True)
 
 

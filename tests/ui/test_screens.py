@@ -121,6 +121,7 @@ def test_screen_socket_gets_plain_words_and_is_refused_operator_events(app, gate
      "Doing the task 'visit_kitchen'"),
     ({"agent_state": "IDLE", "mode": "MANUAL"}, "Waiting; someone can drive me from afar"),
     ({"agent_state": "MAPPING"}, "Learning the rooms"),
+    ({"agent_state": "ERROR"}, "I have stopped: something is wrong"),  # no promise that help is on the way
     ({"emergency": True}, "Stopped: emergency stop"),
     ({}, "Starting up"),
 ])

@@ -28,7 +28,7 @@ DOING = {
     "IDLE": "Waiting",
     "EXEC": "Busy with a task",
     "MAPPING": "Learning the rooms",
-    "ERROR": "Something is wrong; help is on the way",
+    "ERROR": "I have stopped: something is wrong",  # no promise of help: nobody may be watching the dashboard
     "SHUTDOWN": "Shutting down",
 }
 

@@ -20,6 +20,7 @@
   let subscribed = false;
   let lastAgent = 0;
   async function subscribe() {
+    if (A.socket.status !== "ONLINE") return; // a state from before the connection: "connect" subscribes
     subscribed = true;
     const ack = await A.command("agent_view", { on: true });
     if (!ack.ok) subscribed = false;
@@ -53,7 +54,9 @@
     box.innerHTML = "";
     for (const name of states) {
       const active = current === name || current.startsWith(name + ".");
-      const s = el("span", `mstate${active ? " active" : ""}`, active && current !== name ? current : name);
+      // a parent (IDLE) names the leaf it is in only when the leaf has no chip of its own (IDLE.MANUAL twice read odd)
+      const label = active && current !== name && !states.includes(current) ? current : name;
+      const s = el("span", `mstate${active ? " active" : ""}`, label);
       s.dataset.state = name;
       box.appendChild(s);
     }

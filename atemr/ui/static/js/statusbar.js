@@ -25,7 +25,8 @@
     async command(event, data, on_behalf = null) {
       if (!this.socket) return { ok: false, reason: "no connection on this page" };
       const said = (ack) => {
-        if (event === "joystick" || (on_behalf && ack.ok)) return;
+        // a view subscribed to (the camera, the Agent view) shows itself when it works: only a refusal is said
+        if (event === "joystick" || (ack.ok && (on_behalf || SUBSCRIPTIONS.has(event)))) return;
         this.report(on_behalf || event, ack);
       };
       if (this.watchingAnother && !SUBSCRIPTIONS.has(event)) {
