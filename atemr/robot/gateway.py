@@ -39,13 +39,20 @@ from atemr.clock import WallClock
 from atemr.domain.routines import RoutineBook
 from atemr.errors import AtemrError, ConfigError, brief, brief_text
 from atemr.fsm.agent import DEFAULT_AGENT_FILE
+from atemr.fsm.machine import TransitionRecord
 from atemr.io.devices.drivers import camera_rate_hz, driver_name
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Robot
 from atemr.robot.inputs import CAN_BUS_STOP, HEARTBEAT_STOP
 from atemr.robot.mapping import PreparedMap
 from atemr.robot.places import PlaceEditor
-from atemr.robot.plain_words import plain_goal_refusal, plain_guard_refusal, plain_outcome, plain_refusal
+from atemr.robot.plain_words import (
+    plain_goal_refusal,
+    plain_guard_refusal,
+    plain_outcome,
+    plain_refusal,
+    plain_unconfirmed,
+)
 from atemr.robot.port import jpeg
 from atemr.robot.video import VideoRecorder
 from atemr.skills.nav.navigator import NavStatus
@@ -135,6 +142,7 @@ class RobotGatewayImpl:
         self._lock = threading.Lock()
         self._actions: queue.SimpleQueue[tuple[str, Callable[[float], object]]] = queue.SimpleQueue()
         self._watched: deque[tuple[int, str]] = deque()
+        self.agent.listeners.append(self._on_transition)
         self._events: deque[dict[str, Any]] = deque(maxlen=100)
         self._camera_key: object = None
         self._camera_jpeg: bytes | None = None
@@ -194,6 +202,12 @@ class RobotGatewayImpl:
         if reports and reports[-1] is not self._last_report:
             self._last_report = reports[-1]
             self.robot.event(*plain_outcome(reports[-1], self.robot.parts.navigation.last_status))
+
+    def _on_transition(self, record: TransitionRecord) -> None:
+        """A step the robot asked the operator about and did not take (denied, or no answer in time) is said:
+        the carer's "Go to place: accepted" otherwise stayed while the robot stood still."""
+        if record.decision in ("denied", "timed_out"):
+            self.robot.event("unconfirmed", plain_unconfirmed(record.trigger, record.decision, record.decided_by))
 
     def _queue(self, what: str, action: Callable[[float], object]) -> CommandResult:
         """Queue ``action(now)`` for the robot's thread; refused when `MAX_QUEUED_ACTIONS` wait already."""

@@ -40,6 +40,14 @@ STATES = {
 }
 
 
+def plain_unconfirmed(trigger: str, decision: str, by: str) -> str:
+    """Why a step the robot asked the operator about (its autonomy level) was not taken: ``decision`` is
+    "timed_out" (nobody answered) or "denied" (by ``by``)."""
+    action = ACTIONS.get(trigger, trigger.replace("_", " "))
+    why = "nobody confirmed it in time" if decision == "timed_out" else f"{by} denied it"
+    return f"The robot did not {action}: {why}. It stays where it is."
+
+
 def plain_refusal(trigger: str, state: str) -> str:
     """Why ``trigger`` cannot be taken in ``state`` (e.g. ``IDLE.MANUAL``), as a carer reads it."""
     top, _, mode = state.partition(".")

@@ -209,6 +209,8 @@ ALERTS = [  # what the robot does → what the carer reads
      "Another map is in use: the robot does not know where it is on it."),
     ("event", {"kind": "goal", "text": "Goal failed: no path to the goal."}, "Goal failed: no path to the goal."),
     ("event", {"kind": "mission", "text": "Mission 'patrol' finished."}, "Mission 'patrol' finished."),
+    ("event", {"kind": "unconfirmed", "text": "The robot did not drive to a goal: nobody confirmed it in time. It "
+               "stays where it is."}, "The robot did not drive to a goal: nobody confirmed it in time."),
 ]
 
 

@@ -22,6 +22,7 @@ from atemr.io.can.bus import unique_channel
 from atemr.msgs import Pose2D, Twist
 from atemr.robot import Robot, build_robot
 from atemr.robot.gateway import RobotGatewayImpl
+from atemr.robot.plain_words import plain_unconfirmed
 from atemr.ui.gateway import RobotGateway
 from atemr.ui.screen.words import plain_activity
 from atemr.ui.state import state_problems
@@ -452,6 +453,24 @@ def test_autonomy_level_confirm_and_reload_through_the_gateway(booted):
     assert gateway.reload_agent().ok
     run(robot, 1.2)
     assert gateway.agent_snapshot()["reloads"][-1]["status"] == "unchanged"
+
+
+def test_a_denied_or_unanswered_step_is_said_in_plain_words(booted):
+    """The carer read "Start mission: started" while the robot stood still after a denial or a timeout: the
+    robot now says what it did not do and why (kind "unconfirmed", which settles the page's acknowledgement)."""
+    robot, gateway = booted
+    assert gateway.set_autonomy("low", "alice").ok and gateway.set_mode("AUTO").ok
+    run(robot, 0.3)
+    assert gateway.start_mission("look-around").ok
+    run(robot, 0.3)
+    pending = gateway.state()["autonomy"]["pending"]
+    assert gateway.answer_transition(pending["id"], False, "bob").ok
+    run(robot, 0.3)
+    said = [e["text"] for e in gateway.state()["events"] if e["kind"] == "unconfirmed"]
+    assert said == ["The robot did not start a mission: bob denied it. It stays where it is."]
+    assert agent_state(robot) == "IDLE.AUTO"
+    assert plain_unconfirmed("goal", "timed_out", "timeout") == (
+        "The robot did not drive to a goal: nobody confirmed it in time. It stays where it is.")
 
 
 def test_global_localization_finds_a_robot_carried_elsewhere(booted):

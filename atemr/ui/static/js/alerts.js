@@ -85,7 +85,7 @@
       const what = kind.slice("localization ".length);
       return what in LOCALIZATION ? LOCALIZATION[what] : [`Localization: ${e.text}`, "info"];
     }
-    if (kind === "refused") return [e.text, "warning"];
+    if (kind === "refused" || kind === "unconfirmed") return [e.text, "warning"];
     if (kind === "battery") return [e.text, /critical/.test(e.text) ? "error" : "warning"];
     if (kind === "routine") return [`Routine ${e.text}`, /skipped|missed|failed|refused|cancelled/.test(e.text) ? "warning" : "ok"];
     // The heartbeat, a motor and the CAN bus stop the robot: the carer reads that once, in plain words, from the

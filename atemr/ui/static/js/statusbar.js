@@ -57,7 +57,7 @@
     // The robot's events that end what a started command began (`alerts.js` hands every new event to
     // `settle`): an acknowledgement left reading "Go here: accepted" beside "Goal failed" looks stale.
     ENDED_BY: {
-      goal: /^goal$/, go_to_place: /^goal$/, mission_start: /^mission$/,
+      goal: /^(goal|unconfirmed)$/, go_to_place: /^(goal|unconfirmed)$/, mission_start: /^(mission|unconfirmed)$/,
       localize_globally: /^localization (localized|relocalized|ambiguous|failed)$/,
     },
     // Outcomes that are said but not final: an ambiguous search resolves once the robot is driven a little, a failed
