@@ -119,6 +119,12 @@ def test_create_a_routine_on_the_routines_page(robot_site, page, shots, helpers)
     page.click("#routine-save")
     page.wait_for_selector("p.flash:has-text('Routine check-on-resident saved.')")
     assert [r.to_json()["at"] for r in RoutineStore(robot_site.data_dir).load().routines] == ["10:30"]
+    # the open page follows the robot: a routine added elsewhere (the robot's file, another carer) appears in the
+    # list without a reload, and the form keeps what is being typed
+    page.fill("#routine-name", "half typed")
+    assert robot_site.gateway.save_routine({"name": "evening", "mission": "look-around", "at": "20:00"}).ok
+    wait_for(page, "document.querySelector('#routine-list tr[data-routine=\"evening\"]') !== null")
+    assert page.input_value("#routine-name") == "half typed"
     page.screenshot(path=str(shots / "routines.png"), full_page=True)
     page.set_viewport_size({"width": 390, "height": 844})  # a carer's phone: nothing scrolls sideways
     page.goto(f"{robot_site.url}/routines")

@@ -15,7 +15,7 @@ from atemr.domain.routines import DAYS
 from atemr.ui.gateway import NO_ROBOT, CommandResult, RobotGateway
 from atemr.ui.security import role_required
 
-bp = Blueprint("routines", __name__, url_prefix="/routines", template_folder="templates")
+bp = Blueprint("routines", __name__, url_prefix="/routines", template_folder="templates", static_folder="static")
 
 
 def _gateway() -> RobotGateway | None:
