@@ -177,3 +177,30 @@ def test_a_command_line_names_its_command():
     assert named_command(["--log-level", "DEBUG", "sim", "--world", "run"]) == "sim"
     assert named_command(["--log-level=debug", "fuzzy"]) == "fuzzy"
     assert named_command(["--help"]) is None
+
+
+def test_command_line_mistakes_say_what_and_where(tmp_path, capsys):
+    """An engineer's slips answered with what to do: an engine name that is not shipped, a log line that is not
+    a frame (after how many good ones), and the status command's help names no --headless it does not have."""
+    assert main(["fuzzy", "show", "nosuch"]) == 2
+    assert "no engine named 'nosuch': give a shipped engine (idle, manual)" in capsys.readouterr().err
+    log = tmp_path / "bus.log"
+    log.write_text("(0.000000) can0 150#01\n(0.010000) can0 153#0200\nnot a frame\n")
+    assert main(["can", "decode", str(log)]) == 2
+    assert "cannot read the log after its first 2 frames" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["mission", "status", "--help"])
+    assert "--headless" not in capsys.readouterr().out
+
+
+def test_output_cut_short_by_a_pipe_ends_quietly(tmp_path):
+    """``atemr can decode LOG | head -1``: the reader closing the pipe is no error and prints no traceback."""
+    log = tmp_path / "bus.log"
+    log.write_text("".join(f"({i / 100:.6f}) can0 153#02000000\n" for i in range(20_000)))  # far more than a pipe holds
+    proc = subprocess.Popen([sys.executable, "-m", "atemr", "can", "decode", str(log)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    assert proc.stdout is not None
+    assert proc.stdout.readline()
+    proc.stdout.close()  # the reader has what it wanted
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0 and b"Traceback" not in err, err

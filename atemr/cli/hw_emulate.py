@@ -51,7 +51,8 @@ def emulate_command(args: argparse.Namespace) -> int:
         if args.config_out is not None:
             Path(args.config_out).write_text(text, encoding="utf-8")
         print(text, flush=True)
-        print(f"# serving until Ctrl-C; try: atemr hw check --config {args.config_out or 'FILE'}", flush=True)
+        until = f"for {args.duration:g} s" if args.duration is not None else "until Ctrl-C"
+        print(f"# serving {until}; try: atemr hw check --config {args.config_out or 'FILE'}", flush=True)
         with stop_on_signals(scheduler.stop):
             scheduler.start()
             try:

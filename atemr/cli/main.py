@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -64,7 +65,8 @@ BUILTIN_COMMANDS: dict[str, Builtin] = {
     "replay": Builtin("atemr.cli.replay:ReplayCommand",
                       "feed a recording into SLAM (--slam) or localization (--localize --map NAME)"),
     "hw": Builtin("atemr.cli.hw:HwCommand",
-                  "check, read and emulate the robot's devices (lidar, IMU, camera, motors, secondary core)"),
+                  "check and read the robot's devices (lidar, IMU, camera, motors, secondary core); emulate its "
+                  "lidar and IMU"),
     "localize": Builtin("atemr.cli.localize:LocalizeCommand",
                         "put the simulated robot somewhere without telling it, run FIND POSITION, report what it "
                         "found"),
@@ -162,6 +164,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:  # `atemr can decode LOG | head`: the reader has what it wanted
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # Python's own flush at exit must not fail again
+        return 0
 
 
 if __name__ == "__main__":

@@ -68,7 +68,7 @@ class MissionCommand:
                               "camera and depth frames, CAN, the agent's transitions, node statuses and blackboard; "
                               "see docs/recording.md): 'atemr trace show FILE', 'atemr replay FILE', the dashboard's "
                               "Agent page or Foxglove read it")
-        _robot_options(run)
+        _robot_options(run, headless=True)
         status = sub.add_parser("status", help="the running robot's agent: state, mode, task and its progress")
         status.add_argument("--json", action="store_true", help="print the full status as JSON")
         _robot_options(status)
@@ -118,12 +118,13 @@ class MissionCommand:
         return worst
 
 
-def _robot_options(parser: argparse.ArgumentParser) -> None:
-    """Where the running robot's control socket is: from the configuration, or given."""
+def _robot_options(parser: argparse.ArgumentParser, *, headless: bool = False) -> None:
+    """Where the running robot's control socket is: from the configuration, or given (``headless``: the run
+    command, which can also build its own robot)."""
     parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
+    also = " (with --headless: where captured images go)" if headless else ""
     parser.add_argument("--data-dir", type=Path,
-                        help="the robot's data directory: its control socket is there (with --headless: where "
-                             "captured images go; default: from config)")
+                        help=f"the robot's data directory: its control socket is there{also}; default: from config")
     parser.add_argument("--socket", type=Path, help="the running robot's control socket (default: from config, "
                                                     "data_dir/control.sock)")
 

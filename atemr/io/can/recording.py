@@ -108,10 +108,15 @@ def read_log(path: str | Path) -> Iterator[can.Message]:
     if not path.is_file():
         raise ConfigError("no such log file", file=path)
     check_log_path(path, reading=True)
+    read = 0
     try:
-        yield from can.LogReader(path)
+        with can.LogReader(path) as reader:  # closed on a bad line too
+            for message in reader:
+                yield message
+                read += 1
     except (ValueError, OSError, can.CanError) as exc:
-        raise ConfigError(f"cannot read the log: {exc}", file=path) from exc
+        where = f"after its first {read} frames" if read else "at its first frame"
+        raise ConfigError(f"cannot read the log {where} (a line that is not a frame?): {exc}", file=path) from exc
 
 
 @dataclass(frozen=True)

@@ -41,4 +41,7 @@ def resolve_engine(spec: str | Path) -> Engine:
     """A built-in engine name or a path: what the CLI and configuration accept."""
     if isinstance(spec, str) and spec.lower() in BUILTIN_ENGINES and not Path(spec).exists():
         return load_builtin_engine(spec.lower())
+    if isinstance(spec, str) and not Path(spec).suffix and not Path(spec).exists():
+        raise ConfigError(f"no engine named {spec!r}: give a shipped engine ({', '.join(BUILTIN_ENGINES)}) or a "
+                          ".yaml, .yml or .fll file")
     return load_engine(spec)
