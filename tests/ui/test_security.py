@@ -11,7 +11,7 @@ from atemr.ui.security import LoginRateLimiter, is_local_address
 
 #: The only endpoints an anonymous visitor may reach.
 PUBLIC = {"static", "auth.login", "auth.logout", "auth.register", "auth.no_access", "auth.first_start", "index",
-          "control.static", "mapping.static", "agent.static", "favicon", "screen.static"}
+          "control.static", "mapping.static", "agent.static", "favicon", "screen.static", "routines.static"}
 #: Endpoints that open with a screen device token only: 403 with the reason for everyone else.
 SCREEN_ONLY = {"screen.page"}
 
