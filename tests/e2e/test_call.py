@@ -94,6 +94,8 @@ def test_a_call_between_an_operator_and_the_robots_screen(robot_site, media_brow
     screen.click("#answer")
     wait_for(operator, "() => document.body.dataset.call === 'active'")
     wait_for(screen, "() => document.body.dataset.call === 'active'")
+    # "Call: ringing" gives way to the answer, not left beside "In a call with the robot's screen"
+    wait_for(operator, "() => document.getElementById('command-result').textContent === 'Call: answered'")
     assert not operator.is_visible("#call-start") and operator.is_visible("#call-end")
     assert operator.is_visible("#call-video") and not screen.is_visible("#answer") and screen.is_visible("#hangup")
     at_operator, at_screen = receiving(operator, helpers), receiving(screen, helpers)

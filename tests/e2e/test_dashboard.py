@@ -385,9 +385,12 @@ def test_media_captured_and_recorded_then_played_previewed_downloaded_and_delete
     assert len(files) == 2
     page.click("#record")
     wait_for(page, "ATEMR.state.recording === true")
+    # which way it went, not "Recording: done"
+    wait_for(page, "document.getElementById('command-result').textContent === 'Recording: started'")
     page.wait_for_timeout(1500)
     page.click("#record")
     wait_for(page, "ATEMR.state.recording === false")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Recording: stopped, in Media'")
     videos = list((robot_site.data_dir / "media" / "videos").iterdir())
     assert [v.suffix for v in videos] == [".mp4"], videos
     for i in range(10):  # older images: the page shows ten, MORE the rest

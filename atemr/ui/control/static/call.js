@@ -16,6 +16,7 @@
   A.LABELS.call_start = "Call";
   A.LABELS.call_end = "End call";
   A.STARTED.call_start = "ringing"; // begun, not done: the call's state says when it is answered
+  A.ENDED_BY.call_start = /^call$/; // and then takes the place of "Call: ringing" ("Call: answered")
 
   function show(state, reason) {
     document.body.dataset.call = state;
@@ -25,6 +26,8 @@
     text.textContent = state === "ringing" ? "Ringing the robot's screen…"
       : state === "active" ? "In a call with the robot's screen"
       : reason ? `No call: ${reason}` : "No call";
+    if (state === "active") A.settle("call", "answered", true);
+    else if (state === "idle") A.settle("call", reason || "ended", !reason);
   }
 
   function hangUp(reason) {

@@ -84,7 +84,14 @@
 
   $("capture").addEventListener("click", () => A.command("capture_image"));
   const rec = $("record");
-  rec.addEventListener("click", () => A.command("record_video", { on: !A.state.recording }));
+  // "Recording: done" said nothing: the acknowledgement says which way it went (the button then says the rest)
+  rec.addEventListener("click", () => {
+    const on = !A.state.recording;
+    A.command("record_video", { on }).then((ack) => {
+      const out = $("command-result");
+      if (ack.ok && out) out.textContent = on ? "Recording: started" : "Recording: stopped, in Media";
+    });
+  });
   $("localize-global").addEventListener("click", () => A.command("localize_globally"));
   A.onState((s) => {
     rec.classList.toggle("on", !!s.recording);
