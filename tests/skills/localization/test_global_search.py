@@ -29,7 +29,7 @@ from atemr.io.sim.world import World, load_world
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.global_search import GlobalSearchParams, mcnemar_z
 from atemr.skills.localization.localizer import Localizer
-from atemr.skills.localization.scan import OPEN_SHORT_M, open_ray_ends, scan_points, sensor_origin
+from atemr.skills.localization.scan import OPEN_SHORT_M, SILENT_RUN, open_ray_ends, scan_points, sensor_origin
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -181,11 +181,11 @@ def test_twin_rooms_stay_ambiguous_while_driving_both_candidates_carried_along()
                                                                         for h in places), places
 
 
-def alcoves() -> World:
+def alcoves(depth_m: float = 13.0) -> World:
     """Two identical 2 m alcoves open to the north, at 0.05 m: the west one (x 10 m) opens onto a hall that
-    reaches more than the lidar's 8 m from anywhere inside it, the east one (x 35 m) onto a wall 3 m off. From
-    inside, the returns of the two are the same."""
-    data = np.zeros((260, 1000), dtype=np.int8)  # 50 m x 13 m
+    reaches more than the lidar's 8 m from anywhere inside it (``depth_m`` deep: at 20 m, beyond the device's
+    12 m reach too), the east one (x 35 m) onto a wall 3 m off. From inside, the returns of the two are the same."""
+    data = np.zeros((round(depth_m / 0.05), 1000), dtype=np.int8)  # 50 m wide
     data[:2, :] = data[-2:, :] = data[:, :2] = data[:, -2:] = 100
     for x0 in (200, 700):  # the back wall at y 1 m, the sides 2 m deep
         data[20:22, x0:x0 + 42] = 100
@@ -227,10 +227,50 @@ def test_open_beams_tell_apart_places_whose_returns_look_alike() -> None:
 
 
 def test_open_ray_ends_are_the_plus_inf_beams_short_of_the_range() -> None:
-    """+inf (a return beyond the range) is open space; NaN (no return: a dark surface) and -inf say nothing."""
+    """+inf (a return beyond the range) is open space; a lone NaN (no return: a dropout, a dark spot) and -inf
+    say nothing."""
     ranges = np.array([np.inf, 2.0, np.nan, -np.inf, np.inf])
     scan = LaserScan(0.0, ranges, 0.0, math.pi / 2, 0.15, 8.0, Pose2D(0.1, 0.0, math.pi))
     ends = open_ray_ends(scan)
     reach = 8.0 - OPEN_SHORT_M
     assert ends == pytest.approx(np.array([[0.1 - reach, 0.0], [0.1 - reach, 0.0]]))  # beams at 0 and 2π, turned
     assert open_ray_ends(LaserScan(0.0, np.array([1.0, np.nan]), 0.0, 0.1, 0.1, 8.0)).shape == (0, 2)
+
+
+def angles(ends: np.ndarray) -> list[float]:
+    """The bearings of base-frame points, whole degrees."""
+    return np.round(np.degrees(np.arctan2(ends[:, 1], ends[:, 0]))).tolist()
+
+
+def test_runs_of_silent_beams_are_open_lone_ones_are_not() -> None:
+    """NaN beams in a run of at least `SILENT_RUN` neighbours are open (nothing within the device's reach that
+    way); shorter runs are dropouts. On a whole revolution the last beam neighbours the first; on a partial
+    scan it does not."""
+    nan = np.nan
+    ranges = np.array([nan, nan, 2.0, nan, nan, nan, 3.0, nan, 2.0, 2.0, 2.0, nan])
+    full = LaserScan(0.0, ranges, -math.pi, 2 * math.pi / ranges.size, 0.15, 8.0, Pose2D(0.0, 0.0, 0.0))
+    # beams 3-5 (-90, -60, -30 degrees) and, round the end, 11, 0, 1 (150, -180, -150)
+    assert sorted(angles(open_ray_ends(full))) == sorted([-90.0, -60.0, -30.0, 150.0, -180.0, -150.0])
+    assert SILENT_RUN == 3
+    part = LaserScan(0.0, ranges, -math.pi / 2, math.radians(10), 0.15, 8.0, Pose2D(0.0, 0.0, 0.0))
+    assert angles(open_ray_ends(part)) == [-60.0, -50.0, -40.0]  # beams 3-5 only: 11 and 0 are 120 degrees apart
+    assert open_ray_ends(full, silent_run=7).shape == (0, 2)
+
+
+def test_silent_beams_beyond_the_devices_reach_tell_places_apart() -> None:
+    """The west alcove's hall 20 m deep: out of its mouth the beams return nothing at all within the A2M8's 12 m
+    (NaN, not +inf). Those silent runs are open space as +inf beams are: localized at the truth, where
+    without them the two alcoves are ambiguous."""
+    world = alcoves(depth_m=20.0)
+    scene, lidar = Scene(world), Lidar(LidarParams(), np.random.default_rng(3))
+    search = quality.search_for(world)
+    truth = Pose2D(11.3, 2.2, 0.4)
+    scan = lidar.scan(0.0, truth, scene, np.zeros((0, 2)), np.zeros(0))
+    assert np.count_nonzero(np.isnan(scan.ranges_m)) > 20 and not np.isposinf(scan.ranges_m).any()
+    points, sensor, opens = scan_points(scan), sensor_origin(scan), open_ray_ends(scan)
+    assert opens.shape[0] > 20
+    deaf = search.localize(points, sensor, open_ray_ends(scan, silent_run=scan.ranges_m.size + 1))
+    assert deaf.outcome == "ambiguous", deaf.reason
+    result = search.localize(points, sensor, opens)
+    assert result.outcome == "localized" and result.pose is not None, result.reason
+    assert result.pose.distance_to(truth) < 0.1
