@@ -11,7 +11,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from atemr.domain.places import Places
-from atemr.domain.status import BatteryStatus, ComponentHealth, LocalizationStatus, PowerState
+from atemr.domain.status import BatteryStatus, ComponentHealth, LocalizationState, LocalizationStatus, PowerState
 from atemr.errors import HardwareError, NavigationError
 from atemr.io.can import PrimaryStatus
 from atemr.msgs import Pose2D, Twist
@@ -37,6 +37,8 @@ class RecordingPort:
     current_pose: Pose2D | None = field(default_factory=Pose2D)
     joystick_command: tuple[Twist, float] | None = None
     is_localized: bool | None = None
+    #: The localizer's state while not localized ("lost" unless set: "ambiguous", "searching", ...).
+    unlocalized_state: LocalizationState = "lost"
     mapping_available: bool = False
     camera_ok: bool = True
     dt_s: float = 0.0
@@ -88,7 +90,8 @@ class RecordingPort:
     def localization_status(self) -> LocalizationStatus | None:
         if self.is_localized is None:
             return None
-        return LocalizationStatus(0.95 if self.is_localized else 0.0, 0.7, "localized" if self.is_localized else "lost")
+        return LocalizationStatus(0.95 if self.is_localized else 0.0, 0.7,
+                                  "localized" if self.is_localized else self.unlocalized_state)
 
     def relocalize(self, now: float) -> None:
         if self.is_localized is None:

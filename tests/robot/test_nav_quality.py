@@ -130,3 +130,33 @@ def test_kidnapped_robot_is_noticed_and_recovered(capsys: pytest.CaptureFixture[
     truth, goal = result["true_pose"], (3.4, 2.2)
     assert math.hypot(truth["x_m"] - goal[0], truth["y_m"] - goal[1]) <= 0.25
     assert result["collisions"] == 0
+
+
+@pytest.mark.slow
+def test_relocalize_turns_in_place_until_the_look_alike_bays_are_told_apart(
+        capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """The whole robot in the warehouse, at a place whose one scan fits a bay 34 m away as well (issue 21): the
+    mission's relocalize step turns it in place until one place is clearly best, the truth; told to stand
+    still (``turn: false``) it is still ambiguous when its time is up."""
+    path = quality.EXTERNAL / "nav2_warehouse.yaml"
+    if not path.is_file():
+        pytest.skip(f"external maps not present ({path})")
+    start = (-13.375, 4.115, -2.074)
+    for turn, timeout_s in ((True, 30), (False, 4)):
+        mission = tmp_path / f"find-myself-{turn}.yaml"
+        mission.write_text("mission:\n  name: find-myself\n  steps:\n"
+                           f"    - relocalize: {{timeout_s: {timeout_s}, turn: {str(turn).lower()}}}\n")
+        result = mission_run(capsys, monkeypatch, tmp_path, "--world", str(path), "--seed", "0",
+                             "--start", ",".join(map(str, start)), str(mission))
+        kinds = [e["kind"] for e in result["localization_events"]]
+        assert "ambiguous" in kinds, result["localization_events"]
+        truth, final = result["true_pose"], result["final_pose"]
+        if not turn:
+            assert result["outcome"] != "reached" and "not localized after 4 s" in json.dumps(result["steps"])
+            assert abs(math.remainder(truth["yaw_rad"] - start[2], 2 * math.pi)) < 0.05  # it stood still
+            continue
+        assert result["outcome"] == "reached", result["reason"]
+        assert result["localization"]["localized"]
+        turned = abs(math.remainder(truth["yaw_rad"] - start[2], 2 * math.pi))
+        assert turned > math.radians(30), turned
+        assert math.hypot(final["x_m"] - truth["x_m"], final["y_m"] - truth["y_m"]) < 0.1, (final, truth)

@@ -15,7 +15,7 @@ import pytest
 from atemr.domain.places import Place, Places
 from atemr.domain.status import AtReturn, BatteryStatus, ComponentHealth, PowerState, StateCode
 from atemr.errors import AtemrError, ConfigError, HardwareError
-from atemr.msgs import Pose2D, Twist
+from atemr.msgs import ZERO_TWIST, Pose2D, Twist
 from atemr.trees.behaviours import Leaf, behaviours, parse_params
 from atemr.trees.context import AgentContext
 from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
@@ -477,6 +477,32 @@ def test_relocalize_waits_for_localization() -> None:
     unable = Bench(make("Relocalize"), port=RecordingPort(is_localized=None))
     assert unable.tick() == Status.FAILURE
     assert unable.leaf.reason == "cannot relocalize: localization is not available in this build"
+
+
+def test_relocalize_turns_in_place_while_ambiguous_and_stops_once_localized() -> None:
+    """Look-alike places: the robot turns (on the agent's input) to see more, stops turning when the search
+    decides, and never turns more than one revolution; a search that is not ambiguous, or ``turn: false``,
+    waits without moving."""
+    port = RecordingPort(is_localized=False, unlocalized_state="ambiguous", dt_s=0.5)
+    bench = Bench(make("Relocalize", timeout_s=60.0), port=port)
+    assert [bench.tick() for _ in range(3)] == [Status.RUNNING] * 3
+    assert [c[:2] for c in port.commands] == [("agent", Twist(0.0, 0.4))] * 3
+    assert "ambiguous: turning" in bench.leaf.feedback_message
+    port.is_localized = True
+    assert bench.tick() == Status.SUCCESS
+    assert port.commands[-1][:2] == ("agent", ZERO_TWIST)
+    # at most one revolution: 0.4 rad/s x 0.5 s a tick is 0.2 rad a tick, 2 pi after 32 ticks
+    port = RecordingPort(is_localized=False, unlocalized_state="ambiguous", dt_s=0.5)
+    bench = Bench(make("Relocalize", timeout_s=60.0), port=port)
+    for _ in range(40):
+        assert bench.tick() == Status.RUNNING
+    turning = [c for c in port.commands if c[1].angular_radps > 0]
+    assert len(turning) == 32 and port.commands[-1][1] == ZERO_TWIST
+    assert port.current_pose is not None and abs(port.current_pose.yaw_rad - 32 * 0.2) < 1e-9
+    for state, turn in (("searching", True), ("ambiguous", False)):
+        still = RecordingPort(is_localized=False, unlocalized_state=state, dt_s=0.5)
+        waiting = Bench(make("Relocalize", timeout_s=60.0, turn=turn), port=still)
+        assert [waiting.tick() for _ in range(3)] == [Status.RUNNING] * 3 and still.commands == []
 
 
 def test_follow_path_drives_the_route_in_order_to_its_last_point() -> None:
