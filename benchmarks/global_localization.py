@@ -3,6 +3,7 @@
     python benchmarks/global_localization.py                 # 50 poses on the studio and the 4 external maps
     python benchmarks/global_localization.py --worlds studio --poses 10 --json out.json
     python benchmarks/global_localization.py --lidar-range 12     # an A2M8 using its full 12 m
+    python benchmarks/global_localization.py --turn          # ambiguous: turn in place, as `relocalize` does
 
 For each world, `pick_poses` draws true poses where the robot can stand: in the map's free space, clear of
 everything the world holds (walls, mapped and unmapped furniture) by the robot's radius, off drop zones,
@@ -10,6 +11,12 @@ any heading. The world's people and pets are put at random places of their paths
 under one). One scan is simulated from the true pose exactly as the robot's lidar makes it (360 beams, 1 cm
 noise, dropouts, unmapped furniture and moving people seen), and the global search the robot's FIND POSITION
 runs (`atemr.skills.localization.global_search`, the shipped configuration) decides: localized, ambiguous or failed.
+
+With ``--turn``, an ambiguous answer is followed as the robot's ``relocalize`` step follows it: the robot turns in
+place and every 45 degrees (the localizer's ``evidence_every_rad``) a scan from the turned pose is pooled with
+the places' evidence (`Hypotheses.add_scan`), at most one revolution; the answer judged is the last one, against
+the turned truth. The turn's scans draw their noise from a generator of their own, so the one-scan answers
+stay those of a run without ``--turn``.
 
 Judged against the truth: a *localized* answer is right within 0.3 m and 10°, otherwise it is confidently
 wrong; an *ambiguous* one must list the true place among its candidates (within the distance at which two
@@ -37,8 +44,9 @@ from atemr.io.sim.simulation import params_from_config
 from atemr.io.sim.world import World, load_world
 from atemr.msgs import Pose2D
 from atemr.skills.localization.config import LocalizationConfig
-from atemr.skills.localization.global_search import GlobalResult, GlobalSearch
+from atemr.skills.localization.global_search import GlobalResult, GlobalSearch, Hypotheses
 from atemr.skills.localization.likelihood_field import LikelihoodField
+from atemr.skills.localization.localizer import LocalizerParams
 from atemr.skills.localization.map_agreement import MapAgreement
 from atemr.skills.localization.scan import open_ray_ends, scan_points, sensor_origin
 
@@ -125,9 +133,11 @@ def judge(world: str, index: int, truth: Pose2D, result: GlobalResult, *, cpu_s:
                  listed, round(cpu_s, 4))
 
 
-def run_world(world_name: str, count: int = 50, seed: int = 0, lidar_range_m: float = 8.0) -> list[Trial]:
+def run_world(world_name: str, count: int = 50, seed: int = 0, lidar_range_m: float = 8.0, *,
+              turn: bool = False) -> list[Trial]:
     """``count`` seeded trials on one world: the same arguments, the same trials. ``lidar_range_m``: the
-    farthest return used (``sim.lidar_range_m``: the thesis's 8 m; an A2M8 after revision R3 measures 12)."""
+    farthest return used (``sim.lidar_range_m``: the thesis's 8 m; an A2M8 after revision R3 measures 12).
+    ``turn``: an ambiguous answer is followed by turning in place (module docstring)."""
     world = load_world(world_name)
     scene = Scene(world)
     label = world_label(world_name)
@@ -142,11 +152,34 @@ def run_world(world_name: str, count: int = 50, seed: int = 0, lidar_range_m: fl
             movers.step(1.0, (truth.x_m, truth.y_m), ROBOT_RADIUS_M)
         scan = lidar.scan(0.0, truth, scene, movers.centres, movers.radii)
         start = time.process_time()
-        result = search.localize(scan_points(scan), sensor_origin(scan), open_ray_ends(scan))
+        result, hyps = search.search(scan_points(scan), sensor_origin(scan), np.zeros(3), open_ray_ends(scan))
         cpu_s = time.process_time() - start
-        trials.append(judge(label, index, truth, result, cpu_s=cpu_s, distinct_xy_m=p.distinct_xy_m,
+        judged = truth
+        if turn and result.outcome == "ambiguous":
+            turning = Lidar(lidar.params, np.random.default_rng([seed, sum(label.encode()), index]))
+            result, judged = turn_in_place(hyps, truth, turning, scene, movers)
+        trials.append(judge(label, index, judged, result, cpu_s=cpu_s, distinct_xy_m=p.distinct_xy_m,
                             distinct_yaw_rad=p.distinct_yaw_rad))
     return trials
+
+
+def turn_in_place(hyps: Hypotheses, truth: Pose2D, lidar: Lidar, scene: Scene, movers: Movers
+                  ) -> tuple[GlobalResult, Pose2D]:
+    """Turn an ambiguous robot in place, pooling a scan every ``evidence_every_rad``, as the localizer does
+    (`Localizer._gather`: the places that no longer explain the limit's share are dropped), until the answer
+    is no longer ambiguous or a revolution is done: the last answer and the turned truth."""
+    params = LocalizerParams()
+    step, limit = params.evidence_every_rad, params.monitor.min_confidence
+    result = hyps.decide()
+    for k in range(1, math.ceil(2 * math.pi / step) + 1):
+        turned = Pose2D(truth.x_m, truth.y_m, truth.yaw_rad + k * step)
+        scan = lidar.scan(0.0, turned, scene, movers.centres, movers.radii)
+        hyps.add_scan(scan_points(scan), sensor_origin(scan), np.array([0.0, 0.0, k * step]), open_ray_ends(scan))
+        hyps.keep(hyps.agreement >= limit)
+        result = hyps.decide()
+        if result.outcome != "ambiguous":
+            return result, turned
+    return result, turned
 
 
 @dataclass(frozen=True)
@@ -199,11 +232,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="write every trial here")
     parser.add_argument("--lidar-range", type=float, default=8.0, metavar="M",
                         help="farthest return used, m (sim.lidar_range_m; default the thesis's 8)")
+    parser.add_argument("--turn", action="store_true",
+                        help="follow an ambiguous answer by turning in place, as the relocalize step does")
     args = parser.parse_args(argv)
     worlds = args.worlds or default_worlds()
     rows, every = [], []
     for world in worlds:
-        trials = run_world(world, args.poses, args.seed, args.lidar_range)
+        trials = run_world(world, args.poses, args.seed, args.lidar_range, turn=args.turn)
         every.extend(trials)
         rows.append(summarize(world_label(world), trials))
         print(f"{world_label(world)}: done", file=sys.stderr)
