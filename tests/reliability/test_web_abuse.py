@@ -300,12 +300,16 @@ def test_a_websocket_that_has_ended_closes_its_connection(site: Site) -> None:
     try:
         assert ws.recv().startswith("0")  # engine.io's open packet
         ws.send_close()
-        while ws.recv_data(control_frame=True)[0] != websocket.ABNF.OPCODE_CLOSE:
-            pass
-        # The end of the connection (end of file, or a reset when the client's last bytes were left unread), not a
-        # wait for another request: that times out, failing the test.
-        with contextlib.suppress(ConnectionResetError):
-            assert ws.sock.recv(1) == b""
+        # The server's closing frame, then the end of the connection (end of file, or a reset when the client's
+        # last bytes were left unread); on a loaded machine the end can come before the closing frame is read. Not
+        # a wait for another request: that times out (WebSocketTimeoutException), failing the test.
+        try:
+            while ws.recv_data(control_frame=True)[0] != websocket.ABNF.OPCODE_CLOSE:
+                pass
+            with contextlib.suppress(ConnectionResetError):
+                assert ws.sock.recv(1) == b""
+        except (websocket.WebSocketConnectionClosedException, ConnectionResetError):
+            pass  # the connection ended: what this test asks
     finally:
         ws.shutdown()
 
