@@ -38,6 +38,24 @@ def test_twin_rooms_answer_ambiguous_with_both(capsys: pytest.CaptureFixture[str
     assert len(near) >= 2 and near[0] < 0.1, result["candidates"]  # the true room is listed ...
     twin = [c for c in result["candidates"] if math.hypot(c["x_m"] - 1.95, c["y_m"] - 2.3) < 0.1]
     assert twin, result["candidates"]  # ... and so is its twin, half a turn about the doorway
+    # as FIND POSITION, it turned once round to look (2 pi at 0.4 rad/s), which cannot tell twins apart
+    assert result["sim_seconds"] > 15.0
+    assert abs(math.remainder(result["true_pose"]["yaw_rad"] - 1.0, 2 * math.pi)) < 0.3
+
+
+def test_look_alike_bays_are_told_apart_by_turning_in_place(capsys: pytest.CaptureFixture[str],
+                                                            monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
+                                                            shared_dir: Path) -> None:
+    """One scan here fits a bay 34 m away as well (the warehouse map of ../shared): as FIND POSITION, the robot
+    turns in place until one place is clearly best, the truth."""
+    world = shared_dir / "worlds" / "external" / "nav2_warehouse.yaml"
+    if not world.is_file():
+        pytest.skip(f"{world} is not there")
+    code, result = localize(capsys, monkeypatch, tmp_path, "--world", str(world), "--true-pose=-13.375,4.115,-2.074")
+    assert code == 0 and result["outcome"] == "localized", result["reason"]
+    assert result["error_m"] < 0.3 and result["error_rad"] < math.radians(10)
+    turned = abs(math.remainder(result["true_pose"]["yaw_rad"] + 2.074, 2 * math.pi))
+    assert turned > math.radians(30), result["true_pose"]  # it did not decide from where it stood
 
 
 def test_a_pose_inside_a_wall_is_refused(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,

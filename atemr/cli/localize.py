@@ -3,7 +3,9 @@
 The whole robot (CAN motors, secondary core, agent, localization) starts headless in the world as usual, on its
 map, localized at the world's start. Then, within one instant, the simulator puts it at ``--true-pose``
 without telling it, and global localization is started exactly as the dashboard's FIND POSITION starts it
-(`Localizer.start_global`); the robot runs until the search has answered. The answer:
+(`Localizer.start_global`); the robot runs until the search has answered. An ambiguous answer turns the robot in
+place, as FIND POSITION does (at most one revolution, `DriveJoystick`), and the robot runs on until the turn
+has decided or ended. The answer:
 
     {"outcome": "localized" | "ambiguous" | "failed", "pose", "confidence", "candidates", "error_m", "error_rad",
      "reason", "true_pose", "world", "seed", "sim_seconds"}
@@ -44,7 +46,8 @@ class LocalizeCommand:
         parser.add_argument("--true-pose", type=pose_argument, required=True, metavar="X,Y,YAW",
                             help="where the robot really is (map frame, metres and radians)")
         parser.add_argument("--config", type=Path, help="YAML configuration file (default: $ATEMR_CONFIG)")
-        parser.add_argument("--timeout", type=float, default=10.0, help="robot seconds to wait for the answer")
+        parser.add_argument("--timeout", type=float, default=30.0,
+                            help="robot seconds to wait for the answer (a look around takes up to 16)")
         parser.add_argument("--json", action="store_true", help="print the result as JSON")
 
     def run(self, args: argparse.Namespace) -> int:
@@ -70,7 +73,7 @@ def _pose(pose: Pose2D) -> dict[str, float]:
 
 
 def localize(truth: Pose2D, *, world: str | None = None, seed: int | None = None, config_file: Path | None = None,
-             timeout_s: float = 10.0) -> dict[str, Any]:
+             timeout_s: float = 30.0) -> dict[str, Any]:
     """Run FIND POSITION on the headless simulated robot put at ``truth``; the JSON-able result (module
     docstring)."""
     from atemr.config import load_config
@@ -91,10 +94,11 @@ def localize(truth: Pose2D, *, world: str | None = None, seed: int | None = None
         except ConfigError as exc:
             raise ConfigError(f"cannot put the robot there: {exc.reason}", path="--true-pose") from None
         started = robot.clock.now()
-        localization.start_global(started, "requested by the operator (atemr localize)")
-        while localization.state not in ANSWERED and robot.clock.now() < started + timeout_s:
+        localization.start_global(started, "requested by the operator (atemr localize)", look_around=True)
+        while ((localization.state not in ANSWERED or localization.wants_a_look)
+               and robot.clock.now() < started + timeout_s):
             robot.run(until=robot.clock.now() + 0.1)
-        truth = sim.pose  # as the simulator has it now (the robot stood still)
+        truth = sim.pose  # as the simulator has it now (the robot may have turned to look)
         localizer = localization.localizer
         result = None if localizer is None else localizer.result
         pose = localization.map_pose() if localization.localized else None

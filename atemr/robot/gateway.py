@@ -343,7 +343,8 @@ class RobotGatewayImpl:
                 "state": status.state,
                 "candidates": [{"x_m": round(h.pose.x_m, 3), "y_m": round(h.pose.y_m, 3),
                                 "yaw_rad": round(h.pose.yaw_rad, 3), "agreement": round(h.agreement, 3)}
-                               for h in localization.candidates[:MAX_CANDIDATES_SHOWN]]}
+                               for h in localization.candidates[:MAX_CANDIDATES_SHOWN]],
+                "looking_around": localization.wants_a_look}
 
     def _stop_cause(self) -> StopCause | None:
         """Why a safety layer holds the robot stopped, the most urgent first: a drop under its edge (or the floor
@@ -447,8 +448,9 @@ class RobotGatewayImpl:
             return CommandResult.refused("this robot has no localization")
         if self.maps.active is None:
             return CommandResult.refused("no active map: select or build a map first")
+        # The operator asked the robot to find itself: an ambiguous answer turns it in place (`DriveJoystick`).
         return self._queue("global localization",
-                           lambda now: localization.start_global(now, "requested by the operator"))
+                           lambda now: localization.start_global(now, "requested by the operator", look_around=True))
 
     def cancel_goal(self) -> CommandResult:
         return self._submit("cancel")

@@ -99,6 +99,9 @@ class RobotPortImpl:
     def relocalize(self, now: float) -> None:
         self.localization.start_global(now)
 
+    def wants_a_look(self) -> bool:
+        return self.localization.wants_a_look
+
     def begin_mapping(self) -> None:
         self.maps.begin()
 

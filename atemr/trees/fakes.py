@@ -39,6 +39,8 @@ class RecordingPort:
     is_localized: bool | None = None
     #: The localizer's state while not localized ("lost" unless set: "ambiguous", "searching", ...).
     unlocalized_state: LocalizationState = "lost"
+    #: What `wants_a_look` answers (the operator's FIND POSITION is ambiguous).
+    look_asked: bool = False
     mapping_available: bool = False
     camera_ok: bool = True
     dt_s: float = 0.0
@@ -92,6 +94,9 @@ class RecordingPort:
             return None
         return LocalizationStatus(0.95 if self.is_localized else 0.0, 0.7,
                                   "localized" if self.is_localized else self.unlocalized_state)
+
+    def wants_a_look(self) -> bool:
+        return self.look_asked
 
     def relocalize(self, now: float) -> None:
         if self.is_localized is None:

@@ -81,6 +81,11 @@ class RobotPort(Protocol):
         when this robot cannot localize."""
         ...
 
+    def wants_a_look(self) -> bool:
+        """Whether the operator's FIND POSITION answered *ambiguous*, so the robot should turn in place to see
+        more (`LocalizationPipeline.wants_a_look`); False when this robot cannot localize."""
+        ...
+
     def begin_mapping(self) -> None:
         """Start SLAM; raises an `AtemrError` (e.g. `NavigationError`) when mapping is not available."""
         ...

@@ -137,6 +137,8 @@ class LocalizationJson(TypedDict):
     localized: bool
     state: LocalizationState
     candidates: list[CandidateJson]
+    #: The robot turns in place by itself to tell those places apart (after the operator's FIND POSITION).
+    looking_around: bool
 
 
 class RobotState(TypedDict):

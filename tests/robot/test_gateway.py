@@ -4,6 +4,7 @@ the snapshot, camera, video, maps, settings persisted across a rebuild, the simu
 from __future__ import annotations
 
 import io
+import itertools
 import math
 import time
 from collections.abc import Iterator
@@ -493,6 +494,41 @@ def test_global_localization_finds_a_robot_carried_elsewhere(booted):
     assert pose is not None
     assert math.hypot(pose["x_m"] - truth.x_m, pose["y_m"] - truth.y_m) < 0.15, (pose, truth)
     assert abs(math.remainder(pose["yaw_rad"] - truth.yaw_rad, math.tau)) < 0.1
+
+
+def test_find_position_in_look_alike_rooms_turns_the_robot_in_place_once_round(tmp_path):
+    """Two identical rooms: FIND POSITION answers ambiguous, and since the operator asked, the robot turns in place
+    by itself (in MANUAL, the joystick idle) to see more, says so on its screen and the Control page, and stops
+    after one revolution, which cannot tell twins apart; it never leaves its spot."""
+    from atemr.ui.screen.words import plain_activity
+
+    robot, gateway = make_robot(tmp_path / "data", **{"sim.world": "twin_rooms"})
+    with robot:
+        robot.run(until=BOOTED_S)
+        sim = robot.parts.sim
+        start = Pose2D(6.2, 1.2, 1.0)
+        sim.kidnap(start)
+        assert gateway.localize_globally().ok
+        yaws, looked = [], []
+        for _ in range(50):
+            run(robot, 0.5)
+            state = gateway.state()
+            looked.append(state["localization"]["looking_around"])
+            yaws.append(sim.pose.yaw_rad)
+            if looked[-1]:
+                assert plain_activity(state) == "Turning to look around: finding where I am"
+            if any(looked) and not looked[-1]:
+                break
+        assert any(looked) and not looked[-1], looked
+        assert gateway.state()["localization"]["state"] == "ambiguous"
+        turned = sum(abs(math.remainder(b - a, math.tau)) for a, b in itertools.pairwise(yaws))
+        assert math.tau - 0.3 < turned < math.tau + 0.5, turned
+        assert math.hypot(sim.pose.x_m - start.x_m, sim.pose.y_m - start.y_m) < 0.15
+        texts = [e["text"] for e in robot.recent_events(30) if e["kind"] == "localization ambiguous"]
+        assert texts and "turning in place" in texts[0], texts
+        run(robot, 2.0)
+        assert abs(math.remainder(sim.pose.yaw_rad - yaws[-1], math.tau)) < 0.05  # it stopped
+    gateway.close()
 
 
 def test_global_localization_needs_an_active_map(tmp_path):

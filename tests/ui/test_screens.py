@@ -120,6 +120,10 @@ def test_screen_socket_gets_plain_words_and_is_refused_operator_events(app, gate
     ({"agent_state": "EXEC", "mission": {"name": "visit_kitchen", "progress": 0.5, "state": "RUNNING"}},
      "Doing the task 'visit_kitchen'"),
     ({"agent_state": "IDLE", "mode": "MANUAL"}, "Waiting; someone can drive me from afar"),
+    ({"agent_state": "IDLE", "mode": "MANUAL", "localization": {"state": "ambiguous", "looking_around": True}},
+     "Turning to look around: finding where I am"),  # it moves by itself after FIND POSITION: say why
+    ({"agent_state": "IDLE", "mode": "MANUAL", "localization": {"state": "ambiguous", "looking_around": False}},
+     "Waiting; someone can drive me from afar"),
     ({"agent_state": "MAPPING"}, "Learning the rooms"),
     ({"agent_state": "ERROR"}, "I have stopped: something is wrong"),  # no promise that help is on the way
     ({"emergency": True}, "Stopped: emergency stop"),

@@ -42,6 +42,7 @@ from atemr.domain.maps import OccupancyMap
 from atemr.domain.status import LocalizationState
 from atemr.errors import NavigationError
 from atemr.msgs import LaserScan, Pose2D
+from atemr.skills.diff_drive import wrap_angle
 from atemr.skills.localization.amcl import Amcl, AmclParams, PoseEstimate
 from atemr.skills.localization.covariance_monitor import (
     CovarianceMonitor,
@@ -70,6 +71,9 @@ EventKind = Literal["initial_pose", "pose_refused", "global_start", "localized",
 #: An operator's pose that fits the scan within this share of the best match nearby is kept as it was given
 #: (a pose from mapping, or typed exactly, is not moved by the match's own few centimetres).
 POSE_KEPT_WITHIN = 0.01
+#: An operator's ambiguous search stops asking to look around once the robot has turned this far (rad): a whole
+#: revolution, less a few scans of the turn, so the localizer lets go before the turn's own one-revolution bound.
+LOOKED_ROUND_RAD = 2 * math.pi - 0.2
 
 
 class Phase(Enum):
@@ -155,6 +159,8 @@ class Localizer:
         self._mark: tuple[float, Pose2D] | None = None  # (time, odometry) of the last view while not tracking
         self._last_fix = 0.0
         self._odom: Pose2D | None = None  # the odometry of the latest scan
+        self._look_around = False  # the current search was the operator's, who asked the robot to look around
+        self._look_turned = 0.0  # how far it has turned since (rad, from the odometry)
 
     # -- operator ----------------------------------------------------------------------------------
     def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None, *,
@@ -172,14 +178,24 @@ class Localizer:
         if not self.map.contains(row, col) or not self.map.free[int(row), int(col)]:
             raise NavigationError(f"initial pose ({pose.x_m:.2f}, {pose.y_m:.2f}) is not in free space of the map")
         self._prior = (pose, odom if odom is not None and is_finite_pose(odom) else None)
+        self._look_around = False
         self._enter(Phase.POSE_SET, 0.0)
         self._event(now, "initial_pose", f"initial pose ({pose.x_m:.2f}, {pose.y_m:.2f}, {pose.yaw_rad:.2f}) set; "
                                          "checking it against the next scan")
 
-    def start_global(self, now: float, why: str = "no initial pose") -> None:
-        """Global localization over the whole map, on the next scan."""
+    def start_global(self, now: float, why: str = "no initial pose", *, look_around: bool = False) -> None:
+        """Global localization over the whole map, on the next scan. ``look_around``: the operator asked the robot
+        to find itself (FIND POSITION), so while the answer is ambiguous it may turn in place to see more
+        (`wants_a_look`); a search the robot starts by itself never moves it in MANUAL."""
         self._enter(Phase.SEARCHING, 0.0)
+        self._look_around, self._look_turned = look_around, 0.0
         self._event(now, "global_start", f"global localization: {why}")
+
+    @property
+    def wants_a_look(self) -> bool:
+        """Whether the operator's search is ambiguous, so the robot should turn in place to tell the places apart
+        (the views it gathers meanwhile are pooled: `Hypotheses.add_scan`)."""
+        return self._look_around and self.phase is Phase.AMBIGUOUS
 
     # -- output ------------------------------------------------------------------------------------
     @property
@@ -226,6 +242,8 @@ class Localizer:
             return self.state
         points, sensor = scan_points(scan), sensor_origin(scan)
         self._opens = open_ray_ends(scan)  # global localization's evidence besides the returns
+        if self.wants_a_look and self._odom is not None:
+            self._look_turned += abs(float(wrap_angle(odom.yaw_rad - self._odom.yaw_rad)))
         self._odom = odom
         if self.phase is Phase.TRACKING:
             self.map_ekf.predict(now, odom)
@@ -239,6 +257,10 @@ class Localizer:
             self._search(now, odom, points, sensor)
         elif self.phase is Phase.AMBIGUOUS:
             self._gather(now, odom, points, sensor)
+            if self.wants_a_look and self._look_turned >= LOOKED_ROUND_RAD:
+                self._look_around = False  # a whole turn has shown all a turn can: the operator decides now
+                self._event(now, "ambiguous", "global localization: turned once round and the places still look "
+                                              "alike; drive the robot or set its position")
         elif self.phase is Phase.FAILED:
             self._retry(now, odom, points, sensor)
         return self.state
@@ -276,7 +298,8 @@ class Localizer:
             hypotheses.keep(hypotheses.agreement >= self.params.monitor.min_confidence)
             self._hypotheses = hypotheses
             self._enter(Phase.AMBIGUOUS, result.confidence)
-            self._event(now, "ambiguous", f"global localization: {result.reason}; move the robot to tell them apart")
+            todo = "turning in place to tell them apart" if self._look_around else "move the robot to tell them apart"
+            self._event(now, "ambiguous", f"global localization: {result.reason}; {todo}")
         else:
             self._enter(Phase.FAILED, result.confidence)
             self._event(now, "failed", f"global localization: {result.reason}")
@@ -369,6 +392,7 @@ class Localizer:
 
     def _track_from(self, now: float, pose: Pose2D, odom: Pose2D, confidence: float) -> None:
         """Tracking starts at a checked ``pose`` (odometry ``odom``), with the confidence it was found with."""
+        self._look_around = False  # the operator's request is answered: a later search is the robot's own
         cov = self._matched_covariance()
         self.amcl.initialize(pose, cov, now=now, odom=odom)
         self.map_ekf.reset(PoseEstimate(now, pose, cov), odom)

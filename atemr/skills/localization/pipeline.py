@@ -133,9 +133,10 @@ class LocalizationPipeline:
         """The operator's pose on the map (`NavigationError` if it is not in free space)."""
         self._need().set_initial_pose(now, pose, covariance, odom=self.odometry.estimate.pose)
 
-    def start_global(self, now: float, why: str = "requested") -> None:
-        """Global localization (the pose is unknown); ``why`` goes into the event."""
-        self._need().start_global(now, why)
+    def start_global(self, now: float, why: str = "requested", *, look_around: bool = False) -> None:
+        """Global localization (the pose is unknown); ``why`` goes into the event; ``look_around``: the operator
+        asked, so an ambiguous answer may turn the robot in place (`Localizer.start_global`)."""
+        self._need().start_global(now, why, look_around=look_around)
 
     # -- inputs ------------------------------------------------------------------------------------
     def _remember(self) -> None:
@@ -232,6 +233,12 @@ class LocalizationPipeline:
         """The one confidence number (rounded as every consumer shows it), its limit and the state: what the
         agent's guards, 0x153 bit 4, the dashboard and the command line all read."""
         return LocalizationStatus(round(self.confidence, 4), self.min_confidence, self.state)
+
+    @property
+    def wants_a_look(self) -> bool:
+        """Whether the operator's global search is ambiguous and the robot should turn to see more
+        (`Localizer.wants_a_look`); False without a map."""
+        return self.localizer is not None and self.localizer.wants_a_look
 
     @property
     def candidates(self) -> tuple[Hypothesis, ...]:

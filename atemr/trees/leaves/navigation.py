@@ -13,7 +13,7 @@ from atemr.domain.places import check_name
 from atemr.errors import AtemrError, ConfigError, NavigationError
 from atemr.msgs import ZERO_TWIST, Pose2D, Twist
 from atemr.trees.behaviours import Leaf, behaviours
-from atemr.trees.leaves.motion import wrap_angle
+from atemr.trees.leaves.motion import TurnInPlace
 from atemr.trees.params import PoseParams
 from atemr.trees.ports import NavigationPort
 
@@ -193,8 +193,7 @@ class Relocalize(Leaf):
     def initialise(self) -> None:
         self._deadline = self.ctx.now + self.params.timeout_s
         self._refusal = ""
-        self._turned = 0.0
-        self._last_yaw: float | None = None
+        self._turn = TurnInPlace()
         self._turning = False
         try:
             self.ctx.port.relocalize(self.ctx.now)
@@ -212,26 +211,15 @@ class Relocalize(Leaf):
         if due(self.ctx.now, self._deadline):
             self._stop_turning()
             return self.fail(f"not localized after {self.params.timeout_s:g} s")
-        if status is not None and status.state == "ambiguous" and self.params.turn and self._turn():
-            self.feedback_message = f"ambiguous: turning to see more ({math.degrees(self._turned):.0f} deg)"
+        if (status is not None and status.state == "ambiguous" and self.params.turn
+                and self._turn.advance(self.ctx.port.odom_pose())):
+            self.ctx.port.command_velocity("agent", Twist(0.0, self.params.turn_speed_radps), self.ctx.now)
+            self._turning = True
+            self.feedback_message = f"ambiguous: turning to see more ({math.degrees(self._turn.turned_rad):.0f} deg)"
             return Status.RUNNING
         self._stop_turning()
         self.feedback_message = "relocalizing"
         return Status.RUNNING
-
-    def _turn(self) -> bool:
-        """One step of the turn; False once a revolution is done (or there is no heading to count it by)."""
-        pose = self.ctx.port.odom_pose()
-        if pose is None:
-            return False
-        if self._last_yaw is not None:
-            self._turned += abs(wrap_angle(pose.yaw_rad - self._last_yaw))
-        self._last_yaw = pose.yaw_rad
-        if self._turned >= 2 * math.pi:
-            return False
-        self.ctx.port.command_velocity("agent", Twist(0.0, self.params.turn_speed_radps), self.ctx.now)
-        self._turning = True
-        return True
 
     def _stop_turning(self) -> None:
         if self._turning:

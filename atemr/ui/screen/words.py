@@ -47,6 +47,9 @@ def plain_activity(state: Mapping[str, Any]) -> str:
         return f"Doing the task '{mission['name']}'"
     if agent == "EXEC" and state.get("goal"):
         return "Going to a goal"
+    localization = state.get("localization")
+    if agent == "IDLE" and isinstance(localization, Mapping) and localization.get("looking_around") is True:
+        return "Turning to look around: finding where I am"  # it moves by itself: say why
     if agent == "IDLE" and state.get("mode") == "MANUAL":
         return "Waiting; someone can drive me from afar"
     return DOING.get(agent, "Waiting")

@@ -157,6 +157,28 @@ def drive_straight(world_name: str, start: Pose2D, metres: float) -> tuple[Local
     return localizer, truth, states
 
 
+def test_only_the_operators_ambiguous_search_asks_to_look_around() -> None:
+    """FIND POSITION (``look_around``) that answers ambiguous asks the robot to turn in place (`wants_a_look`),
+    and the event says it turns; a search the robot started by itself does not, nor does one that is answered
+    (a pose set)."""
+    world = load_world("twin_rooms")
+    scene, lidar = Scene(world), Lidar(LidarParams(), np.random.default_rng(0))
+    scan = lidar.scan(0.0, Pose2D(6.2, 1.2, 1.0), scene, np.zeros((0, 2)), np.zeros(0))
+    for asked in (True, False):
+        localizer = Localizer(world.map, np.random.default_rng(0))
+        localizer.start_global(0.0, "test", look_around=asked)
+        assert not localizer.wants_a_look  # nothing answered yet
+        assert localizer.update(0.1, Pose2D(0.0, 0.0, 0.0), scan) == "ambiguous"
+        assert localizer.wants_a_look is asked
+        said = localizer.events[-1].detail
+        assert ("turning in place" in said) is asked and ("move the robot" in said) is not asked
+    localizer.start_global(0.2, "again", look_around=True)
+    localizer.update(0.3, Pose2D(0.0, 0.0, 0.0), scan)
+    assert localizer.wants_a_look
+    localizer.set_initial_pose(0.4, Pose2D(6.2, 1.2, 1.0))
+    assert not localizer.wants_a_look
+
+
 def test_an_ambiguous_robot_decides_once_it_has_moved(shared_dir: Path) -> None:
     """One scan cannot tell this place of the sandbox from its near mirror; a metre of driving can. Every
     candidate is carried along and the new views pooled: localized at the true place, never the twin."""

@@ -76,6 +76,7 @@
     initial_pose: null,
     global_start: null,
   };
+  const LOOKING = ["Places on the map look alike to the robot (drawn on the map). It is turning in place to look around; if it stays unsure, drive it a little or set its position (SET POSITION).", "warning"];
   function plain(e) {
     const kind = String(e.kind || "");
     if (kind === "goal" || kind === "mission") {
@@ -83,6 +84,8 @@
     }
     if (kind.startsWith("localization ")) {
       const what = kind.slice("localization ".length);
+      // after FIND POSITION the robot turns in place by itself to tell the places apart (the event says so)
+      if (what === "ambiguous" && /turning in place/.test(e.text)) return LOOKING;
       return what in LOCALIZATION ? LOCALIZATION[what] : [`Localization: ${e.text}`, "info"];
     }
     if (kind === "refused" || kind === "unconfirmed") return [e.text, "warning"];
