@@ -448,9 +448,11 @@ class RobotGatewayImpl:
             return CommandResult.refused("this robot has no localization")
         if self.maps.active is None:
             return CommandResult.refused("no active map: select or build a map first")
-        # The operator asked the robot to find itself: an ambiguous answer turns it in place (`DriveJoystick`).
+        # The operator asked the robot to find itself: in MANUAL, where `DriveJoystick` drives it, an ambiguous
+        # answer turns it in place (a mission's relocalize step turns it in AUTO).
+        look = self.agent.state == "IDLE.MANUAL"
         return self._queue("global localization",
-                           lambda now: localization.start_global(now, "requested by the operator", look_around=True))
+                           lambda now: localization.start_global(now, "requested by the operator", look_around=look))
 
     def cancel_goal(self) -> CommandResult:
         return self._submit("cancel")

@@ -184,7 +184,7 @@ class Relocalize(Leaf):
     scan could not give. On the warehouse map a turn decides 8 of the 12 ambiguous places of the benchmark's
     seeded poses, most after the first 45 degrees (`benchmarks/global_localization.py --turn`); the rest are
     places whose scans differ in no beam. ``turn: false`` waits without moving. Commands on the pipeline's
-    ``agent`` input, so the reactive safety layer still applies.
+    ``agent`` input, under the safety stop like every motion.
     """
 
     Params = RelocalizeParams
