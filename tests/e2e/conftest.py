@@ -122,7 +122,7 @@ class KinematicGateway:
                 "active_map": self.active_map,
                 "map_version": self.map.version, "pose": {"x_m": p.x_m, "y_m": p.y_m, "yaw_rad": p.yaw_rad},
                 "localization": {"confidence": 0.98, "limit": 0.7, "localized": True, "state": "localized",
-                                 "candidates": []},
+                                 "candidates": [], "looking_around": False},
                 "scan": scan, "depth_obstacles": [],
                 "global_path": [[p.x_m, p.y_m], [goal.x_m, goal.y_m]] if goal else [],
                 "local_path": [], "goal": goal and {"x_m": goal.x_m, "y_m": goal.y_m, "yaw_rad": goal.yaw_rad},

@@ -41,7 +41,7 @@ def test_live_view_follows_a_mission_through_exec_and_back_then_replays_it(fast_
     site = fast_robot_site
     helpers.login(page, site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{site.url}/agent")
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     wait_for(page, "document.getElementById('agent-current').textContent === 'IDLE.MANUAL'")
     page.evaluate("window.seen = []; ATEMR.socket.on('agent', (s) => { if (window.seen.at(-1) !== s.state) "
                   "window.seen.push(s.state); })")
@@ -195,7 +195,7 @@ def test_a_trace_is_uploaded_and_opened(ready_site, page, helpers, tmp_path):
     bad.write_text("not a trace\n")
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{ready_site.url}/agent")
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     page.set_input_files("#trace-file", str(bad))
     page.click("#trace-upload")
     wait_for(page, "document.getElementById('replay-warning').textContent.includes('neither an MCAP recording')")

@@ -69,7 +69,8 @@ class Alerts:
 def open_control(page: Any, site: RobotSite, helpers: Any) -> Alerts:
     """Log in, wait for the live robot with every part healthy, and return its alert list."""
     helpers.login(page, site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE' && ATEMR.live "
+    # ?.: until the login's redirect lands, the page is still the login page, which has no socket indicator
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE' && ATEMR.live "
                    "&& ATEMR.map?.image != null && document.getElementById('agent-state').dataset.state === 'IDLE'")
     wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)", timeout=15_000)
     return Alerts(page)

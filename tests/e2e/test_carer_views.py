@@ -82,7 +82,7 @@ def tap(page: Any, selector: str) -> None:
 def test_drive_by_video_and_send_a_goal_on_every_screen(ready_site, sized, shots, helpers):
     page, robot = sized, ready_site.robot
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE' && ATEMR.map?.image != null")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE' && ATEMR.map?.image != null")
     assert state_problems(robot.state()) == []
     page.evaluate("window.scrollTo(0, 0)")
     # camera, joystick and STOP on one screen together, with the command feedback beside them
@@ -166,7 +166,7 @@ def test_the_other_pages_read_well_on_every_screen(ready_site, sized, shots, hel
 def test_a_silent_robot_shows_a_stale_banner_and_turns_driving_off_until_it_is_back(ready_site, sized, helpers):
     page = sized
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE' && ATEMR.live")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE' && ATEMR.live")
     # opening the page (the socket still connecting, no state yet) is not the robot going offline
     assert page.is_hidden("#connection") and "offline" not in page.inner_text("#alert-items")
     ready_site.pause()  # the robot process ends; the dashboard stays up
@@ -218,7 +218,7 @@ ALERTS = [  # what the robot does → what the carer reads
 def test_each_alert_is_said_in_plain_words(ready_site, sized, helpers):
     page, robot = sized, ready_site.robot
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE' && ATEMR.live")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE' && ATEMR.live")
     for what, value, text in ALERTS:
         with robot.lock:
             if what == "stop_cause":

@@ -106,7 +106,7 @@ def wait_for_camera(page) -> None:
 def test_control_page_shows_the_robot_and_the_keyboard_drives_it(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'")
     wait_for_camera(page)
     wait_for(page, "ATEMR.map?.image != null && ATEMR.state.pose !== null && ATEMR.state.scan.length > 100")
@@ -149,7 +149,7 @@ def test_control_page_shows_the_robot_and_the_keyboard_drives_it(robot_site, pag
 def test_the_joystick_pad_resends_while_held_and_stops_on_release(ready_site, page, shots, helpers):
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     wait_for(page, "document.querySelectorAll('#level1 .led.ok').length === 4")
     # the keyboard resends while a key is held and sends an explicit stop on release
     page.focus("#joystick")
@@ -194,7 +194,7 @@ def test_the_joystick_pad_resends_while_held_and_stops_on_release(ready_site, pa
 
 def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE' && ATEMR.map?.image != null")
     # AUTO is refused until every level-1 status is OK (the IR sensors come up after the secondary core boots)
     wait_for(page, "Object.values(ATEMR.state.level2).every((ok) => ok)")
@@ -230,7 +230,7 @@ def test_auto_mode_and_a_goal_by_click_and_drag_reached_by_the_robot(robot_site,
 def test_mapping_begin_end_and_save_on_the_robot(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{robot_site.url}/mapping")
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE'")
     version = page.evaluate("ATEMR.state.map_version")
     page.click("#mapping-toggle")
@@ -339,7 +339,7 @@ def test_new_user_waits_for_an_admin_to_grant_access(ready_site, browser, page, 
 def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE' && ATEMR.map?.image != null")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE' && ATEMR.map?.image != null")
     wait_for(page, "document.getElementById('secondary-screen').naturalWidth === 256")
     start = robot_site.sim.pose
     target = next((start.x_m + dx, start.y_m) for dx in (0.6, -0.6, 1.0, -1.0)
@@ -374,7 +374,7 @@ def test_simulation_panel_kidnaps_the_robot_and_shows_the_secondary_screen(robot
 def test_media_captured_and_recorded_then_played_previewed_downloaded_and_deleted(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     wait_for_camera(page)
     images = robot_site.data_dir / "media" / "images"
     for _ in range(2):
@@ -458,7 +458,7 @@ def test_phone_sized_screen(ready_site, browser, shots, helpers):
     page = context.new_page()
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     width = page.evaluate("document.documentElement.scrollWidth")
     assert width <= 400  # one column, no sideways scrolling
     joystick = page.locator("#joystick").bounding_box()
@@ -525,7 +525,7 @@ def test_several_robots_on_one_dashboard_are_told_apart(ready_site, page, shots,
 def test_a_gated_transition_is_confirmed_from_the_page(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{robot_site.url}/agent")
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     wait_for(page, "document.getElementById('autonomy-level').dataset.level === 'full'")
     page.click("#agent-reload")  # the explicit reload: the file is the running version
     wait_for(page, "document.getElementById('reload-status').dataset.status === 'unchanged'")
@@ -585,7 +585,7 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
     robot_site.gateway.maps_changed()
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.goto(f"{robot_site.url}/mapping")
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE' "
                    "&& ATEMR.state.localization.localized")
     assert page.inner_text("#localization").startswith("LOCALIZED")
@@ -607,7 +607,7 @@ def test_a_map_switch_shows_not_localized_and_auto_waits_for_a_pose(robot_site, 
     assert robot_site.agent_state == "IDLE.MANUAL" and page.inner_text("#mode-toggle") == "MANUAL"
 
     page.goto(f"{robot_site.url}/control")  # the operator sets the pose where the robot stands
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE' && ATEMR.map?.image != null")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE' && ATEMR.map?.image != null")
     truth = robot_site.sim.pose
     # GO HERE now: the switch to AUTO it needs is refused, and the answer is the goal's, not "Mode: ..."
     page.click("#go-here")
@@ -633,11 +633,11 @@ def test_a_dashboard_that_went_away_reads_offline_not_error(ready_site, page, he
     """The robot's process ended (the server with it): the status bar says Offline and keeps trying, not
     Refused, which means the robot refused this page (logged out, no access)."""
     helpers.login(page, ready_site.url, "admin", helpers.ADMIN_PW)
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     watch_texts(page, "sock")
     ready_site.stop()
     assert len(sessions_of(ready_site.server.app)) == 0  # every connection closed, its session forgotten
-    wait_for(page, "document.getElementById('sock').dataset.status === 'OFFLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'OFFLINE'")
     page.wait_for_timeout(2500)  # a retry or two against the closed port
     shown = watched_texts(page, "sock")
     assert "Refused" not in shown and page.inner_text("#sock") == "Offline", shown

@@ -20,7 +20,7 @@ pytestmark = pytest.mark.e2e
 def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     wait_for(page, "document.getElementById('agent-state').dataset.state === 'IDLE' && ATEMR.map?.image != null")
     wait_for(page, "document.querySelectorAll('#place-list li').length === 6")  # the studio's rooms and home
     names = page.eval_on_selector_all("#place-list li", "els => els.map(e => e.dataset.place)")
@@ -80,7 +80,7 @@ def test_add_a_place_by_tapping_the_map_and_send_the_robot_there(robot_site, pag
 def test_create_a_routine_on_the_routines_page(robot_site, page, shots, helpers):
     helpers.login(page, robot_site.url, "admin", helpers.ADMIN_PW)
     page.wait_for_url(re.compile(r"/control$"))  # logged in: the Control page, with its status bar
-    wait_for(page, "document.getElementById('sock').dataset.status === 'ONLINE'")
+    wait_for(page, "document.getElementById('sock')?.dataset.status === 'ONLINE'")
     page.click("nav.tabs a:has-text('Routines')")
     page.wait_for_url(re.compile(r"/routines$"))
     assert "No routines yet." in page.inner_text("#routine-list")

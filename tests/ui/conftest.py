@@ -35,7 +35,8 @@ class RecordingGateway:
         self.snapshot: RobotState = {
             "robot": "KAY", "agent_state": "IDLE", "mode": "MANUAL", "simulation": True, "active_map": None,
             "map_version": 0, "pose": None,
-            "localization": {"confidence": 0.0, "limit": 0.7, "localized": False, "state": "no map", "candidates": []},
+            "localization": {"confidence": 0.0, "limit": 0.7, "localized": False, "state": "no map", "candidates": [],
+                             "looking_around": False},
             "scan": [], "depth_obstacles": [], "global_path": [], "local_path": [], "goal": None,
             "navigation": None, "wheel_speeds": {"left_radps": 0.0, "right_radps": 0.0}, "emergency": False,
             "stop_cause": None, "level1": {}, "level2": {},
