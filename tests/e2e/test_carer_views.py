@@ -205,6 +205,8 @@ ALERTS = [  # what the robot does → what the carer reads
     ("event", {"kind": "localization relocalized", "text": "back"}, "The robot knows where it is again."),
     ("event", {"kind": "localization ambiguous", "text": "global localization: 2 places agree"},
      "Places on the map look alike to the robot"),
+    ("event", {"kind": "localization ambiguous", "text": "global localization: 2 places agree; turning in place to "
+               "tell them apart"}, "It is turning in place to look around"),  # after FIND POSITION
     ("event", {"kind": "localization map_changed", "text": "map flat selected: not localized until a pose is set"},
      "Another map is in use: the robot does not know where it is on it."),
     ("event", {"kind": "goal", "text": "Goal failed: no path to the goal."}, "Goal failed: no path to the goal."),
