@@ -72,6 +72,8 @@ class KinematicGateway:
         self.limits = (0.5, 1.0)
         self.awareness = False
         self.stop_cause: str | None = None
+        #: The state's localization when a test sets it (None: localized).
+        self.localization: dict[str, Any] | None = None
         self.events: list[dict[str, Any]] = [{"t": 0.5, "kind": "info", "text": "agent started",
                                                    "unix_s": time.time()}]
         self.active_map = "room"
@@ -121,8 +123,9 @@ class KinematicGateway:
                 "robot": "KAY", "agent_state": self.agent, "mode": self.mode, "simulation": True,
                 "active_map": self.active_map,
                 "map_version": self.map.version, "pose": {"x_m": p.x_m, "y_m": p.y_m, "yaw_rad": p.yaw_rad},
-                "localization": {"confidence": 0.98, "limit": 0.7, "localized": True, "state": "localized",
-                                 "candidates": [], "looking_around": False},
+                "localization": self.localization or {"confidence": 0.98, "limit": 0.7, "localized": True,
+                                                      "state": "localized", "candidates": [],
+                                                      "looking_around": False},
                 "scan": scan, "depth_obstacles": [],
                 "global_path": [[p.x_m, p.y_m], [goal.x_m, goal.y_m]] if goal else [],
                 "local_path": [], "goal": goal and {"x_m": goal.x_m, "y_m": goal.y_m, "yaw_rad": goal.yaw_rad},

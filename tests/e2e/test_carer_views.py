@@ -235,6 +235,16 @@ def test_each_alert_is_said_in_plain_words(ready_site, sized, helpers):
                 robot.stop_cause = None
             wait_for(page, "document.getElementById('alert-items').textContent.includes('The robot may move again.')")
             page.evaluate("document.getElementById('alert-items').innerHTML = ''")
+    # the localization line while FIND POSITION's ambiguous answer turns the robot, then once it no longer does
+    ambiguous = {"confidence": 0.49, "limit": 0.7, "localized": False, "state": "ambiguous", "looking_around": True,
+                 "candidates": [{"x_m": 1.0, "y_m": 1.0, "yaw_rad": 0.0, "agreement": 0.99},
+                                {"x_m": 4.0, "y_m": 2.0, "yaw_rad": 3.1, "agreement": 0.99}]}
+    for looking, words in ((True, "turning in place to tell them apart"), (False, "drive a little to tell them apart")):
+        with robot.lock:
+            robot.localization = {**ambiguous, "looking_around": looking}
+        wait_for(page, f"document.getElementById('localization-detail').textContent.includes({words!r})")
+    with robot.lock:
+        robot.localization = None
     # a refusal of the carer's own command, in the words the robot gave
     page.evaluate("ATEMR.command('goal', {x_m: 1, y_m: 1, yaw_rad: 0})")
     wait_for(page, "document.getElementById('alert-items').textContent.includes('Go here: switch to AUTO first')")

@@ -64,7 +64,8 @@
     const places = (loc.candidates || []).length;
     detail.textContent = loc.localized ? `limit ${pct(loc.limit)}`
       : `${LOCALIZATION_WORDS[loc.state] || loc.state}` +
-        `${places ? `: ${places} places look alike (drawn on the map); drive a little to tell them apart` : ""}; ` +
+        `${places ? `: ${places} places look alike (drawn on the map); ` +
+          (loc.looking_around ? "turning in place to tell them apart" : "drive a little to tell them apart") : ""}; ` +
         `needs ${pct(loc.limit)} — SET POSITION or FIND POSITION`;
     detail.title = `localization state: ${loc.state}`; // the engineer's name, on hover
   }
