@@ -14,7 +14,8 @@ runs (`atemr.skills.localization.global_search`, the shipped configuration) deci
 
 With ``--turn``, an ambiguous answer is followed as the robot's ``relocalize`` step follows it: the robot turns in
 place and every 45 degrees (the localizer's ``evidence_every_rad``) a scan from the turned pose is pooled with
-the places' evidence (`Hypotheses.add_scan`), at most one revolution; the answer judged is the last one, against
+the places' evidence (`Hypotheses.add_scan`), as many as the robot gets before the localizer stops the turn
+(``LOOKED_ROUND_RAD``: seven); the answer judged is the last one, against
 the turned truth. The turn's scans draw their noise from a generator of their own, so the one-scan answers
 stay those of a run without ``--turn``.
 
@@ -46,7 +47,7 @@ from atemr.msgs import Pose2D
 from atemr.skills.localization.config import LocalizationConfig
 from atemr.skills.localization.global_search import GlobalResult, GlobalSearch, Hypotheses
 from atemr.skills.localization.likelihood_field import LikelihoodField
-from atemr.skills.localization.localizer import LocalizerParams
+from atemr.skills.localization.localizer import LOOKED_ROUND_RAD, LocalizerParams
 from atemr.skills.localization.map_agreement import MapAgreement
 from atemr.skills.localization.scan import open_ray_ends, scan_points, sensor_origin
 
@@ -171,7 +172,8 @@ def turn_in_place(hyps: Hypotheses, truth: Pose2D, lidar: Lidar, scene: Scene, m
     params = LocalizerParams()
     step, limit = params.evidence_every_rad, params.monitor.min_confidence
     result = hyps.decide()
-    for k in range(1, math.ceil(2 * math.pi / step) + 1):
+    turned = truth
+    for k in range(1, math.floor(LOOKED_ROUND_RAD / step) + 1):  # the views the robot gets before it stops
         turned = Pose2D(truth.x_m, truth.y_m, truth.yaw_rad + k * step)
         scan = lidar.scan(0.0, turned, scene, movers.centres, movers.radii)
         hyps.add_scan(scan_points(scan), sensor_origin(scan), np.array([0.0, 0.0, k * step]), open_ray_ends(scan))

@@ -399,7 +399,15 @@ class RobotGatewayImpl:
         if self.inputs.mode == "AUTO":
             return CommandResult.refused("joystick ignored in AUTO: switch to MANUAL to drive")
         self.inputs.operate(twist, self.robot.clock.now())
+        self._take_over_the_look()  # STOP in MANUAL is a zero joystick command: it ends the look too
         return CommandResult.accepted()
+
+    def _take_over_the_look(self) -> None:
+        """The operator drives (or stops, or maps): the robot no longer turns by itself after FIND POSITION, now or
+        later (`LocalizationPipeline.stop_looking`)."""
+        localization = self.robot.parts.localization
+        if localization is not None and localization.wants_a_look:
+            self._queue("take over the look around", lambda now: localization.stop_looking())
 
     def set_mode(self, mode: Mode) -> CommandResult:
         if mode not in ("MANUAL", "AUTO"):
@@ -461,7 +469,10 @@ class RobotGatewayImpl:
     def begin_mapping(self) -> CommandResult:
         if self.agent.state == "IDLE.AUTO":
             return CommandResult.refused("mapping starts in MANUAL: switch to MANUAL first")
-        return self._submit("begin_mapping")
+        result = self._submit("begin_mapping")
+        if result.ok:
+            self._take_over_the_look()
+        return result
 
     def end_mapping(self) -> CommandResult:
         if not self.agent.state.startswith("MAPPING") or self.maps.slam is None:

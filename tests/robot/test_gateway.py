@@ -497,17 +497,15 @@ def test_global_localization_finds_a_robot_carried_elsewhere(booted):
 
 
 def test_find_position_in_look_alike_rooms_turns_the_robot_in_place_once_round(tmp_path):
-    """Two identical rooms: FIND POSITION answers ambiguous, and since the operator asked, the robot turns in place
+    """Two alike rooms: FIND POSITION answers ambiguous, and since the operator asked, the robot turns in place
     by itself (in MANUAL, the joystick idle) to see more, says so on its screen and the Control page, and stops
-    after one revolution, which cannot tell twins apart; it never leaves its spot."""
+    after one revolution; it never leaves its spot, and is never localized in the wrong room. STOP (a zero
+    joystick command in MANUAL) and mapping end the look for good: the robot does not start turning again."""
     from atemr.ui.screen.words import plain_activity
 
     robot, gateway = make_robot(tmp_path / "data", **{"sim.world": "twin_rooms"})
-    with robot:
-        robot.run(until=BOOTED_S)
-        sim = robot.parts.sim
-        start = Pose2D(6.2, 1.2, 1.0)
-        sim.kidnap(start)
+
+    def look(until: Any) -> tuple[list[bool], list[float]]:
         assert gateway.localize_globally().ok
         yaws, looked = [], []
         for _ in range(50):
@@ -517,17 +515,50 @@ def test_find_position_in_look_alike_rooms_turns_the_robot_in_place_once_round(t
             yaws.append(sim.pose.yaw_rad)
             if looked[-1]:
                 assert plain_activity(state) == "Turning to look around: finding where I am"
-            if any(looked) and not looked[-1]:
+            if until(looked):
                 break
+        return looked, yaws
+
+    def turned(yaws: list[float]) -> float:
+        return sum(abs(math.remainder(b - a, math.tau)) for a, b in itertools.pairwise(yaws))
+
+    def stands_still() -> None:
+        before = sim.pose.yaw_rad
+        run(robot, 3.0)
+        assert abs(math.remainder(sim.pose.yaw_rad - before, math.tau)) < 0.05
+        assert not gateway.state()["localization"]["looking_around"]
+
+    with robot:
+        robot.run(until=BOOTED_S)
+        sim = robot.parts.sim
+        start = Pose2D(6.2, 1.2, 1.0)
+        sim.kidnap(start)
+        looked, yaws = look(lambda looked: any(looked) and not looked[-1])
         assert any(looked) and not looked[-1], looked
-        assert gateway.state()["localization"]["state"] == "ambiguous"
-        turned = sum(abs(math.remainder(b - a, math.tau)) for a, b in itertools.pairwise(yaws))
-        assert math.tau - 0.3 < turned < math.tau + 0.5, turned
+        loc = gateway.state()["localization"]
+        if loc["state"] == "ambiguous":  # a whole turn; the twin is still among the places
+            assert math.tau - 0.5 < turned(yaws) < math.tau + 0.3, turned(yaws)
+            texts = [e["text"] for e in robot.recent_events(30) if e["kind"] == "localization ambiguous"]
+            assert "turning in place" in texts[0] and "turned once round" in texts[-1], texts
+        else:  # the rooms differ by a table's place: a turn may tell them apart, never for the twin
+            pose = gateway.state()["pose"]
+            assert loc["localized"] and pose is not None and math.hypot(pose["x_m"] - 6.2, pose["y_m"] - 1.2) < 0.3
         assert math.hypot(sim.pose.x_m - start.x_m, sim.pose.y_m - start.y_m) < 0.15
-        texts = [e["text"] for e in robot.recent_events(30) if e["kind"] == "localization ambiguous"]
-        assert texts and "turning in place" in texts[0], texts
-        run(robot, 2.0)
-        assert abs(math.remainder(sim.pose.yaw_rad - yaws[-1], math.tau)) < 0.05  # it stopped
+        stands_still()
+        # STOP while it looks around: it stops, and stays stopped
+        sim.kidnap(start)
+        looked, _ = look(lambda looked: looked[-1])
+        assert looked[-1], looked
+        assert gateway.joystick(Twist()).ok
+        run(robot, 0.5)
+        stands_still()
+        # so does mapping (the mapping state's joystick never turns by itself)
+        sim.kidnap(start)
+        looked, _ = look(lambda looked: looked[-1])
+        assert looked[-1] and gateway.begin_mapping().ok
+        run(robot, 0.5)
+        assert agent_state(robot).startswith("MAPPING")
+        stands_still()
     gateway.close()
 
 

@@ -72,8 +72,11 @@ EventKind = Literal["initial_pose", "pose_refused", "global_start", "localized",
 #: (a pose from mapping, or typed exactly, is not moved by the match's own few centimetres).
 POSE_KEPT_WITHIN = 0.01
 #: An operator's ambiguous search stops asking to look around once the robot has turned this far (rad): a whole
-#: revolution, less a few scans of the turn, so the localizer lets go before the turn's own one-revolution bound.
+#: revolution, less a few scans of the turn (the view at the starting heading again adds little).
 LOOKED_ROUND_RAD = 2 * math.pi - 0.2
+#: ... or once this long has passed since the operator asked (s), whatever held the robot (a safety stop, blocked
+#: wheels): a look never stays asked for, to start again later when nobody expects it.
+LOOK_TIMEOUT_S = 30.0
 
 
 class Phase(Enum):
@@ -161,6 +164,7 @@ class Localizer:
         self._odom: Pose2D | None = None  # the odometry of the latest scan
         self._look_around = False  # the current search was the operator's, who asked the robot to look around
         self._look_turned = 0.0  # how far it has turned since (rad, from the odometry)
+        self._look_since = 0.0  # when the operator asked
 
     # -- operator ----------------------------------------------------------------------------------
     def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None, *,
@@ -188,8 +192,13 @@ class Localizer:
         to find itself (FIND POSITION), so while the answer is ambiguous it may turn in place to see more
         (`wants_a_look`); a search the robot starts by itself never moves it in MANUAL."""
         self._enter(Phase.SEARCHING, 0.0)
-        self._look_around, self._look_turned = look_around, 0.0
+        self._look_around, self._look_turned, self._look_since = look_around, 0.0, now
         self._event(now, "global_start", f"global localization: {why}")
+
+    def stop_looking(self) -> None:
+        """The operator took over (the joystick, STOP, mapping): the robot no longer turns by itself for this
+        search. The views it gathers while driven are pooled all the same."""
+        self._look_around = False
 
     @property
     def wants_a_look(self) -> bool:
@@ -245,6 +254,12 @@ class Localizer:
         if self.wants_a_look and self._odom is not None:
             self._look_turned += abs(float(wrap_angle(odom.yaw_rad - self._odom.yaw_rad)))
         self._odom = odom
+        if self.wants_a_look and (self._look_turned >= LOOKED_ROUND_RAD or now - self._look_since >= LOOK_TIMEOUT_S):
+            self._look_around = False  # a whole turn has shown all a turn can: the operator decides now
+            done = "turned once round" if self._look_turned >= LOOKED_ROUND_RAD else \
+                f"looked around for {LOOK_TIMEOUT_S:g} s"
+            self._event(now, "ambiguous", f"global localization: {done} and the places still look alike; drive the "
+                                          "robot or set its position")
         if self.phase is Phase.TRACKING:
             self.map_ekf.predict(now, odom)
         if not len(points):  # no valid return (a blind or glitched scan): no evidence for or against any pose
@@ -257,10 +272,6 @@ class Localizer:
             self._search(now, odom, points, sensor)
         elif self.phase is Phase.AMBIGUOUS:
             self._gather(now, odom, points, sensor)
-            if self.wants_a_look and self._look_turned >= LOOKED_ROUND_RAD:
-                self._look_around = False  # a whole turn has shown all a turn can: the operator decides now
-                self._event(now, "ambiguous", "global localization: turned once round and the places still look "
-                                              "alike; drive the robot or set its position")
         elif self.phase is Phase.FAILED:
             self._retry(now, odom, points, sensor)
         return self.state

@@ -234,6 +234,11 @@ class LocalizationPipeline:
         agent's guards, 0x153 bit 4, the dashboard and the command line all read."""
         return LocalizationStatus(round(self.confidence, 4), self.min_confidence, self.state)
 
+    def stop_looking(self) -> None:
+        """The operator took over: no more turning by itself for this search (`Localizer.stop_looking`)."""
+        if self.localizer is not None:
+            self.localizer.stop_looking()
+
     @property
     def wants_a_look(self) -> bool:
         """Whether the operator's global search is ambiguous and the robot should turn to see more

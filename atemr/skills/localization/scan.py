@@ -62,9 +62,11 @@ def open_ray_ends(scan: LaserScan, *, short_m: float = OPEN_SHORT_M, silent_run:
     dark or glossy spot. A lone one says nothing. A run of them is a direction that is open beyond the device's
     reach: down a warehouse's aisle, most beams are silent, and they are what tells its look-alike bays apart
     (`benchmarks/global_localization.py`: 66 → 76 % localized there). Mapped structure is what a lidar returned
-    from when the map was made, so a wall on the map across such a run contradicts the pose; a dark sofa that
-    never returns is not on the map. ``short_m`` keeps a wall just beyond the range, drawn a cell or two nearer
-    on the map, from counting.
+    from when the map was made, so a wall on the map across such a run contradicts the pose. A run can also be
+    glass, a mirror or a black surface in front of a mapped wall: then it counts against the true place too.
+    That weakens an answer, it does not make a wrong one: the decision needs one place clearly better on all the
+    evidence (10-60 neighbouring beams blanked near walls at 30 poses each on two maps changed no answer).
+    ``short_m`` keeps a wall just beyond the range, drawn a cell or two nearer on the map, from counting.
     """
     r = np.asarray(scan.ranges_m, dtype=np.float64)
     reach = scan.range_max_m - short_m

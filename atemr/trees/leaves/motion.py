@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import py_trees
 
-from atemr.msgs import ZERO_TWIST, Pose2D, Twist
+from atemr.msgs import ZERO_TWIST, Twist
 from atemr.trees.behaviours import Leaf, behaviours
 
 Status = py_trees.common.Status
@@ -17,30 +17,6 @@ Status = py_trees.common.Status
 def wrap_angle(angle_rad: float) -> float:
     """``angle_rad`` folded into [-pi, pi)."""
     return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
-
-
-class TurnInPlace:
-    """At most one revolution in place, counted on the odometry's heading (which needs no map: it works while the
-    robot does not know where it is): the turn global localization makes to see more while its answer is
-    ambiguous (`atemr.trees.leaves.navigation.Relocalize`, and `DriveJoystick` after the operator's FIND
-    POSITION). Each revolution starts from `reset`."""
-
-    def __init__(self) -> None:
-        self.turned_rad = 0.0
-        self._last_yaw: float | None = None
-
-    def reset(self) -> None:
-        self.turned_rad, self._last_yaw = 0.0, None
-
-    def advance(self, pose: Pose2D | None) -> bool:
-        """Count the heading change since the last call; whether to go on turning (False once a revolution is
-        done, or without a heading to count it by)."""
-        if pose is None:
-            return False
-        if self._last_yaw is not None:
-            self.turned_rad += abs(wrap_angle(pose.yaw_rad - self._last_yaw))
-        self._last_yaw = pose.yaw_rad
-        return self.turned_rad < 2 * math.pi
 
 
 @behaviours.register("StopMotors")
@@ -68,19 +44,17 @@ class DriveJoystick(Leaf):
     A joystick command older than ``timeout_s`` is replaced by zero (the thesis' lost-browser-tab rule,
     applied here as well as in the mux). Never finishes on its own: RUNNING until the state ends.
 
-    The operator who pressed FIND POSITION asked the robot to find itself: while that search is ambiguous
-    (`RobotPort.wants_a_look`) and the joystick is idle, the robot turns in place at ``look_speed_radps``, at
-    most one revolution, so the lidar's views tell the look-alike places apart (issue 21: "rotate in place ...
-    when the operator asks"). The joystick always wins: touching it takes over, and the turn goes on when it
-    is let go. The turn is the operator's own request, so it goes out on the joystick input, below the safety
-    stop and the reactive layer like any driving.
+    The operator who pressed FIND POSITION asked the robot to find itself: while that search is ambiguous and
+    asks for it (`RobotPort.wants_a_look`), the robot turns in place at ``look_speed_radps`` so the lidar's views
+    tell the look-alike places apart (issue 21: "rotate in place ... when the operator asks"). The localizer
+    ends the look: after about one revolution, after `LOOK_TIMEOUT_S`, or when the operator takes over (the
+    joystick, STOP or mapping: the gateway tells it), so the robot never starts turning again by itself. The
+    turn is the operator's own request, so it goes out on the joystick input, under the safety stop like any
+    driving. ``look_speed_radps: 0`` (the MAPPING state's) never turns.
     """
 
     Params = DriveJoystickParams
     summary = "pass the operator's joystick to the base until the state ends (turning to look after FIND POSITION)"
-
-    def initialise(self) -> None:
-        self._look = TurnInPlace()
 
     def update(self) -> py_trees.common.Status:
         latest = self.ctx.port.joystick()
@@ -89,14 +63,11 @@ class DriveJoystick(Leaf):
             # Forward the operator's own time stamp, not ours: the mux then expires a lost browser tab's
             # last command on time and stops hard (watchdog), instead of ramping down from a fresh zero.
             twist, stamp = latest
-            self._look.advance(self.ctx.port.odom_pose())  # a turn by hand counts towards the revolution
-        elif not self.params.look_speed_radps or not self.ctx.port.wants_a_look():
-            self._look.reset()
-        elif self._look.advance(self.ctx.port.odom_pose()):
+        elif self.params.look_speed_radps and self.ctx.port.wants_a_look():
             twist = Twist(0.0, self.params.look_speed_radps)
         self.feedback_message = f"v={twist.linear_mps:.2f} m/s w={twist.angular_radps:.2f} rad/s"
         if stamp == self.ctx.now and twist.angular_radps:
-            self.feedback_message += f" (looking around: {math.degrees(self._look.turned_rad):.0f} deg)"
+            self.feedback_message += " (looking around)"
         self.ctx.port.command_velocity("joystick", twist, stamp)
         return Status.RUNNING
 

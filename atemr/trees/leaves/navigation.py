@@ -13,7 +13,7 @@ from atemr.domain.places import check_name
 from atemr.errors import AtemrError, ConfigError, NavigationError
 from atemr.msgs import ZERO_TWIST, Pose2D, Twist
 from atemr.trees.behaviours import Leaf, behaviours
-from atemr.trees.leaves.motion import TurnInPlace
+from atemr.trees.leaves.motion import wrap_angle
 from atemr.trees.params import PoseParams
 from atemr.trees.ports import NavigationPort
 
@@ -163,6 +163,25 @@ class FollowPath(NavigationGoal):
     def start(self, navigation: NavigationPort) -> None:
         route = [(float(x), float(y)) for x, y in self.params.points[:-1]]
         navigation.start(self.params.pose(), self.ctx.now, route=route)
+
+
+class TurnInPlace:
+    """At most one revolution in place, counted on the odometry's heading (which needs no map: it works while the
+    robot does not know where it is): the turn `Relocalize` makes to see more while the search is ambiguous."""
+
+    def __init__(self) -> None:
+        self.turned_rad = 0.0
+        self._last_yaw: float | None = None
+
+    def advance(self, pose: Pose2D | None) -> bool:
+        """Count the heading change since the last call; whether to go on turning (False once a revolution is
+        done, or without a heading to count it by)."""
+        if pose is None:
+            return False
+        if self._last_yaw is not None:
+            self.turned_rad += abs(wrap_angle(pose.yaw_rad - self._last_yaw))
+        self._last_yaw = pose.yaw_rad
+        return self.turned_rad < 2 * math.pi
 
 
 @dataclass(frozen=True)

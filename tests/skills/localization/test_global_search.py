@@ -28,7 +28,7 @@ from atemr.io.sim.scene import Scene
 from atemr.io.sim.world import World, load_world
 from atemr.msgs import LaserScan, Pose2D
 from atemr.skills.localization.global_search import GlobalSearchParams, mcnemar_z
-from atemr.skills.localization.localizer import Localizer
+from atemr.skills.localization.localizer import LOOK_TIMEOUT_S, LOOKED_ROUND_RAD, Localizer
 from atemr.skills.localization.scan import OPEN_SHORT_M, SILENT_RUN, open_ray_ends, scan_points, sensor_origin
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -201,6 +201,47 @@ def test_only_the_operators_ambiguous_search_asks_to_look_around() -> None:
     assert localizer.wants_a_look
     localizer.set_initial_pose(0.4, Pose2D(6.2, 1.2, 1.0))
     assert not localizer.wants_a_look
+    localizer.start_global(0.5, "and again", look_around=True)
+    localizer.update(0.6, Pose2D(0.0, 0.0, 0.0), scan)
+    assert localizer.wants_a_look
+    localizer.stop_looking()  # the operator took over (the joystick, STOP, mapping)
+    assert not localizer.wants_a_look and localizer.state == "ambiguous"
+
+
+def test_the_look_around_ends_after_a_turn_or_a_time_limit() -> None:
+    """The localizer owns the end of the operator's look: it stops asking once the robot has turned about once
+    round (the views pooled meanwhile), or after `LOOK_TIMEOUT_S` when nothing turned it (a safety stop, blocked
+    wheels), and says so; never does it stay asked for, to turn the robot again later."""
+    world = load_world("twin_rooms")
+    scene, lidar = Scene(world), Lidar(LidarParams(), np.random.default_rng(2))
+    truth = Pose2D(6.2, 1.2, 1.0)
+    none = (np.zeros((0, 2)), np.zeros(0))
+    # held still: asked until the time limit
+    held = Localizer(world.map, np.random.default_rng(0))
+    held.start_global(0.0, "test", look_around=True)
+    t = 0.1
+    while t < LOOK_TIMEOUT_S + 1.0 and (t < 1.0 or held.wants_a_look):
+        held.update(t, Pose2D(0.0, 0.0, 0.0), lidar.scan(t, truth, scene, *none))
+        assert held.state == "ambiguous" and (held.wants_a_look or t >= LOOK_TIMEOUT_S)
+        t = round(t + 0.1, 6)
+    assert not held.wants_a_look and LOOK_TIMEOUT_S <= t < LOOK_TIMEOUT_S + 0.2
+    assert held.events[-1].kind == "ambiguous" and "looked around for 30 s" in held.events[-1].detail
+    # turned at 0.4 rad/s: asked until about once round
+    turned = Localizer(world.map, np.random.default_rng(0))
+    turned.start_global(0.0, "test", look_around=True)
+    yaw, k = 0.0, 0
+    while k < 200 and (k < 10 or turned.wants_a_look):
+        k += 1
+        pose = Pose2D(truth.x_m, truth.y_m, truth.yaw_rad + yaw)
+        turned.update(0.1 * k, Pose2D(0.0, 0.0, yaw), lidar.scan(0.1 * k, pose, scene, *none))
+        yaw += 0.04 if turned.wants_a_look else 0.0
+    assert not turned.wants_a_look
+    if turned.state == "ambiguous":
+        assert LOOKED_ROUND_RAD - 0.05 <= yaw <= LOOKED_ROUND_RAD + 0.05, yaw
+        assert "turned once round" in turned.events[-1].detail
+    else:  # the rooms differ by a table's place: a turn may tell them apart, in the true room
+        assert turned.state == "localized" and turned.estimate is not None
+        assert math.hypot(turned.estimate.pose.x_m - truth.x_m, turned.estimate.pose.y_m - truth.y_m) < 0.3
 
 
 def test_an_ambiguous_robot_decides_once_it_has_moved(shared_dir: Path) -> None:
