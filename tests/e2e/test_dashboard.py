@@ -179,6 +179,13 @@ def test_the_joystick_pad_resends_while_held_and_stops_on_release(ready_site, pa
     page.mouse.up()
     wait_for(page, "ATEMR.state.wheel_speeds.left_radps === 0")
     assert ready_site.robot.count("joystick") - before >= 6
+    # STOP in MANUAL: a zero joystick command, and the line under it says so (it replaces, e.g., FIND POSITION's
+    # "turning in place to look around", which STOP ends)
+    page.evaluate("document.getElementById('command-result').textContent = 'Find position: turning'")
+    stops = ready_site.robot.count("joystick")
+    page.click("#stop")
+    wait_for(page, "document.getElementById('command-result').textContent === 'Stop: done'")
+    assert ready_site.robot.count("joystick") > stops
 
     streams = ready_site.server.app.extensions["atemr.camera_streams"]
     assert streams.open == 1  # CAM-ON: the page watches the MJPEG stream

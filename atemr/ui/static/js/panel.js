@@ -207,7 +207,11 @@
     joy.pointer = false; joy.keys.clear(); joy.x = joy.y = 0; stopResending();
     show(current());
     if (A.state.agent_state === "EXEC") await A.command("cancel_goal");
-    else await A.command("joystick", { linear_mps: 0, angular_radps: 0 });
+    else {
+      // also ends FIND POSITION's look around: its "turning in place" gives way (the joystick's ack says nothing)
+      const ack = await A.command("joystick", { linear_mps: 0, angular_radps: 0 });
+      if (ack.ok) A.report("cancel_goal", ack);
+    }
     A.alert("Stopped.", "ok");
   });
   const note = $("drive-note");
