@@ -85,13 +85,8 @@
   $("capture").addEventListener("click", () => A.command("capture_image"));
   const rec = $("record");
   // "Recording: done" said nothing: the acknowledgement says which way it went (the button then says the rest)
-  rec.addEventListener("click", () => {
-    const on = !A.state.recording;
-    A.command("record_video", { on }).then((ack) => {
-      const out = $("command-result");
-      if (ack.ok && out) out.textContent = on ? "Recording: started" : "Recording: stopped, in Media";
-    });
-  });
+  A.STARTED.record_video = ({ on }) => (on ? "started" : "stopped, in Media");
+  rec.addEventListener("click", () => A.command("record_video", { on: !A.state.recording }));
   $("localize-global").addEventListener("click", () => A.command("localize_globally"));
   A.onState((s) => {
     rec.classList.toggle("on", !!s.recording);

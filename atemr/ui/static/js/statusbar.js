@@ -27,7 +27,7 @@
       const said = (ack) => {
         // a view subscribed to (the camera, the Agent view) shows itself when it works: only a refusal is said
         if (event === "joystick" || (ack.ok && (on_behalf || SUBSCRIPTIONS.has(event)))) return;
-        this.report(on_behalf || event, ack);
+        this.report(on_behalf || event, ack, data);
       };
       if (this.watchingAnother && !SUBSCRIPTIONS.has(event)) {
         const ack = { ok: false, reason: `${this.robot} is only watched here: commands go to ${this.own}` };
@@ -49,7 +49,8 @@
       place_save: "Save place", place_delete: "Delete place",
     },
     // Commands that start something the robot then does for a while: their acknowledgement says it began, not
-    // "done", which beside "On the way: 1.1 m left" read as the goal's outcome.
+    // "done", which beside "On the way: 1.1 m left" read as the goal's outcome. An entry may also be a function of
+    // the command's data, where the same command goes either way (RECORD starts or stops).
     STARTED: {
       goal: "accepted", go_to_place: "accepted", mission_start: "started", localize_globally: "searching",
       mapping_begin: "started",
@@ -64,12 +65,13 @@
     // one is tried again by itself; "The robot knows where it is" then takes their place.
     NOT_FINAL: /^localization (ambiguous|failed)$/,
     started: null, // the started command whose acknowledgement is shown, until its outcome comes
-    report(what, ack) {
+    report(what, ack, data = {}) {
       const label = this.LABELS[what] || what;
       if (!ack.ok && this.alert) this.alert(`${label}: ${ack.reason}`, "warning");
       const out = document.getElementById("command-result");
       if (!out) return;
-      out.textContent = ack.ok ? `${label}: ${this.STARTED[what] || "done"}` : `${label}: ${ack.reason}`;
+      const started = typeof this.STARTED[what] === "function" ? this.STARTED[what](data || {}) : this.STARTED[what];
+      out.textContent = ack.ok ? `${label}: ${started || "done"}` : `${label}: ${ack.reason}`;
       out.className = ack.ok ? "hint ok" : "hint error";
       this.started = ack.ok && this.ENDED_BY[what] ? what : null;
     },
