@@ -25,9 +25,11 @@ Rows (``python benchmarks/bench_sim.py`` or ``./benchmarks/run sim``):
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -45,6 +47,20 @@ from atemr.robot.core import Ticker
 from atemr.robot.headless import build_headless_robot
 from atemr.scheduler import Scheduler
 
+
+def _baseline_caster() -> type:
+    """`NumpyGridCaster` from ``baseline_raycast.py`` beside this file (benchmarks are loaded by path, not as a
+    package)."""
+    path = Path(__file__).with_name("baseline_raycast.py")
+    spec = importlib.util.spec_from_file_location("atemr_bench_baseline_raycast", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    caster: type = module.NumpyGridCaster
+    return caster
+
+
+NumpyGridCaster = _baseline_caster()
 
 def real_time_factor(camera_hz: float, sim_seconds: float, *, whole_robot: bool = False, watched: bool = False
                      ) -> tuple[float, float, Simulation]:
@@ -125,6 +141,7 @@ def lidar_row(what: str, caster: GridCaster, grid: np.ndarray, free: np.ndarray,
     frames = [((c + 0.5) * res, (r + 0.5) * res, yaw)
               for (r, c), yaw in zip(picks, rng.uniform(-math.pi, math.pi, n_poses), strict=True)]
     nested = grid.tolist()
+    caster.cast(frames[0][:2], angles, 8.0)  # the compiled walk loads (or compiles) on its first call
     t0 = time.process_time()
     ours = [caster.cast((gx, gy), gyaw + angles, 8.0).distance_m for gx, gy, gyaw in frames]
     t_ours = (time.process_time() - t0) / n_poses
@@ -137,10 +154,37 @@ def lidar_row(what: str, caster: GridCaster, grid: np.ndarray, free: np.ndarray,
             "ratio": round(t_base / t_ours, 2), "goal": 2.0, "unit": "scans/s"}
 
 
+def numpy_walk_row(what: str, grid: np.ndarray, free: np.ndarray, n_poses: int, *, n_rays: int, reach_m: float
+                   ) -> dict[str, Any]:
+    """The compiled walk against the numpy traversal it replaced (`baseline_raycast.py`), interleaved, on the
+    same casts, which must answer with the same bits."""
+    rng = np.random.default_rng(1)
+    res = 0.05
+    ours, base = GridCaster(grid, res), NumpyGridCaster(grid, res)
+    picks = free[rng.choice(len(free), n_poses, replace=False)]
+    span = 2 * math.pi if n_rays == 360 else math.radians(69.0)  # the lidar's circle or the camera's view
+    casts = [(((c + rng.random()) * res, (r + rng.random()) * res), rng.uniform(-math.pi, math.pi)
+              + np.linspace(-span / 2, span / 2, n_rays, endpoint=False)) for r, c in picks]
+    for origin, angles in casts[:5]:  # also the compiled walk's first call (loading it)
+        a, b = ours.cast(origin, angles, reach_m), base.cast(origin, angles, reach_m)
+        assert a.distance_m.tobytes() == b.distance_m.tobytes() and np.array_equal(a.side, b.side)
+    times: dict[str, list[float]] = {"ours": [], "base": []}
+    for _ in range(3):
+        for name, caster in (("ours", ours), ("base", base)):
+            t0 = time.process_time()
+            for origin, angles in casts:
+                caster.cast(origin, angles, reach_m)
+            times[name].append((time.process_time() - t0) / len(casts))
+    t_ours, t_base = min(times["ours"]), min(times["base"])
+    return {"what": what, "ours": round(t_ours * 1e3, 3), "baseline": round(t_base * 1e3, 3),
+            "ratio": round(t_base / t_ours, 2), "goal": 1.0, "unit": "ms/cast"}
+
+
 def lidar_rows(sim: Simulation, n_poses: int) -> list[dict[str, Any]]:
     scene = sim.scene
+    studio_free = np.argwhere(scene.world.map.free & ~scene.blocked)
     studio = lidar_row("lidar scan, 360 beams, studio (scans/s) vs per-beam Python DDA", scene.blocked_caster,
-                       scene.blocked, np.argwhere(scene.world.map.free & ~scene.blocked), n_poses)
+                       scene.blocked, studio_free, n_poses)
     # An open hall, 40 m x 40 m at 5 cm with a pillar every 4 m: long beams, most reaching the 8 m range.
     hall = np.zeros((800, 800), dtype=bool)
     hall[[0, -1], :] = hall[:, [0, -1]] = True
@@ -150,7 +194,15 @@ def lidar_rows(sim: Simulation, n_poses: int) -> list[dict[str, Any]]:
     free = np.argwhere(~ndimage.binary_dilation(hall, iterations=6))
     open_hall = lidar_row("lidar scan, 360 beams, open hall (scans/s) vs per-beam Python DDA",
                           GridCaster(hall, 0.05), hall, free, n_poses)
-    return [studio, open_hall]
+    compiled = [
+        numpy_walk_row("  lidar scan, studio, 12 m: the compiled walk vs the numpy traversal before it (same bits)",
+                       scene.blocked, studio_free, n_poses, n_rays=360, reach_m=12.0),
+        numpy_walk_row("  lidar scan, open hall, 12 m: the compiled walk vs the numpy traversal (same bits)",
+                       hall, free, n_poses, n_rays=360, reach_m=12.0),
+        numpy_walk_row("  camera walls, 640 rays, studio: the compiled walk vs the numpy traversal (same bits)",
+                       scene.walls, studio_free, n_poses, n_rays=640, reach_m=8.0),
+    ]
+    return [studio, open_hall, *compiled]
 
 
 def camera_row(sim: Simulation, frames: int) -> dict[str, Any]:

@@ -6,7 +6,7 @@ Modules, one job each:
   `save_map`);
 * `world` — world files: map + furniture, drop zones, moving obstacles, start pose (`load_world`);
 * `scene` — what is really there, cell by cell: walls, furniture, dropped obstacles, drop depths;
-* `raycast` — exact vectorised grid traversal (`GridCaster`) and ray-circle intersection;
+* `raycast` — exact grid traversal (`GridCaster`, a compiled walk) and ray-circle intersection;
 * `movers` — people walking paths, pets wandering;
 * `base` — differential-drive physics on two `WheelMotor`s, slip, odometry noise, collisions;
 * `lidar`, `imu`, `cliff`, `camera` — the sensors;

@@ -1,0 +1,170 @@
+"""The baseline of the simulator's ray casts: the numpy traversal `atemr.io.sim.raycast.GridCaster` replaced.
+
+Kept verbatim (only renamed) for two uses: ``benchmarks/bench_sim.py`` measures the compiled walk against it,
+and ``tests/io/sim/test_raycast.py`` checks that the two answer with the same bits (distances, cells and
+faces), which is what keeps every seeded run the same as before the change.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from atemr.io.sim.raycast import FloatArray, GridHits
+
+#: Crossings processed per chunk (per axis), after each jump over empty space.
+CHUNK = 16
+#: Most distance-transform jumps before each walk.
+SKIPS = 4
+
+
+class NumpyGridCaster:
+    """The grid traversal before issue 22's compiled walk, vectorised in numpy over all rays at once.
+
+    Besides the padded grid it keeps a distance transform (distance from every cell to the nearest blocked
+    cell), used to jump each ray over empty space before walking cells exactly ("sphere tracing"): from a
+    point whose cell is ``e`` cells from any blocked cell, the ray can advance ``e - 1.5`` cells without
+    entering a blocked one (1.5 > the two half-diagonals between a point, its cell centre and a blocked
+    cell's centre). Open rooms then cost one or two chunks per ray instead of one per 24 cells.
+    """
+
+    def __init__(self, blocked: NDArray[np.bool_], resolution_m: float) -> None:
+        self.shape = blocked.shape
+        self.resolution_m = float(resolution_m)
+        height, width = blocked.shape
+        padded = np.zeros((height + 2, width + 2), dtype=bool)
+        padded[1:-1, 1:-1] = blocked
+        self._blocked = blocked
+        self._flat = padded.ravel()
+        self._stride = width + 2
+        # Outside the grid nothing blocks, but a ray may come back in: no skipping there (0).
+        edt = np.zeros((height + 2, width + 2))
+        edt[1:-1, 1:-1] = ndimage.distance_transform_edt(~blocked) if blocked.any() else np.inf
+        self._edt = edt.ravel()
+
+    def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray,  # noqa: PLR0915  the simulator's hot ray walk: its per-ray arrays stay in one frame
+             max_range_m: float | FloatArray) -> GridHits:
+        """One ray per angle from ``origin_xy`` (grid frame, metres from the lower-left corner), up to
+        ``max_range_m`` (one range, or one per ray: the camera stops its furniture rays at the wall, so they
+        end as soon as nothing in front of it can be left); cells outside the grid are empty."""
+        res = self.resolution_m
+        angles = np.asarray(angles_rad, dtype=np.float64)
+        n = angles.shape[0]
+        height, width = self.shape
+        stride = self._stride
+        flat_grid = self._flat
+        gx0 = origin_xy[0] / res
+        gy0 = origin_xy[1] / res
+        t_max = np.asarray(max_range_m, dtype=np.float64) / res
+
+        dist = np.full(n, np.inf)
+        hit_row = np.full(n, -1, dtype=np.intp)
+        hit_col = np.full(n, -1, dtype=np.intp)
+        side = np.full(n, -1, dtype=np.int8)
+        r0, c0 = math.floor(gy0), math.floor(gx0)
+        if 0 <= r0 < height and 0 <= c0 < width and self._blocked[r0, c0]:
+            return GridHits(np.zeros(n), np.full(n, r0, dtype=np.intp), np.full(n, c0, dtype=np.intp),
+                            np.full(n, 2, dtype=np.int8))
+
+        dx = np.cos(angles)
+        dy = np.sin(angles)
+        # Axis-parallel rays never cross lines of that axis: a tiny component pushes those crossings past range.
+        dx = np.where(np.abs(dx) < 1e-12, np.copysign(1e-12, dx), dx)
+        dy = np.where(np.abs(dy) < 1e-12, np.copysign(1e-12, dy), dy)
+        inv_dx = np.abs(1.0 / dx)
+        inv_dy = np.abs(1.0 / dy)
+        pos_x = dx > 0
+        pos_y = dy > 0
+        x_step = np.where(pos_x, 1.0, -1.0)
+        y_step = np.where(pos_y, 1.0, -1.0)
+        # From a line index to the padded index of the cell entered through it: the line itself going
+        # up/right, the one before it going down/left (+1 for the padding border).
+        x_off = pos_x.astype(np.intp)
+        y_off = pos_y.astype(np.intp)
+        # Where a crossing lands exactly on a grid corner, the cell entered is the one the ray is heading into.
+        nudge_x = np.copysign(1e-9, dx)
+        nudge_y = np.copysign(1e-9, dy)
+
+        # Where each ray leaves the grid (when it starts inside it): nothing beyond can stop it.
+        t_lim = np.broadcast_to(t_max, (n,)).copy()
+        inside = 0.0 <= gx0 <= width and 0.0 <= gy0 <= height
+        if inside:
+            tx_exit = np.abs(np.where(pos_x, float(width), 0.0) - gx0) * inv_dx
+            ty_exit = np.abs(np.where(pos_y, float(height), 0.0) - gy0) * inv_dy
+            t_lim = np.minimum(t_lim, np.minimum(tx_exit, ty_exit))
+
+        # Both families of crossings at once: axis 0 walks vertical lines (x-faces), axis 1 horizontal ones.
+        g0 = np.array([gx0, gy0])
+        g_other = np.array([gy0, gx0])[None, :, None]
+        d = np.stack([dx, dy], axis=1)  # (n, 2)
+        d_other = np.stack([dy, dx], axis=1)[:, :, None]
+        inv = np.stack([inv_dx, inv_dy], axis=1)[:, :, None]
+        pos = np.stack([pos_x, pos_y], axis=1).astype(np.float64)
+        step = np.stack([x_step, y_step], axis=1)[:, :, None]
+        off = np.stack([x_off, y_off], axis=1)[:, :, None]
+        nudge = np.stack([nudge_y, nudge_x], axis=1)[:, :, None]
+        # Padded flat index = line cell * m_line + other cell * m_other (columns count 1, rows count stride).
+        m_line = np.array([1, stride], dtype=np.intp)[None, :, None]
+        m_other = np.array([stride, 1], dtype=np.intp)[None, :, None]
+        hi_line = np.array([width + 1, height + 1])[None, :, None]
+        hi_other = np.array([height + 1, width + 1])[None, :, None]
+        k = np.arange(CHUNK, dtype=np.float64)[None, None, :]
+        per_ray = np.concatenate([pos[:, :, None], step, inv, off.astype(np.float64), d_other, nudge], axis=2)
+
+        cand_t = np.full(n, np.inf)
+        cand_flat = np.zeros(n, dtype=np.intp)
+        t_cur = np.zeros(n)
+        alive = np.arange(n)
+        while alive.size:
+            a = alive
+            ar = np.arange(a.size)
+            lim = t_lim[a]
+            da = d[a]
+            # Jump over the empty space around the current point, again and again while the jumps are long
+            # (cheap: one value per ray), so the exact walk below starts close to what the ray will meet.
+            t0 = t_cur[a]
+            for _ in range(SKIPS):
+                p = g0 + t0[:, None] * da
+                cell = np.floor(p).astype(np.intp) + 1
+                if not inside:
+                    cell = np.clip(cell, 0, [width + 1, height + 1])
+                skip = np.maximum(self._edt.take(cell[:, 1] * stride + cell[:, 0], mode="clip") - 1.5, 0.0)
+                t0 = np.minimum(t0 + skip, lim)
+                if not (skip > 2.0).any():
+                    break
+            p = g0 + t0[:, None] * da
+            # The next CHUNK lines of each family from there on, where they are crossed and the cell entered.
+            ray = per_ray if a.size == n else per_ray[a]  # (a, 2, 6): one gather for all per-ray constants
+            line = (np.floor(p) + ray[:, :, 0])[:, :, None] + ray[:, :, 1:2] * k  # (a, 2, CHUNK)
+            t = np.abs(line - g0[None, :, None]) * ray[:, :, 2:3]
+            cell_line = (line + ray[:, :, 3:4]).astype(np.intp)
+            cell_other = np.floor(g_other + t * ray[:, :, 4:5] + ray[:, :, 5:6]).astype(np.intp) + 1
+            if not inside:
+                cell_line = np.clip(cell_line, 0, hi_line)
+                cell_other = np.clip(cell_other, 0, hi_other)
+            # From inside the grid every crossing within range is a cell of the padded grid; the others
+            # (beyond the range, masked out) only need a valid index, which mode="clip" gives.
+            flat = (cell_line * m_line + cell_other * m_other).reshape(a.size, 2 * CHUNK)
+            t = t.reshape(a.size, 2 * CHUNK)
+            t_hit = np.where(flat_grid.take(flat, mode="clip") & (t <= lim[:, None]), t, np.inf)
+            j = t_hit.argmin(axis=1)
+            best_t = t_hit[ar, j]
+            # The nearest hit of this chunk is a candidate: the two families of one chunk cover different
+            # distances, so a hit is final only once both have been examined up to it.
+            better = best_t < cand_t[a]
+            sel = a[better]
+            cand_t[sel] = best_t[better]
+            cand_flat[sel] = flat[ar, j][better]
+            side[sel] = (j[better] >= CHUNK).astype(np.int8)
+            covered = np.minimum(t[:, CHUNK - 1], t[:, 2 * CHUNK - 1])
+            t_cur[a] = covered
+            done = (cand_t[a] <= covered) | (covered >= lim)
+            alive = a[~done]
+        got = np.nonzero(np.isfinite(cand_t))[0]
+        dist[got] = cand_t[got] * res
+        hit_row[got] = cand_flat[got] // stride - 1
+        hit_col[got] = cand_flat[got] % stride - 1
+        return GridHits(dist, hit_row, hit_col, side)
