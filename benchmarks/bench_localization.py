@@ -12,6 +12,10 @@ Rows (``python benchmarks/bench_localization.py`` or ``./benchmarks/run localiza
 * the ICP target of one scan with its line normals from neighbouring beams (the pipeline's) against the same
   from a k-d tree query of nearest neighbours: targets per second (goal >= 1x), and the median match error of
   each over the drive's consecutive scans;
+* map agreement's beam walks (`LikelihoodField.crossings`: does each beam pass through a wall, under each
+  pose), compiled, against the numpy walks they replaced (``numpy_baselines.py``), with the same answers: one
+  thinned scan at the robot's pose (sampled every half cell, what the localizer does at every scan) and the
+  same scan under 500 poses (sphere tracing, as the global search does); goal >= 1x;
 * pose RMSE against ground truth over a seeded two-lap drive of the studio's living room: the
   localizer (AMCL + map EKF + monitor, started from the true start pose) against the 0.10 m target
   (goal >= 1x: ratio = target / ours), and, for scale, the wheel odometry alone over the same drive.
@@ -34,7 +38,9 @@ from atemr.io.sim.maps import load_map
 from atemr.skills.localization.amcl import Amcl, AmclParams
 from atemr.skills.localization.geometry import as_array, as_pose, compose, relative, transform_points
 from atemr.skills.localization.icp import IcpTarget, icp
+from atemr.skills.localization.likelihood_field import LikelihoodField
 from atemr.skills.localization.localizer import Localizer
+from atemr.skills.localization.map_agreement import AgreementParams
 from atemr.skills.localization.scan import scan_points
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -116,6 +122,36 @@ def scan_target_row(rec: Any, tgt: np.ndarray, repeats: int, quick: bool) -> dic
             "goal": 1.0, "unit": "targets/s"}
 
 
+def _numpy_baselines() -> ModuleType:
+    path = ROOT / "benchmarks" / "numpy_baselines.py"
+    spec = importlib.util.spec_from_file_location("atemr_bench_numpy_baselines", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def crossings_rows(grid: Any, rec: Any, repeats: int) -> list[dict[str, Any]]:
+    """Map agreement's beam walks, compiled, against the numpy ones they replaced: the same booleans."""
+    ours, base = LikelihoodField(grid), _numpy_baselines().NumpyCrossingsField(grid)
+    pts = scan_points(rec.scans[60], max_beams=AgreementParams().max_beams)  # as many beams as `measure` walks
+    rng = np.random.default_rng(0)
+    many = np.column_stack([rng.normal(rec.truth[60].x_m, 0.5, 500), rng.normal(rec.truth[60].y_m, 0.5, 500),
+                            rng.uniform(-math.pi, math.pi, 500)])
+    rows = []
+    for what, poses in (("one pose (sampled every half cell)", as_array(rec.truth[60])[None, :]),
+                        ("500 poses (sphere tracing)", many)):
+        def walk(field: LikelihoodField, poses: np.ndarray = poses) -> np.ndarray:
+            return field.crossings(poses, (0.1, 0.0), pts, 0.1)
+
+        assert np.array_equal(walk(ours), walk(base))  # the same answers, or the comparison means nothing
+        fast, slow = best_rate(lambda: walk(ours), repeats), best_rate(lambda: walk(base), repeats)
+        rows.append({"what": f"  map agreement's beam walks, {len(pts)} beams x {what}: compiled vs numpy",
+                     "ours": round(fast, 1), "baseline": round(slow, 1), "ratio": round(fast / slow, 2), "goal": 1.0,
+                     "unit": "walks/s"})
+    return rows
+
+
 def run(quick: bool = False) -> list[dict[str, Any]]:
     rows: list[dict[str, Any]] = []
     rec = _simdrive().drive(seed=3, laps=1 if quick else 2, max_s=90.0)
@@ -168,6 +204,7 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
                  "goal": 2.0, "unit": "matches/s"})
 
     rows.append(scan_target_row(rec, tgt, repeats, quick))
+    rows.extend(crossings_rows(grid, rec, repeats))
 
     # Pose RMSE of the whole pipeline over the drive
     loc = Localizer(grid, np.random.default_rng(1))

@@ -49,10 +49,10 @@ from atemr.scheduler import Scheduler
 
 
 def _baseline_caster() -> type:
-    """`NumpyGridCaster` from ``baseline_raycast.py`` beside this file (benchmarks are loaded by path, not as a
+    """`NumpyGridCaster` from ``numpy_baselines.py`` beside this file (benchmarks are loaded by path, not as a
     package)."""
-    path = Path(__file__).with_name("baseline_raycast.py")
-    spec = importlib.util.spec_from_file_location("atemr_bench_baseline_raycast", path)
+    path = Path(__file__).with_name("numpy_baselines.py")
+    spec = importlib.util.spec_from_file_location("atemr_bench_numpy_baselines", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -156,7 +156,7 @@ def lidar_row(what: str, caster: GridCaster, grid: np.ndarray, free: np.ndarray,
 
 def numpy_walk_row(what: str, grid: np.ndarray, free: np.ndarray, n_poses: int, *, n_rays: int, reach_m: float
                    ) -> dict[str, Any]:
-    """The compiled walk against the numpy traversal it replaced (`baseline_raycast.py`), interleaved, on the
+    """The compiled walk against the numpy traversal it replaced (`numpy_baselines.py`), interleaved, on the
     same casts, which must answer with the same bits."""
     rng = np.random.default_rng(1)
     res = 0.05

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
 
@@ -123,12 +124,9 @@ class LikelihoodField:
 
         The ``N × M`` arithmetic runs in float32 (twice as fast; a tenth of a millimetre at 1 km from the
         origin, far below a cell), the pose transforms in float64."""
+        c, s, gx0, gy0 = (column[:, None] for column in
+                          _float32_frames(self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))))
         with np.errstate(invalid="ignore", over="ignore"):
-            g = self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
-            c = np.cos(g[:, 2]).astype(np.float32)[:, None]
-            s = np.sin(g[:, 2]).astype(np.float32)[:, None]
-            gx0 = g[:, 0:1].astype(np.float32)
-            gy0 = g[:, 1:2].astype(np.float32)
             px = points[:, 0].astype(np.float32)[None, :]
             py = points[:, 1].astype(np.float32)[None, :]
         with np.errstate(invalid="ignore", over="ignore"):  # absurd poses land off the map, never warn
@@ -169,51 +167,38 @@ class LikelihoodField:
         point, enters an occupied cell, under every pose: ``(N, M)``.
 
         Few segments are sampled every half cell (the samples are the same base-frame points under every
-        pose: one look-up); many are walked by sphere tracing (`_crossings_traced`), which costs a few
-        steps per segment in open space instead of one per half cell.
+        pose); many are walked by sphere tracing, which costs a few steps per segment in open space instead
+        of one per half cell. Both walks are compiled loops that stop at a segment's first occupied cell, with
+        the arithmetic of the numpy versions they replaced (float32 for the samples, as `distances`), so they
+        answer the same.
         """
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         n = np.asarray(poses).reshape(-1, 3).shape[0]
+        crossed = np.zeros((n, pts.shape[0]), dtype=bool)
         if pts.shape[0] == 0 or n == 0:
-            return np.zeros((n, pts.shape[0]), dtype=bool)
+            return crossed
         start = np.asarray(start_xy, dtype=np.float64).reshape(1, 2)
         ray = pts - start
         length = np.hypot(ray[:, 0], ray[:, 1])
         reach = np.maximum(length - stop_short_m, 0.0)
         samples = max(2, math.ceil(float(reach.max()) / (0.5 * self.map.resolution_m)) + 1)
-        if n * pts.shape[0] * samples > DENSE_LOOKUPS:
-            return self._crossings_traced(poses, start[0], ray, length, reach)
-        scale = np.divide(reach, length, out=np.zeros_like(length), where=length > 0)
-        frac = np.linspace(0.0, 1.0, samples)[None, :, None]
-        along = start[:, None, :] + (scale[:, None, None] * frac) * ray[:, None, :]
-        inside = self.distances(poses, along.reshape(-1, 2)).reshape(n, pts.shape[0], samples) <= 0.0
-        return np.asarray(inside.any(axis=2), dtype=bool)
-
-    def _crossings_traced(self, poses: FloatArray, start: FloatArray, ray: FloatArray, length: FloatArray,
-                          reach: FloatArray) -> NDArray[np.bool_]:
-        """`crossings` by sphere tracing: from a point whose cell is ``d`` from the nearest occupied cell centre,
-        nothing occupied lies within ``d − res·√2``, so every segment jumps that far (at least half a cell)."""
         g = self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
-        n, m = g.shape[0], ray.shape[0]
-        c, s = np.cos(g[:, 2])[:, None], np.sin(g[:, 2])[:, None]
-        x0 = ((g[:, 0:1] + c * start[0] - s * start[1]) + np.zeros((1, m))).ravel()
-        y0 = ((g[:, 1:2] + s * start[0] + c * start[1]) + np.zeros((1, m))).ravel()
-        unit = np.divide(ray, length[:, None], out=np.zeros_like(ray), where=length[:, None] > 0)
-        ux, uy = (c * unit[:, 0] - s * unit[:, 1]).ravel(), (s * unit[:, 0] + c * unit[:, 1]).ravel()
-        end = np.broadcast_to(reach, (n, m)).ravel()
-        res = self.map.resolution_m
-        margin, least = res * math.sqrt(2.0), 0.5 * res
-        crossed = np.zeros(n * m, dtype=bool)
-        t = np.zeros(n * m)
-        live = np.arange(n * m)
-        while live.size:
-            tl = t[live]
-            d = self._dist_flat[self._flat_index(x0[live] + ux[live] * tl, y0[live] + uy[live] * tl)]
-            inside = d <= 0.0
-            crossed[live[inside]] = True
-            t[live] = np.minimum(tl + np.maximum(d - margin, least), end[live])
-            live = live[~inside & (tl < end[live])]  # one last look exactly at the end, then stop
-        return crossed.reshape(n, m)
+        h, w = self.map.height, self.map.width
+        if n * pts.shape[0] * samples > DENSE_LOOKUPS:
+            c, s = np.cos(g[:, 2])[:, None], np.sin(g[:, 2])[:, None]
+            x0 = (g[:, 0:1] + c * start[0, 0] - s * start[0, 1]) + np.zeros((1, pts.shape[0]))
+            y0 = (g[:, 1:2] + s * start[0, 0] + c * start[0, 1]) + np.zeros((1, pts.shape[0]))
+            unit = np.divide(ray, length[:, None], out=np.zeros_like(ray), where=length[:, None] > 0)
+            ux, uy = c * unit[:, 0] - s * unit[:, 1], s * unit[:, 0] + c * unit[:, 1]
+            res = self.map.resolution_m
+            _traced(self._dist_flat, (h, w), 1.0 / res, (res * math.sqrt(2.0), 0.5 * res),
+                    (x0, y0, ux, uy), reach, crossed)
+            return crossed
+        scale = np.divide(reach, length, out=np.zeros_like(length), where=length > 0)
+        frac = np.linspace(0.0, 1.0, samples)
+        _sampled(self._dist_flat, (h, w), np.float32(1.0 / self.map.resolution_m), _float32_frames(g),
+                 (start[0, 0], start[0, 1]), (ray, scale, frac), crossed)
+        return crossed
 
     def agreement(self, poses: FloatArray, points: FloatArray) -> FloatArray:
         """Fraction of end points within ``agreement_tolerance_m`` of an obstacle, per pose (0 for no points).
@@ -236,6 +221,78 @@ class LikelihoodField:
         rows, cols = np.nonzero(occ & ~interior)
         x, y = self.map.cell_to_world(rows, cols)
         return np.column_stack([x, y])
+
+
+F32 = NDArray[np.float32]
+#: (cos, sin, x, y) of grid-frame poses in float32.
+Float32Frames = tuple[F32, F32, F32, F32]
+
+
+def _float32_frames(grid_poses: FloatArray) -> Float32Frames:
+    """(cos, sin, x, y) of grid-frame poses ``(N, 3)`` in float32: what every point is turned and moved by."""
+    with np.errstate(invalid="ignore", over="ignore"):  # absurd poses land off the map, never warn
+        return (np.cos(grid_poses[:, 2]).astype(np.float32), np.sin(grid_poses[:, 2]).astype(np.float32),
+                grid_poses[:, 0].astype(np.float32), grid_poses[:, 1].astype(np.float32))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _occupied(dist_flat: FloatArray, shape: tuple[int, int], inv: float | np.float32, x: float | np.float32,
+              y: float | np.float32) -> float:  # pragma: no cover  compiled by numba
+    """The clipped distance at a grid-frame point (`LikelihoodField._flat_index` for one point, in the point's own
+    precision: ``inv`` is float32 for float32 points); off the map and NaN land on the border."""
+    height, width = shape
+    col = np.floor(x * inv)  # a float (math.floor's integer has no NaN or infinity)
+    row = np.floor(y * inv)
+    col = -1.0 if not col >= -1.0 else min(col, float(width))
+    row = -1.0 if not row >= -1.0 else min(row, float(height))
+    return float(dist_flat[(int(row) + 1) * (width + 2) + int(col) + 1])
+
+
+@njit(cache=True, nogil=True)
+def _traced(dist_flat: FloatArray, shape: tuple[int, int], inv: float, steps: tuple[float, float],  # noqa: PLR0917  one compiled loop
+            rays: tuple[FloatArray, FloatArray, FloatArray, FloatArray], reach: FloatArray,
+            crossed: NDArray[np.bool_]) -> None:  # pragma: no cover  compiled by numba
+    """Sphere tracing of every segment (pose ``i``, point ``j``) from ``(x0, y0)`` along ``(ux, uy)`` up to
+    ``reach[j]``: from a point ``d`` from the nearest occupied cell centre, nothing occupied lies within
+    ``d − margin`` (``steps``: the margin, a cell's diagonal, and the least step, half a cell)."""
+    x0, y0, ux, uy = rays
+    margin, least = steps
+    for i in range(x0.shape[0]):
+        for j in range(x0.shape[1]):
+            end = reach[j]
+            t = 0.0
+            while True:
+                d = _occupied(dist_flat, shape, inv, x0[i, j] + ux[i, j] * t, y0[i, j] + uy[i, j] * t)
+                if d <= 0.0:
+                    crossed[i, j] = True
+                    break
+                if not t < end:  # one last look exactly at the end, then stop
+                    break
+                t = min(t + max(d - margin, least), end)
+
+
+@njit(cache=True, nogil=True)
+def _sampled(dist_flat: FloatArray, shape: tuple[int, int], inv: np.float32,  # noqa: PLR0917  one compiled loop
+             frames: Float32Frames,
+             start: tuple[float, float], segments: tuple[FloatArray, FloatArray, FloatArray],
+             crossed: NDArray[np.bool_]) -> None:  # pragma: no cover  compiled by numba
+    """Every segment sampled at the fractions ``frac`` of its reach (``segments``: each point's ray from
+    ``start``, its reach over its length, and the fractions), each sample turned into every pose's grid frame in
+    float32; a segment is crossed at its first sample in an occupied cell."""
+    c, s, gx0, gy0 = frames
+    ray, scale, frac = segments
+    for j in range(ray.shape[0]):
+        for k in range(frac.shape[0]):
+            along = scale[j] * frac[k]
+            px = np.float32(start[0] + along * ray[j, 0])
+            py = np.float32(start[1] + along * ray[j, 1])
+            for i in range(c.shape[0]):
+                if crossed[i, j]:
+                    continue
+                gx = c[i] * px - s[i] * py + gx0[i]
+                gy = s[i] * px + c[i] * py + gy0[i]
+                if _occupied(dist_flat, shape, inv, gx, gy) <= 0.0:
+                    crossed[i, j] = True
 
 
 __all__ = ["FieldParams", "LikelihoodField"]

@@ -17,9 +17,9 @@ ROOT = Path(__file__).resolve().parents[3]
 
 
 def numpy_caster():
-    """`benchmarks/baseline_raycast.py`'s `NumpyGridCaster`: the traversal before the compiled walk."""
-    spec = importlib.util.spec_from_file_location("baseline_raycast_under_test",
-                                                  ROOT / "benchmarks" / "baseline_raycast.py")
+    """`benchmarks/numpy_baselines.py`'s `NumpyGridCaster`: the traversal before the compiled walk."""
+    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test",
+                                                  ROOT / "benchmarks" / "numpy_baselines.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

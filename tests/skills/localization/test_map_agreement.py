@@ -3,7 +3,9 @@ space; the walk along each beam done two ways that agree."""
 
 from __future__ import annotations
 
+import importlib.util
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -89,6 +91,31 @@ def test_walking_and_sampling_the_beams_agree(monkeypatch: pytest.MonkeyPatch) -
     traced = field.crossings(poses, (0.1, 0.0), points, 0.2)
     assert sampled.shape == traced.shape == (20, 90) and 0.2 < sampled.mean() < 0.9
     assert np.mean(sampled != traced) < 0.01  # a corner clipped between two samples, at most
+
+
+@pytest.mark.parametrize("walk", ["sampled", "traced"])
+def test_the_compiled_walks_answer_as_the_numpy_ones_did(walk: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same booleans as `benchmarks/numpy_baselines.py`'s numpy `crossings`, which keeps every seeded run (its
+    map agreement, global search and lost checks) what it was, on poses on and off the map, NaN and absurd."""
+    path = Path(__file__).resolve().parents[3] / "benchmarks" / "numpy_baselines.py"
+    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test", path)
+    assert spec is not None and spec.loader is not None
+    baselines = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(baselines)
+    world = load_world("studio")
+    ours, before = LikelihoodField(world.map), baselines.NumpyCrossingsField(world.map)
+    lookups = 10**12 if walk == "sampled" else 0
+    monkeypatch.setattr(likelihood_field, "DENSE_LOOKUPS", lookups)
+    monkeypatch.setattr(baselines, "DENSE_LOOKUPS", lookups)
+    rng = np.random.default_rng(7)
+    for n, m in ((1, 90), (7, 360), (40, 30), (3, 1)):
+        poses = np.column_stack([rng.uniform(-2, 11, n), rng.uniform(-4, 10, n), rng.uniform(-4, 4, n)])
+        poses[0] = (1e12, math.nan, 0.5) if m == 30 else poses[0]
+        points = rng.uniform(-9, 9, (m, 2))
+        for start, stop in (((0.1, 0.0), 0.2), ((0.0, 0.0), 0.0)):
+            got = ours.crossings(poses, start, points, stop)
+            np.testing.assert_array_equal(got, before.crossings(poses, start, points, stop))
+            assert 0.0 < got.mean() < 1.0  # both kinds of segment, or the comparison proves little
 
 
 def test_an_empty_scan_and_bad_parameters() -> None:

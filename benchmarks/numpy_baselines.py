@@ -1,8 +1,11 @@
-"""The baseline of the simulator's ray casts: the numpy traversal `atemr.io.sim.raycast.GridCaster` replaced.
+"""The numpy versions of the loops issue 22 compiled, as they were, as the baselines of the compiled ones.
 
-Kept verbatim (only renamed) for two uses: ``benchmarks/bench_sim.py`` measures the compiled walk against it,
-and ``tests/io/sim/test_raycast.py`` checks that the two answer with the same bits (distances, cells and
-faces), which is what keeps every seeded run the same as before the change.
+* `NumpyGridCaster`: the simulator's grid ray traversal that `atemr.io.sim.raycast.GridCaster` replaced;
+* `NumpyCrossingsField`: the likelihood field with the numpy `crossings` (map agreement's "does this beam pass
+  through a wall") that `atemr.skills.localization.likelihood_field` replaced.
+
+Kept verbatim (only renamed) for two uses: the benchmarks measure the compiled loops against them, and the
+tests check that the two answer with the same bits, which is what keeps every seeded run the same as before.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from atemr.io.sim.raycast import FloatArray, GridHits
+from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField
 
 #: Crossings processed per chunk (per axis), after each jump over empty space.
 CHUNK = 16
@@ -168,3 +172,59 @@ class NumpyGridCaster:
         hit_row[got] = cand_flat[got] // stride - 1
         hit_col[got] = cand_flat[got] % stride - 1
         return GridHits(dist, hit_row, hit_col, side)
+
+
+class NumpyCrossingsField(LikelihoodField):
+    """`LikelihoodField` with its ``crossings`` as numpy computed them before the compiled walks."""
+
+    def crossings(self, poses: FloatArray, start_xy: tuple[float, float], points: FloatArray,
+                  stop_short_m: float) -> NDArray[np.bool_]:
+        """Whether the segment from ``start_xy`` to each base-frame point, ending ``stop_short_m`` before the
+        point, enters an occupied cell, under every pose: ``(N, M)``.
+
+        Few segments are sampled every half cell (the samples are the same base-frame points under every
+        pose: one look-up); many are walked by sphere tracing (`_crossings_traced`), which costs a few
+        steps per segment in open space instead of one per half cell.
+        """
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        n = np.asarray(poses).reshape(-1, 3).shape[0]
+        if pts.shape[0] == 0 or n == 0:
+            return np.zeros((n, pts.shape[0]), dtype=bool)
+        start = np.asarray(start_xy, dtype=np.float64).reshape(1, 2)
+        ray = pts - start
+        length = np.hypot(ray[:, 0], ray[:, 1])
+        reach = np.maximum(length - stop_short_m, 0.0)
+        samples = max(2, math.ceil(float(reach.max()) / (0.5 * self.map.resolution_m)) + 1)
+        if n * pts.shape[0] * samples > DENSE_LOOKUPS:
+            return self._crossings_traced(poses, start[0], ray, length, reach)
+        scale = np.divide(reach, length, out=np.zeros_like(length), where=length > 0)
+        frac = np.linspace(0.0, 1.0, samples)[None, :, None]
+        along = start[:, None, :] + (scale[:, None, None] * frac) * ray[:, None, :]
+        inside = self.distances(poses, along.reshape(-1, 2)).reshape(n, pts.shape[0], samples) <= 0.0
+        return np.asarray(inside.any(axis=2), dtype=bool)
+
+    def _crossings_traced(self, poses: FloatArray, start: FloatArray, ray: FloatArray, length: FloatArray,
+                          reach: FloatArray) -> NDArray[np.bool_]:
+        """`crossings` by sphere tracing: from a point whose cell is ``d`` from the nearest occupied cell centre,
+        nothing occupied lies within ``d − res·√2``, so every segment jumps that far (at least half a cell)."""
+        g = self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
+        n, m = g.shape[0], ray.shape[0]
+        c, s = np.cos(g[:, 2])[:, None], np.sin(g[:, 2])[:, None]
+        x0 = ((g[:, 0:1] + c * start[0] - s * start[1]) + np.zeros((1, m))).ravel()
+        y0 = ((g[:, 1:2] + s * start[0] + c * start[1]) + np.zeros((1, m))).ravel()
+        unit = np.divide(ray, length[:, None], out=np.zeros_like(ray), where=length[:, None] > 0)
+        ux, uy = (c * unit[:, 0] - s * unit[:, 1]).ravel(), (s * unit[:, 0] + c * unit[:, 1]).ravel()
+        end = np.broadcast_to(reach, (n, m)).ravel()
+        res = self.map.resolution_m
+        margin, least = res * math.sqrt(2.0), 0.5 * res
+        crossed = np.zeros(n * m, dtype=bool)
+        t = np.zeros(n * m)
+        live = np.arange(n * m)
+        while live.size:
+            tl = t[live]
+            d = self._dist_flat[self._flat_index(x0[live] + ux[live] * tl, y0[live] + uy[live] * tl)]
+            inside = d <= 0.0
+            crossed[live[inside]] = True
+            t[live] = np.minimum(tl + np.maximum(d - margin, least), end[live])
+            live = live[~inside & (tl < end[live])]  # one last look exactly at the end, then stop
+        return crossed.reshape(n, m)
