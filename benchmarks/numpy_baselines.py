@@ -2,7 +2,9 @@
 
 * `NumpyGridCaster`: the simulator's grid ray traversal that `atemr.io.sim.raycast.GridCaster` replaced;
 * `NumpyCrossingsField`: the likelihood field with the numpy `crossings` (map agreement's "does this beam pass
-  through a wall") that `atemr.skills.localization.likelihood_field` replaced.
+  through a wall") that `atemr.skills.localization.likelihood_field` replaced;
+* `NumpyMarkLayer`: the depth camera's voxel layer with the numpy ``_mark`` (which voxels a frame's points fill)
+  that `atemr.skills.nav.voxel_layer` replaced.
 
 Kept verbatim (only renamed) for two uses: the benchmarks measure the compiled loops against them, and the
 tests check that the two answer with the same bits, which is what keeps every seeded run the same as before.
@@ -17,7 +19,9 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from atemr.io.sim.raycast import FloatArray, GridHits
+from atemr.msgs import DepthImage, LaserScan
 from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField
+from atemr.skills.nav.voxel_layer import VoxelLayer
 
 #: Crossings processed per chunk (per axis), after each jump over empty space.
 CHUNK = 16
@@ -228,3 +232,29 @@ class NumpyCrossingsField(LikelihoodField):
             t[live] = np.minimum(tl + np.maximum(d - margin, least), end[live])
             live = live[~inside & (tl < end[live])]  # one last look exactly at the end, then stop
         return crossed.reshape(n, m)
+
+
+class NumpyMarkLayer(VoxelLayer):
+    """`VoxelLayer` with its ``_mark`` as numpy computed it before the compiled loop."""
+
+    def _mark(self, image: DepthImage, frame: tuple[float, float, float, float], scan: LaserScan | None
+              ) -> NDArray[np.int32]:
+        """Set the voxels that hold at least ``min_points`` of the frame's points within ``mark_range_m``, away from
+        the map's and the lidar's obstacles; returns their flat indices."""
+        p = self.params
+        pts = self._projector.points(image)
+        origin = self._projector.origin
+        plan_sq = (pts[:, 0] - origin[0]) ** 2 + (pts[:, 1] - origin[1]) ** 2
+        near = plan_sq <= np.float32(p.mark_range_m ** 2)
+        flat, inside = self._flat(pts[near], frame)
+        flat = flat[inside]
+        match = np.maximum(np.float32(self._min_match), np.float32(p.wall_match_m) + np.float32(p.wall_match_per_m)
+                           * np.sqrt(plan_sq[near][inside]))
+        flat = flat[self._static_flat[flat // p.layers] > match]
+        if scan is not None and len(flat):
+            flat = flat[~self._lidar_sees(flat // p.layers, scan, frame)]
+        if len(flat) and p.min_points > 1:
+            voxels, counts = np.unique(flat, return_counts=True)
+            flat = voxels[counts >= p.min_points]
+        self._voxels_flat[flat] = True
+        return flat

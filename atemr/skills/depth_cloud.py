@@ -82,11 +82,21 @@ class DepthProjector:
         """The camera's optical centre in the base frame (of the last image)."""
         return self._origin
 
+    def rays(self, image: DepthImage) -> F32:
+        """Each (strided) pixel's ray in the base frame, row-major: a point is its ray times its depth, plus
+        `origin`."""
+        self._prepare(image)
+        return self._rays_base
+
+    def strided(self, image: DepthImage) -> F32:
+        """The depths of the pixels `rays` describes, row-major."""
+        out: F32 = image.depth_m[::self.stride, ::self.stride].ravel()
+        return out
+
     def points(self, image: DepthImage) -> F32:
         """Base-frame points (N, 3) of the valid pixels (depth within the image's range; 0 and NaN dropped)."""
         self._prepare(image)
-        s = self.stride
-        depth = image.depth_m[::s, ::s].ravel()
+        depth = self.strided(image)
         valid = (depth >= image.range_min_m) & (depth <= image.range_max_m)  # NaN compares False
         if not valid.all():
             depth = depth[valid]

@@ -48,6 +48,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
 
@@ -293,15 +294,18 @@ class VoxelLayer:
         """Set the voxels that hold at least ``min_points`` of the frame's points within ``mark_range_m``, away from
         the map's and the lidar's obstacles; returns their flat indices."""
         p = self.params
-        pts = self._projector.points(image)
-        origin = self._projector.origin
-        plan_sq = (pts[:, 0] - origin[0]) ** 2 + (pts[:, 1] - origin[1]) ** 2
-        near = plan_sq <= np.float32(p.mark_range_m ** 2)
-        flat, inside = self._flat(pts[near], frame)
-        flat = flat[inside]
-        match = np.maximum(np.float32(self._min_match), np.float32(p.wall_match_m) + np.float32(p.wall_match_per_m)
-                           * np.sqrt(plan_sq[near][inside]))
-        flat = flat[self._static_flat[flat // p.layers] > match]
+        rays, depth = self._projector.rays(image), self._projector.strided(image)
+        c, s, gx, gy = frame
+        found = np.empty(len(depth), dtype=np.int32)
+        count = _marks(
+            (depth, np.float32(image.range_min_m), np.float32(image.range_max_m)), (rays, self._projector.origin),
+            (np.float32(c), np.float32(s), np.float32(gx), np.float32(gy)),
+            (np.float32(1.0 / self.resolution_m), np.float32(p.floor_margin_m), np.float32(1.0 / p.z_resolution_m),
+             np.float32(p.mark_range_m ** 2)),
+            (self.shape[0], self.shape[1], p.layers),
+            (self._static_flat, np.float32(self._min_match), np.float32(p.wall_match_m),
+             np.float32(p.wall_match_per_m)), found)
+        flat = found[:count]
         if scan is not None and len(flat):
             flat = flat[~self._lidar_sees(flat // p.layers, scan, frame)]
         if len(flat) and p.min_points > 1:
@@ -391,6 +395,55 @@ class VoxelLayer:
             out.append(float(dist[mask].min()) if mask.any() else math.inf)
         side = (bearing > math.radians(60)) & (bearing < math.radians(120))
         return Clearance(out[0], out[1], float(dist[side].min()) if side.any() else math.inf)
+
+
+
+#: Four float32 numbers (a frame, or the scales `_marks` takes).
+Four32 = tuple[np.float32, np.float32, np.float32, np.float32]
+
+
+@njit(cache=True, nogil=True)
+def _marks(image: tuple[F32, np.float32, np.float32], camera: tuple[F32, F32], frame: Four32,  # noqa: PLR0917  one compiled loop
+           scales: Four32, dims: tuple[int, int, int], walls: tuple[F32, np.float32, np.float32, np.float32],
+           found: NDArray[np.int32]) -> int:  # pragma: no cover  compiled by numba
+    """The flat voxel index of every valid pixel's point within the mark range, inside the grid and farther from
+    the map's obstacles than its match distance, in pixel order, into ``found``; returns how many.
+
+    ``image``: the (strided) depths and their valid range; ``camera``: each pixel's base-frame ray and the
+    optical centre; ``frame``: base to grid frame (cos, sin, x, y); ``scales``: 1/cell, the floor margin,
+    1/layer height and the squared mark range; ``dims``: rows, columns, layers; ``walls``: each cell's distance
+    to the map's obstacles, and the match distance's floor, base and growth per metre. float32 throughout, as the
+    numpy pipeline before it (its points, `VoxelLayer._flat`'s truncation, the match test)."""
+    depth, lo, hi = image
+    rays, origin = camera
+    c, s, gx, gy = frame
+    inv_res, floor, inv_z, near_sq = scales
+    rows, cols, layers = dims
+    static, least, base, per_m = walls
+    one = np.float32(1.0)
+    count = 0
+    for i in range(depth.shape[0]):
+        d = depth[i]
+        if not (d >= lo and d <= hi):  # NaN compares False
+            continue
+        x = rays[i, 0] * d + origin[0]
+        y = rays[i, 1] * d + origin[1]
+        z = rays[i, 2] * d + origin[2]
+        ex = x - origin[0]
+        ey = y - origin[1]
+        plan_sq = ex * ex + ey * ey
+        if not plan_sq <= near_sq:
+            continue
+        col = np.int32((c * x - s * y + gx) * inv_res + one) - 1
+        row = np.int32((s * x + c * y + gy) * inv_res + one) - 1
+        layer = np.int32((z - floor) * inv_z + one) - 1
+        if not (0 <= row < rows and 0 <= col < cols and 0 <= layer < layers):
+            continue
+        flat = (row * cols + col) * layers + layer
+        if static[flat // layers] > max(least, base + per_m * np.sqrt(plan_sq)):
+            found[count] = flat
+            count += 1
+    return count
 
 
 __all__ = ["VoxelLayer", "VoxelLayerParams"]

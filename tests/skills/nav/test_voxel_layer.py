@@ -4,6 +4,7 @@ marked and cleared in a voxel grid over the costmap, projected to its cells and 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -215,3 +216,33 @@ def test_what_the_lidar_now_sees_through_is_cleared_above_its_plane_and_a_table_
     assert not ((np.abs(xy[:, 1] - 2.0) < 0.3) & (xy[:, 0] < 2.95)).any()  # its beams pass: gone at once
     assert (xy[:, 0] > 2.95).any()  # the lidar passes under the table top: still marked
     assert (np.abs(xy[:, 1] - 1.3) < 0.15).any()  # the shoe under the lidar's plane: still marked
+
+
+def test_the_compiled_marks_fill_the_voxels_the_numpy_ones_did() -> None:
+    """`benchmarks/numpy_baselines.py`'s numpy ``_mark`` and the compiled one fill the same voxels, frame after
+    frame round the studio, people and the cat included, with every pixel or every other one: a seeded run's
+    obstacles stay what they were."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[3] / "benchmarks" / "numpy_baselines.py"
+    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test", path)
+    assert spec is not None and spec.loader is not None
+    baselines = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(baselines)
+    sim = build_simulation("studio", 4, params=PARAMS)
+    rng = np.random.default_rng(4)
+    for stride in (1, 2):
+        params = replace(VoxelLayerParams.for_body(KAY), stride=stride)
+        ours = VoxelLayer(Costmap(sim.world.map), params)
+        before = baselines.NumpyMarkLayer(Costmap(sim.world.map), params)
+        marked = 0
+        for i in range(25):
+            x, y = float(rng.uniform(0.5, 9.0)), float(rng.uniform(-2.0, 8.0))
+            if sim.clearance_at(x, y).clearance_m <= 0.0:
+                continue
+            pose = Pose2D(x, y, float(rng.uniform(-math.pi, math.pi)))
+            image = sim.depth_camera.render(0.1 * i, pose, sim.scene, sim.movers)
+            assert ours.update(image, pose) == before.update(image, pose)
+            np.testing.assert_array_equal(ours.voxels, before.voxels)
+            marked = max(marked, int(ours.voxels.sum()))
+        assert marked > 0  # the studio's furniture, or the comparison proves little
