@@ -282,17 +282,16 @@ def _sampled(dist_flat: FloatArray, shape: tuple[int, int], inv: np.float32,  # 
     c, s, gx0, gy0 = frames
     ray, scale, frac = segments
     for j in range(ray.shape[0]):
-        for k in range(frac.shape[0]):
-            along = scale[j] * frac[k]
-            px = np.float32(start[0] + along * ray[j, 0])
-            py = np.float32(start[1] + along * ray[j, 1])
-            for i in range(c.shape[0]):
-                if crossed[i, j]:
-                    continue
+        for i in range(c.shape[0]):
+            for k in range(frac.shape[0]):
+                along = scale[j] * frac[k]
+                px = np.float32(start[0] + along * ray[j, 0])
+                py = np.float32(start[1] + along * ray[j, 1])
                 gx = c[i] * px - s[i] * py + gx0[i]
                 gy = s[i] * px + c[i] * py + gy0[i]
                 if _occupied(dist_flat, shape, inv, gx, gy) <= 0.0:
                     crossed[i, j] = True
+                    break
 
 
 __all__ = ["FieldParams", "LikelihoodField"]
