@@ -4,7 +4,9 @@
 * `NumpyCrossingsField`: the likelihood field with the numpy `crossings` (map agreement's "does this beam pass
   through a wall") that `atemr.skills.localization.likelihood_field` replaced;
 * `NumpyMarkLayer`: the depth camera's voxel layer with the numpy ``_mark`` (which voxels a frame's points fill)
-  that `atemr.skills.nav.voxel_layer` replaced.
+  that `atemr.skills.nav.voxel_layer` replaced;
+* `NumpyShapesDepthCamera`: the simulated depth camera with the numpy slab and cylinder tests of furniture,
+  people and pets that `atemr.io.sim.depth` replaced.
 
 Kept verbatim (only renamed) for two uses: the benchmarks measure the compiled loops against them, and the
 tests check that the two answer with the same bits, which is what keeps every seeded run the same as before.
@@ -18,6 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from atemr.io.sim.depth import F32, DepthCamera
+from atemr.io.sim.depth import _inverse as inverse_directions
 from atemr.io.sim.raycast import FloatArray, GridHits
 from atemr.msgs import DepthImage, LaserScan
 from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField
@@ -258,3 +262,72 @@ class NumpyMarkLayer(VoxelLayer):
             flat = voxels[counts >= p.min_points]
         self._voxels_flat[flat] = True
         return flat
+
+
+class NumpyShapesDepthCamera(DepthCamera):
+    """`DepthCamera` with its furniture and people hit by numpy slab and cylinder tests over pixel slices."""
+
+    def _hit_shapes(self, t_hit: F32, shapes: list[tuple[tuple[int, int], str, tuple[float, ...], tuple[float, float]]],
+                    origin: tuple[float, float, float], turn: tuple[float, float]) -> None:
+        """Lower ``t_hit`` (sorted pixels) to each shape's hits: (pixel span, "box" or "circle", its plan
+        outline, (bottom, top) heights). The rays are turned to the world and inverted only over the pixels
+        the shapes span, once for all of them."""
+        lo, hi = min(a for (a, _), *_ in shapes), max(b for (_, b), *_ in shapes)
+        c, s = np.float32(turn[0]), np.float32(turn[1])
+        d = self._dir[lo:hi]
+        dx = c * d[:, 0] - s * d[:, 1]
+        dy = s * d[:, 0] + c * d[:, 1]
+        dz = self._dz_safe[lo:hi]
+        inv: tuple[F32, F32, F32] | None = None
+        for (a, b), shape, outline, (bottom, top) in shapes:
+            i, j = a - lo, b - lo
+            if shape == "box":
+                if inv is None:  # inverse directions once per frame for every box's slab test
+                    inv = (inverse_directions(dx), inverse_directions(dy), self._inv_dz[lo:hi])
+                x0, y0, x1, y1 = outline
+                hit = numpy_box_hits(origin, (inv[0][i:j], inv[1][i:j], inv[2][i:j]), (x0, y0, bottom), (x1, y1, top))
+            else:
+                hit = numpy_cylinder_hits(origin, (dx[i:j], dy[i:j], dz[i:j]), outline, (bottom, top))
+            np.minimum(t_hit[a:b], hit, out=t_hit[a:b])
+
+
+def numpy_box_hits(origin: tuple[float, float, float], inv: tuple[F32, F32, F32], lo: tuple[float, float, float],
+              hi: tuple[float, float, float]) -> F32:
+    """Distance along each ray (given by its inverse direction, no component 0) to an axis-aligned box (slab
+    test); inf where it misses or lies behind."""
+    t_enter: F32 | None = None
+    t_exit: F32 | None = None
+    for o, inv_d, a, b in zip(origin, inv, lo, hi, strict=True):
+        t1 = np.float32(a - o) * inv_d
+        t2 = np.float32(b - o) * inv_d
+        near, far = np.minimum(t1, t2), np.maximum(t1, t2)
+        t_enter = near if t_enter is None else np.maximum(t_enter, near, out=t_enter)
+        t_exit = far if t_exit is None else np.minimum(t_exit, far, out=t_exit)
+    assert t_enter is not None and t_exit is not None
+    out: F32 = np.where((t_exit >= t_enter) & (t_enter > 0), t_enter, np.float32(np.inf))
+    return out
+
+
+def numpy_cylinder_hits(origin: tuple[float, float, float], rays: tuple[F32, F32, F32], circle: tuple[float, ...],
+                   heights: tuple[float, float]) -> F32:
+    """Distance along each ray to a vertical cylinder spanning ``heights`` (bottom, top), its side or its caps."""
+    ox, oy, oz = origin
+    dx, dy, dz = rays
+    bottom_m, top_m = heights
+    cx, cy, r = circle
+    fx, fy = np.float32(ox - cx), np.float32(oy - cy)
+    a = dx * dx + dy * dy
+    b = fx * dx + fy * dy
+    c = np.float32(fx * fx + fy * fy - r * r)
+    disc = b * b - a * c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_side = (-b - np.sqrt(np.maximum(disc, 0.0))) / a
+        z = oz + t_side * dz
+        side = np.where((disc >= 0) & (t_side >= 0) & (z >= bottom_m) & (z <= top_m), t_side, np.inf)
+        # the caps: the top seen from above, the bottom from below
+        cap_z = np.where(dz < 0, np.float32(top_m), np.float32(bottom_m))
+        t_cap = (cap_z - np.float32(oz)) / dz
+        hx, hy = fx + t_cap * dx, fy + t_cap * dy
+        cap = np.where((t_cap >= 0) & (hx * hx + hy * hy <= r * r) & (dz != 0), t_cap, np.inf)
+    out: F32 = np.minimum(side, cap).astype(np.float32)
+    return out

@@ -24,6 +24,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from atemr.errors import ConfigError
@@ -196,10 +197,10 @@ class DepthCamera:
                 if inv is None:  # inverse directions once per frame for every box's slab test
                     inv = (_inverse(dx), _inverse(dy), self._inv_dz[lo:hi])
                 x0, y0, x1, y1 = outline
-                hit = _box_hits(origin, (inv[0][i:j], inv[1][i:j], inv[2][i:j]), (x0, y0, bottom), (x1, y1, top))
+                _box_hits(_slabs(origin, (x0, y0, bottom), (x1, y1, top)), (inv[0][i:j], inv[1][i:j], inv[2][i:j]),
+                          t_hit[a:b])
             else:
-                hit = _cylinder_hits(origin, (dx[i:j], dy[i:j], dz[i:j]), outline, (bottom, top))
-            np.minimum(t_hit[a:b], hit, out=t_hit[a:b])
+                _cylinder_hits(_cylinder(origin, outline, (bottom, top)), (dx[i:j], dy[i:j], dz[i:j]), t_hit[a:b])
 
     def _slice(self, outline: tuple[float, float, float] | None, yaw: float,
                walls: NDArray[np.float64] | None = None) -> tuple[int, int] | None:
@@ -254,46 +255,62 @@ def _outline_azimuths(shape: str, params: tuple[float, ...], ox: float, oy: floa
     return math.atan2(cy - oy, cx - ox), math.asin(r / dist), dist - r
 
 
-def _box_hits(origin: tuple[float, float, float], inv: tuple[F32, F32, F32], lo: tuple[float, float, float],
-              hi: tuple[float, float, float]) -> F32:
-    """Distance along each ray (given by its inverse direction, no component 0) to an axis-aligned box (slab
-    test); inf where it misses or lies behind."""
-    t_enter: F32 | None = None
-    t_exit: F32 | None = None
-    for o, inv_d, a, b in zip(origin, inv, lo, hi, strict=True):
-        t1 = np.float32(a - o) * inv_d
-        t2 = np.float32(b - o) * inv_d
-        near, far = np.minimum(t1, t2), np.maximum(t1, t2)
-        t_enter = near if t_enter is None else np.maximum(t_enter, near, out=t_enter)
-        t_exit = far if t_exit is None else np.minimum(t_exit, far, out=t_exit)
-    assert t_enter is not None and t_exit is not None
-    out: F32 = np.where((t_exit >= t_enter) & (t_enter > 0), t_enter, np.float32(np.inf))
-    return out
+def _slabs(origin: tuple[float, float, float], lo: tuple[float, float, float], hi: tuple[float, float, float]
+           ) -> F32:
+    """A box's near and far faces on each axis, less the ray origin, as float32 (x lo, y lo, z lo, x hi, ...)."""
+    return np.array([np.float32(a - o) for a, o in zip(lo, origin, strict=True)]
+                    + [np.float32(b - o) for b, o in zip(hi, origin, strict=True)], dtype=np.float32)
 
 
-def _cylinder_hits(origin: tuple[float, float, float], rays: tuple[F32, F32, F32], circle: tuple[float, ...],
-                   heights: tuple[float, float]) -> F32:
-    """Distance along each ray to a vertical cylinder spanning ``heights`` (bottom, top), its side or its caps."""
+@njit(cache=True, nogil=True, error_model="numpy")
+def _box_hits(slabs: F32, inv: tuple[F32, F32, F32], t_hit: F32) -> None:  # pragma: no cover  compiled by numba
+    """Lower ``t_hit`` to the distance along each ray (given by its inverse direction, no component 0) to an
+    axis-aligned box (slab test; ``slabs`` from `_slabs`) where it meets the box ahead of the camera."""
+    for q in range(t_hit.shape[0]):
+        enter = -np.inf
+        leave = np.inf
+        for axis in range(3):
+            inv_d = inv[0][q] if axis == 0 else (inv[1][q] if axis == 1 else inv[2][q])
+            t1 = slabs[axis] * inv_d
+            t2 = slabs[axis + 3] * inv_d
+            enter = max(enter, min(t1, t2))
+            leave = min(leave, max(t1, t2))
+        if leave >= enter > 0:
+            t_hit[q] = min(t_hit[q], enter)
+
+
+def _cylinder(origin: tuple[float, float, float], circle: tuple[float, ...], heights: tuple[float, float]) -> F32:
+    """What `_cylinder_hits` needs of a vertical cylinder seen from ``origin``, as float32: the origin less the
+    centre (x, y), the quadratic's constant term, r², the origin's height, the bottom and the top."""
     ox, oy, oz = origin
-    dx, dy, dz = rays
-    bottom_m, top_m = heights
     cx, cy, r = circle
     fx, fy = np.float32(ox - cx), np.float32(oy - cy)
-    a = dx * dx + dy * dy
-    b = fx * dx + fy * dy
     c = np.float32(fx * fx + fy * fy - r * r)
-    disc = b * b - a * c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_side = (-b - np.sqrt(np.maximum(disc, 0.0))) / a
-        z = oz + t_side * dz
-        side = np.where((disc >= 0) & (t_side >= 0) & (z >= bottom_m) & (z <= top_m), t_side, np.inf)
-        # the caps: the top seen from above, the bottom from below
-        cap_z = np.where(dz < 0, np.float32(top_m), np.float32(bottom_m))
-        t_cap = (cap_z - np.float32(oz)) / dz
-        hx, hy = fx + t_cap * dx, fy + t_cap * dy
-        cap = np.where((t_cap >= 0) & (hx * hx + hy * hy <= r * r) & (dz != 0), t_cap, np.inf)
-    out: F32 = np.minimum(side, cap).astype(np.float32)
-    return out
+    return np.array([fx, fy, c, r * r, oz, heights[0], heights[1]], dtype=np.float32)
 
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _cylinder_hits(cylinder: F32, rays: tuple[F32, F32, F32],
+                   t_hit: F32) -> None:  # pragma: no cover  compiled by numba
+    """Lower ``t_hit`` to the distance along each ray to a vertical cylinder (``cylinder`` from `_cylinder`), its
+    side or its caps (the top seen from above, the bottom from below)."""
+    fx, fy, c, r_sq = cylinder[0], cylinder[1], cylinder[2], cylinder[3]
+    oz, bottom, top = cylinder[4], cylinder[5], cylinder[6]
+    dxs, dys, dzs = rays
+    zero = np.float32(0.0)
+    for q in range(t_hit.shape[0]):
+        dx, dy, dz = dxs[q], dys[q], dzs[q]
+        a = dx * dx + dy * dy
+        b = fx * dx + fy * dy
+        disc = b * b - a * c
+        t_side = (-b - np.sqrt(max(disc, zero))) / a
+        z = oz + t_side * dz
+        hit = t_side if disc >= 0 and t_side >= 0 and z >= bottom and z <= top else np.float32(np.inf)
+        t_cap = ((top if dz < 0 else bottom) - oz) / dz
+        hx = fx + t_cap * dx
+        hy = fy + t_cap * dy
+        if t_cap >= 0 and hx * hx + hy * hy <= r_sq and dz != 0:
+            hit = min(hit, t_cap)
+        t_hit[q] = min(t_hit[q], hit)
 
 __all__ = ["D415_MOUNT", "DepthCamera", "DepthCameraParams"]
