@@ -218,8 +218,7 @@ class VoxelLayer:
         rs, re, cs, ce = max(r0 - reach, 0), min(r0 + reach + 1, h), max(c0 - reach, 0), min(c0 + reach + 1, w)
         if rs >= re or cs >= ce or not self.columns[rs:re, cs:ce].any():
             return np.zeros(0, dtype=np.int32)
-        rows, cols, layers = np.nonzero(self.voxels[rs:re, cs:ce])
-        rows, cols = rows + rs, cols + cs
+        rows, cols, layers = self._marked_in((rs, re, cs, ce), (0, self.params.layers))
         # voxel centres: grid frame → base frame → optical frame
         ex = (cols + 0.5) * res - gx
         ey = (rows + 0.5) * res - gy
@@ -261,10 +260,9 @@ class VoxelLayer:
         rs, re, cs, ce = max(r0 - reach, 0), min(r0 + reach + 1, h), max(c0 - reach, 0), min(c0 + reach + 1, w)
         if rs >= re or cs >= ce or not self.columns[rs:re, cs:ce].any():
             return empty
-        rows, cols, layers = np.nonzero(self.voxels[rs:re, cs:ce, first:end])
+        rows, cols, layers = self._marked_in((rs, re, cs, ce), (first, end))
         if len(rows) == 0:
             return empty
-        rows, cols, layers = rows + rs, cols + cs, layers + first
         ex = (cols + 0.5) * res - lx
         ey = (rows + 0.5) * res - ly
         dist = np.hypot(ex, ey)
@@ -282,6 +280,20 @@ class VoxelLayer:
         flat = ((rows[through] * w + cols[through]) * p.layers + layers[through]).astype(np.int32)
         self._voxels_flat[flat] = False
         return flat
+
+    def _marked_in(self, box: tuple[int, int, int, int], band: tuple[int, int]
+                   ) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+        """Row, column and layer of every marked voxel of the cells ``box`` (rows rs:re, columns cs:ce) and the
+        layers ``band``, in C order (what ``np.nonzero`` of that block gives). Only the marked columns are looked
+        into: a column holds a marked voxel only if `columns` says so (between updates they agree; during one,
+        clearing may leave a column up whose voxels are gone), and most of a 6 m window is empty."""
+        rs, re, cs, ce = box
+        first, end = band
+        col_rows, col_cols = np.nonzero(self.columns[rs:re, cs:ce])
+        col_rows += rs
+        col_cols += cs
+        which, layers = np.nonzero(self.voxels[col_rows, col_cols, first:end])
+        return col_rows[which], col_cols[which], layers + first
 
     def _rotation(self, image: DepthImage) -> NDArray[np.float64]:
         """The camera's optical → base rotation (cached per mount)."""

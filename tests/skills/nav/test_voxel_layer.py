@@ -246,3 +246,24 @@ def test_the_compiled_marks_fill_the_voxels_the_numpy_ones_did() -> None:
             np.testing.assert_array_equal(ours.voxels, before.voxels)
             marked = max(marked, int(ours.voxels.sum()))
         assert marked > 0  # the studio's furniture, or the comparison proves little
+
+
+def test_the_marked_voxels_of_a_window_come_in_the_order_of_a_full_search(tmp_path) -> None:
+    """Clearing looks only into the marked columns of its window; it must find every marked voxel, in the order
+    ``np.nonzero`` of the whole block gives (the order the cleared voxels are counted and kept in), also while a
+    column is still up whose voxels a first clearing emptied."""
+    layer = new_layer(world(tmp_path))
+    rng = np.random.default_rng(5)
+    layer.voxels[:] = rng.random(layer.voxels.shape) < 0.01
+    layer.columns[:] = layer.voxels.any(axis=2)
+    layer.columns[3, 4] = True  # up, with nothing in it
+    layer.voxels[3, 4] = False
+    found = []
+    for box, band in (((0, 80, 0, 120), (0, layer.params.layers)), ((10, 50, 20, 90), (2, 5)), ((2, 6, 3, 8), (0, 3))):
+        rs, re, cs, ce = box
+        want = np.nonzero(layer.voxels[rs:re, cs:ce, band[0]:band[1]])
+        got = layer._marked_in(box, band)
+        for a, b, offset in zip(got, want, (rs, cs, band[0]), strict=True):
+            np.testing.assert_array_equal(a, b + offset)
+        found.append(len(got[0]))
+    assert found[0] > 1000 and found[1] > 50  # blocks with plenty in them, not only empty ones
