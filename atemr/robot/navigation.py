@@ -25,7 +25,7 @@ from atemr.robot.navigator_port import NavigatorPort
 from atemr.skills.localization.pipeline import LocalizationPipeline
 from atemr.skills.motion_pipeline import TimedClearance
 from atemr.skills.nav.navigator import Navigator, NavMap, NavParams
-from atemr.skills.nav.voxel_layer import VoxelLayer, VoxelLayerParams
+from atemr.skills.nav.voxel_layer import VoxelLayer, VoxelLayerParams, load_compiled
 
 
 class RobotNavigation(NavigatorPort):
@@ -49,6 +49,7 @@ class RobotNavigation(NavigatorPort):
         maps.add_map_user(self)
         if depth is not None and depth_layer is not None:
             depth.subscribe(self.on_depth)
+            load_compiled()  # the layer is built at the first frame, on the robot's thread: its loop is ready now
 
     def on_depth(self, image: DepthImage) -> None:
         """A depth frame into the layer at the localized pose (nothing before a map and a pose)."""

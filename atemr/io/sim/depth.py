@@ -20,6 +20,7 @@ generator draws it.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -130,6 +131,7 @@ class DepthCamera:
         self._floor_t = np.where(dz < 0, -p.mount.z_m * self._inv_dz, np.inf).astype(np.float32)
         self._ceiling_t: dict[float, F32] = {}
         self._reach = math.hypot(p.range_max_m, p.mount.z_m) + 0.5
+        load_compiled()
 
     def render(self, t: float, pose: Pose2D, scene: Scene, movers: Movers | None = None) -> DepthImage:
         """The depth image seen from the robot at ``pose`` (true pose: the simulator's)."""
@@ -253,6 +255,16 @@ def _outline_azimuths(shape: str, params: tuple[float, ...], ox: float, oy: floa
     if dist <= r:
         return None
     return math.atan2(cy - oy, cx - ox), math.asin(r / dist), dist - r
+
+
+@functools.cache
+def load_compiled() -> None:
+    """Compile (a checkout's first run) or load (from numba's cache) the shape tests when the first camera is
+    built, not at the first frame with a chair in it: the calls have the argument types of `_hit_shapes`'s (a test
+    checks that a running robot has one compiled version of each loop)."""
+    rays = (np.ones(1, dtype=np.float32), np.ones(1, dtype=np.float32), np.ones(1, dtype=np.float32))
+    _box_hits(np.ones(6, dtype=np.float32), rays, np.ones(1, dtype=np.float32))
+    _cylinder_hits(np.ones(7, dtype=np.float32), rays, np.ones(1, dtype=np.float32))
 
 
 def _slabs(origin: tuple[float, float, float], lo: tuple[float, float, float], hi: tuple[float, float, float]

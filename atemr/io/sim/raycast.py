@@ -15,6 +15,7 @@ All distances are in metres; the grid frame is the map's (see `atemr.domain.maps
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -63,6 +64,7 @@ class GridCaster:
         #: Distance from each cell's centre to the nearest blocked cell's centre, in cells (inf: none).
         self.clearance_cells = (ndimage.distance_transform_edt(~blocked).astype(np.float64) if blocked.any()
                                 else np.full(blocked.shape, np.inf))
+        load_compiled()
 
     def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray,
              max_range_m: float | FloatArray) -> GridHits:
@@ -184,6 +186,17 @@ def walk_rays(flat: NDArray[np.bool_], stride: int, width: int, height: int,  # 
             hit_row[i] = -1
             hit_col[i] = -1
             side[i] = -1
+
+
+@functools.cache
+def load_compiled() -> None:
+    """Compile (a checkout's first run) or load (from numba's cache) the walk when the first caster is built, not
+    at the robot's first scan: the call has the argument types of `GridCaster.cast`'s, so it is the one the ticks
+    use (a test checks that a running robot has one compiled version of each loop)."""
+    flat = np.zeros(9, dtype=np.bool_)  # one empty cell and its border
+    out = (np.empty(1), np.empty(1, dtype=np.intp), np.empty(1, dtype=np.intp), np.empty(1, dtype=np.int8))
+    walk_rays(flat, 3, 1, 1, 0.5, 0.5, np.ones(1), np.full(1, 1e-12), np.ones(1), np.full(1, 1e12), np.ones(1), 1.0,
+              *out)
 
 
 def cast_grid(

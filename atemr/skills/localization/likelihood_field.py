@@ -14,6 +14,7 @@ operator understands ("72 % of the scan matches the map") and the covariance mon
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -86,6 +87,7 @@ class LikelihoodField:
         o = grid.origin
         self._origin = np.array([o.x_m, o.y_m, o.yaw_rad])
         self.log_p_max = float(self._log_p.max())
+        load_compiled()
 
     # -- look-ups ----------------------------------------------------------------------------------
     def _flat_index(self, gx: NDArray[np.floating[Any]], gy: NDArray[np.floating[Any]]) -> NDArray[np.intp]:
@@ -226,6 +228,21 @@ class LikelihoodField:
 F32 = NDArray[np.float32]
 #: (cos, sin, x, y) of grid-frame poses in float32.
 Float32Frames = tuple[F32, F32, F32, F32]
+
+
+@functools.cache
+def load_compiled() -> None:
+    """Compile (a checkout's first run) or load (from numba's cache) both walks of `LikelihoodField.crossings` when
+    the first field is built, not in the middle of the robot's first scan: the calls have the argument types of
+    the method's (a test checks that a running robot has one compiled version of each)."""
+    field = np.zeros(9)  # one occupied cell and its border
+    crossed = np.zeros((1, 1), dtype=np.bool_)
+    one = np.ones((1, 1))
+    _traced(field, (1, 1), 1.0, (1.0, 0.5), (one, one, one, one), np.ones(1), crossed)
+    ray = np.ones((1, 2))
+    f32 = np.ones(1, dtype=np.float32)
+    _sampled(field, (1, 1), np.float32(1.0), (f32, f32, f32, f32), (ray[0, 0], ray[0, 1]),
+             (ray, np.ones(1), np.ones(2)), crossed)
 
 
 def _float32_frames(grid_poses: FloatArray) -> Float32Frames:

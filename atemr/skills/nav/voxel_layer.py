@@ -44,6 +44,7 @@ All of it vectorised numpy over the frame's pixels, no loop per point or ray; no
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -140,6 +141,7 @@ class VoxelLayer:
         #: Distance from each cell to the map's obstacles: points this near one (by range) are that obstacle.
         self._static_flat = costmap.static_distance_at(xs, ys).astype(np.float32).reshape(-1)
         self._min_match = max(p.wall_match_m, 1.5 * self.resolution_m)
+        load_compiled()
         self._clears_seen = costmap.clears
 
     def obstacle_points(self) -> NDArray[np.float64]:
@@ -408,6 +410,16 @@ class VoxelLayer:
         side = (bearing > math.radians(60)) & (bearing < math.radians(120))
         return Clearance(out[0], out[1], float(dist[side].min()) if side.any() else math.inf)
 
+
+
+@functools.cache
+def load_compiled() -> None:
+    """Compile (a checkout's first run) or load (from numba's cache) `_marks` when the first layer is built, not at
+    the robot's first depth frame: the call has the argument types of `VoxelLayer._mark`'s (a test checks that a
+    running robot has one compiled version of each loop)."""
+    one, f32 = np.float32(1.0), np.ones(1, dtype=np.float32)
+    _marks((f32, one, one), (np.ones((1, 3), dtype=np.float32), np.ones(3, dtype=np.float32)), (one, one, one, one),
+           (one, one, one, one), (1, 1, 1), (f32, one, one, one), np.empty(1, dtype=np.int32))
 
 
 #: Four float32 numbers (a frame, or the scales `_marks` takes).

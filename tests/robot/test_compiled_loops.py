@@ -1,0 +1,50 @@
+"""The compiled loops (numba) are ready before the robot's first tick, for the very calls its ticks make.
+
+Each module compiles or loads its loops when its part is built (`load_compiled`), with the argument types of the
+calls the robot makes later. If those types drifted apart (a float64 image where the camera gives float32, a
+read-only array), numba would compile a second version in the middle of a tick: a stall of half a second or more
+on a checkout's first run. A fresh process is the only place where "no second version" means anything, so the
+robot runs in one.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+PROBE = """
+import json
+import numpy as np
+from atemr.config import load_config
+from atemr.io.sim import depth, raycast
+from atemr.msgs import Twist
+from atemr.robot.core import Ticker
+from atemr.robot.headless import build_headless_robot
+from atemr.skills.localization import likelihood_field
+from atemr.skills.nav import voxel_layer
+
+loops = {"walk_rays": raycast.walk_rays, "traced": likelihood_field._traced, "sampled": likelihood_field._sampled,
+         "marks": voxel_layer._marks, "box_hits": depth._box_hits, "cylinder_hits": depth._cylinder_hits}
+robot = build_headless_robot(load_config(environ={}, overrides={"sim.camera_hz": 10.0, "sim.seed": 2}))
+built = {name: len(loop.signatures) for name, loop in loops.items()}
+inputs = robot.parts.inputs
+robot.add(Ticker("test.joystick", lambda now: inputs.operate(Twist(0.3, 0.4), now)), 10.0)
+robot.start()
+robot.scheduler.run(duration=15.0)
+# The global search's walk (many poses) as FIND POSITION makes it, on the robot's own field.
+field = robot.parts.localization.localizer.field
+rng = np.random.default_rng(0)
+poses = np.column_stack([rng.uniform(0, 9, 3000), rng.uniform(-2, 8, 3000), rng.uniform(-3, 3, 3000)])
+field.crossings(poses, (0.1, 0.0), rng.uniform(-5, 5, (90, 2)), 0.1)
+ran = {name: len(loop.signatures) for name, loop in loops.items()}
+robot.shutdown()
+print(json.dumps({"built": built, "ran": ran}))
+"""
+
+
+def test_each_loop_is_compiled_once_when_the_robot_is_built_and_never_in_a_tick() -> None:
+    out = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=300, check=True)
+    counts = json.loads(out.stdout.strip().splitlines()[-1])
+    assert counts["built"] == dict.fromkeys(counts["built"], 1), counts  # all ready before the first tick
+    assert counts["ran"] == counts["built"], counts  # and no tick needed another version
