@@ -22,10 +22,11 @@ from atemr.msgs import Twist
 from atemr.robot.core import Ticker
 from atemr.robot.headless import build_headless_robot
 from atemr.skills.localization import likelihood_field
-from atemr.skills.nav import voxel_layer
+from atemr.skills.nav import global_planner, voxel_layer
 
 loops = {"walk_rays": raycast.walk_rays, "traced": likelihood_field._traced, "sampled": likelihood_field._sampled,
-         "marks": voxel_layer._marks, "box_hits": depth._box_hits, "cylinder_hits": depth._cylinder_hits}
+         "marks": voxel_layer._marks, "box_hits": depth._box_hits, "cylinder_hits": depth._cylinder_hits,
+         "weights": global_planner._weights_into}
 robot = build_headless_robot(load_config(environ={}, overrides={"sim.camera_hz": 10.0, "sim.seed": 2}))
 built = {name: len(loop.signatures) for name, loop in loops.items()}
 inputs = robot.parts.inputs
@@ -37,6 +38,12 @@ field = robot.parts.localization.localizer.field
 rng = np.random.default_rng(0)
 poses = np.column_stack([rng.uniform(0, 9, 3000), rng.uniform(-2, 8, 3000), rng.uniform(-3, 3, 3000)])
 field.crossings(poses, (0.1, 0.0), rng.uniform(-5, 5, (90, 2)), 0.1)
+# A plan on the robot's own costmap, and a replan after it changed (the weights patched in a window).
+navigator = robot.parts.navigation.navigator
+planner = global_planner.GlobalPlanner(navigator.costmap)
+assert planner.plan((2.6, 2.6), (7.0, 3.0)) is not None
+navigator.costmap.cost[60:64, 60:64] = 200
+planner.plan((2.6, 2.6), (7.0, 3.0))
 ran = {name: len(loop.signatures) for name, loop in loops.items()}
 robot.shutdown()
 print(json.dumps({"built": built, "ran": ran}))

@@ -25,6 +25,7 @@ from functools import lru_cache
 from typing import Any, Literal
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
@@ -104,44 +105,56 @@ def _shifted(padded: NDArray[Any], dr: int, dc: int) -> NDArray[Any]:
     return padded[1 + dr:1 + dr + rows, 1 + dc:1 + dc + cols]
 
 
-#: Cells whose weights are built at once, in a band of whole rows: their eight planes (8 x 32,768 floats) stay in the
-#: processor's cache until they are interleaved into the CSR layout, instead of a whole grid's going out and back.
-_CELLS_AT_ONCE = 32_768
-
-
 def edge_weights(cost: NDArray[np.uint8], passable: NDArray[np.bool_], resolution_m: float,
                  params: PlannerParams, potential: FloatArray | None = None) -> NDArray[np.float64]:
     """(N, 8) weight of every neighbour slot: the cost-aware length of the step into that neighbour.
 
     With ``potential`` (A*'s heuristic per cell), the reduced weight ``w − h(u) + h(v)`` instead, clamped at a
-    tiny positive value. Each direction is computed in place on a contiguous plane from shifted views of
-    padded grids (no gathers), a band of rows at a time, and the band's planes are interleaved into the CSR
-    row layout in one copy: a 400x400 grid takes a few milliseconds.
+    tiny positive value. A compiled loop over the cells (`_weights_into`): the numpy version it replaced, kept in
+    ``benchmarks/numpy_baselines.py``, made a dozen passes over the grid per direction, and a new goal on a large
+    map pays for every cell's weights.
     """
     rows, cols = cost.shape
     per_m = params.neutral_cost + params.cost_factor * np.minimum(cost, MAX_NON_OBSTACLE) / MAX_NON_OBSTACLE
-    per_m_pad = np.pad(per_m, 1)
-    ok_pad = np.pad(passable, 1, constant_values=False)
-    h_pad = np.pad(potential, 1) if potential is not None else None
-    out = np.empty((rows, cols, 8), dtype=np.float64)
-    band_rows = min(max(_CELLS_AT_ONCE // cols, 1), rows)
-    band = np.empty((8, band_rows, cols), dtype=np.float64)
-    for r0 in range(0, rows, band_rows):
-        r1 = min(rows, r0 + band_rows)
-        planes = band[:, :r1 - r0]
-        for k, (dr, dc) in enumerate(_MOVES):
-            ok = _shifted(ok_pad, dr, dc)[r0:r1]
-            if dr and dc:  # no corner cutting: both orthogonal cells passed between must be passable
-                ok = ok & _shifted(ok_pad, dr, 0)[r0:r1] & _shifted(ok_pad, 0, dc)[r0:r1]
-            w = planes[k]
-            np.multiply(_shifted(per_m_pad, dr, dc)[r0:r1], math.hypot(dr, dc) * resolution_m, out=w)
-            if h_pad is not None and potential is not None:
-                w += _shifted(h_pad, dr, dc)[r0:r1]
-                w -= potential[r0:r1]
-                np.maximum(w, 1e-12, out=w)
-            np.copyto(w, _BLOCKED, where=~ok)
-        out[r0:r1] = planes.transpose(1, 2, 0)
-    return out.reshape(rows * cols, 8)
+    steps = np.array([math.hypot(dr, dc) * resolution_m for dr, dc in _MOVES])
+    h = np.zeros((0, 0)) if potential is None else np.ascontiguousarray(potential, dtype=np.float64)
+    out = np.empty((rows * cols, 8), dtype=np.float64)
+    _weights_into(per_m, np.ascontiguousarray(passable), steps, h, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _weights_into(per_m: FloatArray, passable: NDArray[np.bool_], steps: FloatArray, potential: FloatArray,
+                  out: FloatArray) -> None:  # pragma: no cover  compiled by numba
+    """Each cell's eight weights in `_MOVES` order: the step's length times the entered cell's cost per metre, plus
+    h(v) − h(u) and at least 1e-12 when ``potential`` is given (not empty); `_BLOCKED` into a cell that cannot be
+    entered, off the grid or across a corner (a diagonal step needs both cells it passes between)."""
+    rows, cols = per_m.shape
+    reduced = potential.shape[0] > 0
+    for r in range(rows):
+        for c in range(cols):
+            u = r * cols + c
+            for k in range(8):
+                dr, dc = _MOVES[k]
+                rr, cc = r + dr, c + dc
+                ok = 0 <= rr < rows and 0 <= cc < cols and passable[rr, cc]
+                if ok and dr != 0 and dc != 0:
+                    ok = passable[rr, c] and passable[r, cc]
+                if not ok:
+                    out[u, k] = _BLOCKED
+                    continue
+                w = per_m[rr, cc] * steps[k]
+                if reduced:
+                    w = max(w + potential[rr, cc] - potential[r, c], 1e-12)
+                out[u, k] = w
+
+
+@lru_cache(maxsize=1)
+def load_compiled() -> None:
+    """Compile (a checkout's first run) or load (from numba's cache) `_weights_into` when the first planner is
+    built, not at the robot's first plan: the call has the argument types of `edge_weights`' (a test checks that
+    a running robot has one compiled version of each loop)."""
+    _weights_into(np.ones((1, 1)), np.ones((1, 1), dtype=np.bool_), np.ones(8), np.zeros((0, 0)), np.empty((1, 8)))
 
 
 def octile_m(rows: NDArray[np.intp], cols: NDArray[np.intp], goal: tuple[int, int], resolution_m: float
@@ -158,6 +171,7 @@ class GlobalPlanner:
     def __init__(self, costmap: Costmap, params: PlannerParams | None = None) -> None:
         self.costmap = costmap
         self.params = params or PlannerParams()
+        load_compiled()
         #: (goal the weights are reduced for, None: plain; the cost and passability they were built from; weights)
         self._cached: tuple[tuple[int, int] | None, NDArray[np.uint8], NDArray[np.bool_], NDArray[np.float64]] | None \
             = None
