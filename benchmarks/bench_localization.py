@@ -133,7 +133,7 @@ def _numpy_baselines() -> ModuleType:
 
 def crossings_rows(grid: Any, rec: Any, repeats: int) -> list[dict[str, Any]]:
     """Map agreement's beam walks, compiled, against the numpy ones they replaced: the same booleans."""
-    ours, base = LikelihoodField(grid), _numpy_baselines().NumpyCrossingsField(grid)
+    ours, base = LikelihoodField(grid), _numpy_baselines().NumpyLikelihoodField(grid)
     pts = scan_points(rec.scans[60], max_beams=AgreementParams().max_beams)  # as many beams as `measure` walks
     rng = np.random.default_rng(0)
     many = np.column_stack([rng.normal(rec.truth[60].x_m, 0.5, 500), rng.normal(rec.truth[60].y_m, 0.5, 500),

@@ -1,8 +1,9 @@
 """The numpy versions of the loops issue 22 compiled, as they were, as the baselines of the compiled ones.
 
 * `NumpyGridCaster`: the simulator's grid ray traversal that `atemr.io.sim.raycast.GridCaster` replaced;
-* `NumpyCrossingsField`: the likelihood field with the numpy `crossings` (map agreement's "does this beam pass
-  through a wall") that `atemr.skills.localization.likelihood_field` replaced;
+* `NumpyLikelihoodField`: the likelihood field with the numpy `crossings` (map agreement's "does this beam pass
+  through a wall") and ``_indices`` (the cell of every point under every pose, which AMCL's weights and every
+  distance look up) that `atemr.skills.localization.likelihood_field` replaced;
 * `NumpyMarkLayer`: the depth camera's voxel layer with the numpy ``_mark`` (which voxels a frame's points fill)
   that `atemr.skills.nav.voxel_layer` replaced;
 * `NumpyShapesDepthCamera`: the simulated depth camera with the numpy slab and cylinder tests of furniture,
@@ -27,7 +28,7 @@ from atemr.io.sim.depth import F32, DepthCamera
 from atemr.io.sim.depth import _inverse as inverse_directions
 from atemr.io.sim.raycast import FloatArray, GridHits
 from atemr.msgs import DepthImage, LaserScan
-from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField
+from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField, _float32_frames
 from atemr.skills.nav.costmap import MAX_NON_OBSTACLE
 from atemr.skills.nav.global_planner import _BLOCKED, _MOVES, PlannerParams
 from atemr.skills.nav.voxel_layer import VoxelLayer
@@ -187,8 +188,27 @@ class NumpyGridCaster:
         return GridHits(dist, hit_row, hit_col, side)
 
 
-class NumpyCrossingsField(LikelihoodField):
-    """`LikelihoodField` with its ``crossings`` as numpy computed them before the compiled walks."""
+class NumpyLikelihoodField(LikelihoodField):
+    """`LikelihoodField` with its ``crossings`` and ``_indices`` as numpy computed them before the compiled loops."""
+
+    def _indices(self, poses: FloatArray, points: FloatArray) -> NDArray[np.intp]:
+        """Cell index of every point under every pose: ``(N, M)``.
+
+        The ``N × M`` arithmetic runs in float32 (twice as fast; a tenth of a millimetre at 1 km from the
+        origin, far below a cell), the pose transforms in float64."""
+        c, s, gx0, gy0 = (column[:, None] for column in
+                          _float32_frames(self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))))
+        with np.errstate(invalid="ignore", over="ignore"):
+            px = points[:, 0].astype(np.float32)[None, :]
+            py = points[:, 1].astype(np.float32)[None, :]
+        with np.errstate(invalid="ignore", over="ignore"):  # absurd poses land off the map, never warn
+            gx = c * px
+            gx -= s * py
+            gx += gx0
+            gy = s * px
+            gy += c * py
+            gy += gy0
+        return self._flat_index(gx, gy)
 
     def crossings(self, poses: FloatArray, start_xy: tuple[float, float], points: FloatArray,
                   stop_short_m: float) -> NDArray[np.bool_]:

@@ -124,21 +124,15 @@ class LikelihoodField:
     def _indices(self, poses: FloatArray, points: FloatArray) -> NDArray[np.intp]:
         """Cell index of every point under every pose: ``(N, M)``.
 
-        The ``N × M`` arithmetic runs in float32 (twice as fast; a tenth of a millimetre at 1 km from the
-        origin, far below a cell), the pose transforms in float64."""
-        c, s, gx0, gy0 = (column[:, None] for column in
-                          _float32_frames(self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))))
+        The ``N × M`` arithmetic runs in float32 (a tenth of a millimetre at 1 km from the origin, far below a
+        cell) in a compiled loop (`_cells_into`), the pose transforms in float64."""
+        frames = _float32_frames(self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3)))
         with np.errstate(invalid="ignore", over="ignore"):
-            px = points[:, 0].astype(np.float32)[None, :]
-            py = points[:, 1].astype(np.float32)[None, :]
-        with np.errstate(invalid="ignore", over="ignore"):  # absurd poses land off the map, never warn
-            gx = c * px
-            gx -= s * py
-            gx += gx0
-            gy = s * px
-            gy += c * py
-            gy += gy0
-        return self._flat_index(gx, gy)
+            px = np.ascontiguousarray(points[:, 0], dtype=np.float32)
+            py = np.ascontiguousarray(points[:, 1], dtype=np.float32)
+        out = np.empty((frames[0].shape[0], px.shape[0]), dtype=np.intp)
+        _cells_into(frames, (px, py), np.float32(1.0 / self.map.resolution_m), (self.map.height, self.map.width), out)
+        return out
 
     def distance(self, x_m: FloatArray, y_m: FloatArray) -> FloatArray:
         """Distance to the nearest obstacle at world points (``max_dist_m`` off the map)."""
@@ -232,9 +226,9 @@ Float32Frames = tuple[F32, F32, F32, F32]
 
 @functools.cache
 def load_compiled() -> None:
-    """Compile (a checkout's first run) or load (from numba's cache) both walks of `LikelihoodField.crossings` when
-    the first field is built, not in the middle of the robot's first scan: the calls have the argument types of
-    the method's (a test checks that a running robot has one compiled version of each)."""
+    """Compile (a checkout's first run) or load (from numba's cache) the field's loops (both walks of `crossings`,
+    the cells of `_indices`) when the first field is built, not in the middle of the robot's first scan: the calls
+    have the argument types of the methods' (a test checks that a running robot has one compiled version of each)."""
     field = np.zeros(9)  # one occupied cell and its border
     crossed = np.zeros((1, 1), dtype=np.bool_)
     one = np.ones((1, 1))
@@ -243,6 +237,7 @@ def load_compiled() -> None:
     f32 = np.ones(1, dtype=np.float32)
     _sampled(field, (1, 1), np.float32(1.0), (f32, f32, f32, f32), (ray[0, 0], ray[0, 1]),
              (ray, np.ones(1), np.ones(2)), crossed)
+    _cells_into((f32, f32, f32, f32), (f32, f32), np.float32(1.0), (1, 1), np.empty((1, 1), dtype=np.intp))
 
 
 def _float32_frames(grid_poses: FloatArray) -> Float32Frames:
@@ -253,16 +248,37 @@ def _float32_frames(grid_poses: FloatArray) -> Float32Frames:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _occupied(dist_flat: FloatArray, shape: tuple[int, int], inv: float | np.float32, x: float | np.float32,
-              y: float | np.float32) -> float:  # pragma: no cover  compiled by numba
-    """The clipped distance at a grid-frame point (`LikelihoodField._flat_index` for one point, in the point's own
-    precision: ``inv`` is float32 for float32 points); off the map and NaN land on the border."""
+def _cell(shape: tuple[int, int], inv: float | np.float32, x: float | np.float32,
+          y: float | np.float32) -> int:  # pragma: no cover  compiled by numba
+    """The bordered tables' flat index of a grid-frame point (`LikelihoodField._flat_index` for one point, in the
+    point's own precision: ``inv`` is float32 for float32 points); off the map and NaN land on the border."""
     height, width = shape
     col = np.floor(x * inv)  # a float (math.floor's integer has no NaN or infinity)
     row = np.floor(y * inv)
     col = -1.0 if not col >= -1.0 else min(col, float(width))
     row = -1.0 if not row >= -1.0 else min(row, float(height))
-    return float(dist_flat[(int(row) + 1) * (width + 2) + int(col) + 1])
+    return (int(row) + 1) * (width + 2) + int(col) + 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _occupied(dist_flat: FloatArray, shape: tuple[int, int], inv: float | np.float32, x: float | np.float32,
+              y: float | np.float32) -> float:  # pragma: no cover  compiled by numba
+    """The clipped distance at a grid-frame point (`_cell`)."""
+    return float(dist_flat[_cell(shape, inv, x, y)])
+
+
+@njit(cache=True, nogil=True)
+def _cells_into(frames: Float32Frames, points: tuple[F32, F32], inv: np.float32, shape: tuple[int, int],
+                out: NDArray[np.intp]) -> None:  # pragma: no cover  compiled by numba
+    """The flat index of every point under every pose, ``out[i, j]``: each point turned and moved into pose ``i``'s
+    grid frame in float32, as `LikelihoodField._indices` did with numpy."""
+    c, s, gx0, gy0 = frames
+    px, py = points
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            gx = c[i] * px[j] - s[i] * py[j] + gx0[i]
+            gy = s[i] * px[j] + c[i] * py[j] + gy0[i]
+            out[i, j] = _cell(shape, inv, gx, gy)
 
 
 @njit(cache=True, nogil=True)

@@ -103,7 +103,7 @@ def test_the_compiled_walks_answer_as_the_numpy_ones_did(walk: str, monkeypatch:
     baselines = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(baselines)
     world = load_world("studio")
-    ours, before = LikelihoodField(world.map), baselines.NumpyCrossingsField(world.map)
+    ours, before = LikelihoodField(world.map), baselines.NumpyLikelihoodField(world.map)
     lookups = 10**12 if walk == "sampled" else 0
     monkeypatch.setattr(likelihood_field, "DENSE_LOOKUPS", lookups)
     monkeypatch.setattr(baselines, "DENSE_LOOKUPS", lookups)
