@@ -1,10 +1,12 @@
-"""Shared fixtures: paths to the project and ../shared, a clean py_trees blackboard for every test, and
+"""Shared fixtures: paths to the project and ../shared, the numpy versions of the compiled loops, a clean py_trees
+blackboard for every test, and
 the agent's document and fake ports for the agent tests; a data directory of the suite's own; and how a parallel
 run (pytest-xdist, as ./test runs the suite) hands the tests out to its workers."""
 
 from __future__ import annotations
 
 import gc
+import importlib.util
 import json
 import logging
 import os
@@ -12,6 +14,7 @@ import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import pytest
@@ -39,6 +42,17 @@ def shared_dir() -> Path:
     if not SHARED.is_dir():
         pytest.skip(f"../shared is not beside the checkout (looked for {SHARED})")
     return SHARED
+
+
+@pytest.fixture(scope="session")
+def numpy_baselines() -> ModuleType:
+    """``benchmarks/numpy_baselines.py``: the numpy versions the compiled loops replaced, which they must answer as."""
+    path = ROOT / "benchmarks" / "numpy_baselines.py"
+    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 @pytest.fixture(autouse=True)

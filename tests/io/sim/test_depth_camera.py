@@ -1,6 +1,7 @@
 """The simulated D415 (issue 24): depth of the same scene, its geometry, range, noise and seeding."""
 
 import math
+from types import ModuleType
 
 import numpy as np
 import pytest
@@ -115,18 +116,10 @@ def test_bad_parameters_are_refused():
         SimParams(depth_hz=-1.0)
 
 
-def test_the_compiled_shape_tests_see_what_the_numpy_ones_saw() -> None:
+def test_the_compiled_shape_tests_see_what_the_numpy_ones_saw(numpy_baselines: ModuleType) -> None:
     """Furniture (slab tests) and people and the cat (cylinders, their sides and caps) hit by the compiled loops
     give the images, to the bit, of `benchmarks/numpy_baselines.py`'s numpy tests, with noise and without: a
     seeded run's depth frames stay what they were. Each pose looks at a person or a piece of furniture."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[3] / "benchmarks" / "numpy_baselines.py"
-    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test", path)
-    assert spec is not None and spec.loader is not None
-    baselines = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(baselines)
     sim = build_simulation("studio", 2)
     rng = np.random.default_rng(2)
     targets = [(m.x_m, m.y_m) for m in sim.movers.items]
@@ -135,7 +128,7 @@ def test_the_compiled_shape_tests_see_what_the_numpy_ones_saw() -> None:
     assert len(targets) > 3
     for params in (DepthCameraParams(), IDEAL):
         ours = DepthCamera(params, np.random.default_rng(9))
-        before = baselines.NumpyShapesDepthCamera(params, np.random.default_rng(9))
+        before = numpy_baselines.NumpyShapesDepthCamera(params, np.random.default_rng(9))
         for tx, ty in targets:
             for _ in range(3):
                 away, bearing = rng.uniform(0.4, 2.5), rng.uniform(-math.pi, math.pi)

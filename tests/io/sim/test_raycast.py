@@ -1,9 +1,8 @@
 """Ray casting against hand-made grids with known distances, a brute-force reference, the numpy traversal the
 compiled walk replaced (the same bits), and circles."""
 
-import importlib.util
 import math
-from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
@@ -13,17 +12,6 @@ from hypothesis import strategies as st
 from atemr.io.sim.raycast import GridCaster, cast_circles, cast_grid
 
 RES = 0.1
-ROOT = Path(__file__).resolve().parents[3]
-
-
-def numpy_caster():
-    """`benchmarks/numpy_baselines.py`'s `NumpyGridCaster`: the traversal before the compiled walk."""
-    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test",
-                                                  ROOT / "benchmarks" / "numpy_baselines.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.NumpyGridCaster
 
 
 def room(rows: int = 40, cols: int = 60) -> np.ndarray:
@@ -131,9 +119,10 @@ def test_circles():
     assert math.isinf(none[0]) and idx[0] == -1
 
 
-def assert_same_bits(grid: np.ndarray, res: float, origin: tuple[float, float], angles: np.ndarray,
+def assert_same_bits(before: type, grid: np.ndarray, res: float, origin: tuple[float, float], angles: np.ndarray,
                      max_range_m) -> None:
-    old = numpy_caster()(grid, res).cast(origin, angles, max_range_m)
+    """``before``: `benchmarks/numpy_baselines.py`'s `NumpyGridCaster`, the traversal before the compiled walk."""
+    old = before(grid, res).cast(origin, angles, max_range_m)
     new = GridCaster(grid, res).cast(origin, angles, max_range_m)
     # Bits, not closeness: every seeded scan and image stays what it was before the walk was compiled.
     assert new.distance_m.tobytes() == old.distance_m.tobytes()
@@ -148,7 +137,8 @@ def assert_same_bits(grid: np.ndarray, res: float, origin: tuple[float, float], 
     where=st.sampled_from(["inside", "cell centre", "outside"]),
     per_ray_range=st.booleans(),
 )
-def test_the_compiled_walk_answers_with_the_numpy_traversals_bits(seed, where, per_ray_range):
+def test_the_compiled_walk_answers_with_the_numpy_traversals_bits(seed, where, per_ray_range,
+                                                                  numpy_baselines: ModuleType):
     rng = np.random.default_rng(seed)
     rows, cols = rng.integers(3, 50, 2)
     grid = rng.random((rows, cols)) < rng.uniform(0.0, 0.4)
@@ -162,10 +152,10 @@ def test_the_compiled_walk_answers_with_the_numpy_traversals_bits(seed, where, p
     axes = np.array([0.0, math.pi / 2, math.pi, -math.pi / 2, math.pi / 4, -3 * math.pi / 4])
     angles = np.concatenate([rng.uniform(-math.pi, math.pi, 40), axes])
     max_range = rng.uniform(0.2, 8.0, angles.size) if per_ray_range else float(rng.uniform(0.2, 8.0))
-    assert_same_bits(grid, res, (ox, oy), angles, max_range)
+    assert_same_bits(numpy_baselines.NumpyGridCaster, grid, res, (ox, oy), angles, max_range)
 
 
-def test_the_compiled_walk_answers_with_the_numpy_traversals_bits_in_the_studio():
+def test_the_compiled_walk_answers_with_the_numpy_traversals_bits_in_the_studio(numpy_baselines: ModuleType):
     from atemr.io.sim.simulation import build_simulation
 
     scene = build_simulation("studio", 3).scene
@@ -175,4 +165,5 @@ def test_the_compiled_walk_answers_with_the_numpy_traversals_bits_in_the_studio(
     for r, c in free[rng.choice(len(free), 12, replace=False)]:
         origin = ((c + rng.random()) * scene.resolution_m, (r + rng.random()) * scene.resolution_m)
         for grid in (scene.blocked, scene.walls, scene.furniture):
-            assert_same_bits(grid, scene.resolution_m, origin, angles + rng.uniform(-1, 1), 12.0)
+            assert_same_bits(numpy_baselines.NumpyGridCaster, grid, scene.resolution_m, origin,
+                             angles + rng.uniform(-1, 1), 12.0)

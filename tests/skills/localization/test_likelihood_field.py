@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from types import ModuleType
 
 import numpy as np
 import pytest
@@ -85,23 +86,15 @@ def test_scan_to_map_bad_input(studio_map) -> None:  # type: ignore[no-untyped-d
     assert empty.agreement == 0.0 and empty.pose == Pose2D(2.0, 2.0, 0.0)
 
 
-def test_the_compiled_cells_are_the_numpy_cells_and_the_scores_the_same_bits() -> None:
+def test_the_compiled_cells_are_the_numpy_cells_and_the_scores_the_same_bits(numpy_baselines: ModuleType) -> None:
     """Every point's cell under every pose, from the compiled loop and from `benchmarks/numpy_baselines.py`'s numpy
     ``_indices``: the same, on and off a rotated map, for NaN, infinite and absurd poses and points; so AMCL's
     weights, the matchers' scores and every distance are the same bits, and every seeded run what it was."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[3] / "benchmarks" / "numpy_baselines.py"
-    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test", path)
-    assert spec is not None and spec.loader is not None
-    baselines = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(baselines)
     rng = np.random.default_rng(3)
     data = np.where(rng.random((60, 80)) < 0.05, 100, 0).astype(np.int8)
     for origin in (Pose2D(-1.5, 2.0, 0.0), Pose2D(0.3, -0.7, 0.6)):
         grid = OccupancyMap(data, 0.05, origin)
-        ours, before = LikelihoodField(grid), baselines.NumpyLikelihoodField(grid)
+        ours, before = LikelihoodField(grid), numpy_baselines.NumpyLikelihoodField(grid)
         poses = np.column_stack([rng.uniform(-3, 5, 400), rng.uniform(-2, 6, 400), rng.uniform(-4, 4, 400)])
         poses[:3] = [(1e12, 0.0, 0.0), (np.nan, 1.0, 0.2), (0.5, 0.5, np.inf)]
         points = rng.uniform(-6, 6, (90, 2))

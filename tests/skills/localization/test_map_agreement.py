@@ -3,9 +3,8 @@ space; the walk along each beam done two ways that agree."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
@@ -94,19 +93,15 @@ def test_walking_and_sampling_the_beams_agree(monkeypatch: pytest.MonkeyPatch) -
 
 
 @pytest.mark.parametrize("walk", ["sampled", "traced"])
-def test_the_compiled_walks_answer_as_the_numpy_ones_did(walk: str, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_compiled_walks_answer_as_the_numpy_ones_did(walk: str, monkeypatch: pytest.MonkeyPatch,
+                                                         numpy_baselines: ModuleType) -> None:
     """The same booleans as `benchmarks/numpy_baselines.py`'s numpy `crossings`, which keeps every seeded run (its
     map agreement, global search and lost checks) what it was, on poses on and off the map, NaN and absurd."""
-    path = Path(__file__).resolve().parents[3] / "benchmarks" / "numpy_baselines.py"
-    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test", path)
-    assert spec is not None and spec.loader is not None
-    baselines = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(baselines)
     world = load_world("studio")
-    ours, before = LikelihoodField(world.map), baselines.NumpyLikelihoodField(world.map)
+    ours, before = LikelihoodField(world.map), numpy_baselines.NumpyLikelihoodField(world.map)
     lookups = 10**12 if walk == "sampled" else 0
     monkeypatch.setattr(likelihood_field, "DENSE_LOOKUPS", lookups)
-    monkeypatch.setattr(baselines, "DENSE_LOOKUPS", lookups)
+    monkeypatch.setattr(numpy_baselines, "DENSE_LOOKUPS", lookups)
     rng = np.random.default_rng(7)
     for n, m in ((1, 90), (7, 360), (40, 30), (3, 1)):
         poses = np.column_stack([rng.uniform(-2, 11, n), rng.uniform(-4, 10, n), rng.uniform(-4, 4, n)])

@@ -1,5 +1,6 @@
 import heapq
 import math
+from types import ModuleType
 
 import numpy as np
 import pytest
@@ -255,20 +256,13 @@ def test_the_coarse_plan_estimates_the_path_cost_and_knows_when_there_is_none(ma
 
 
 @pytest.mark.parametrize("reduced", [False, True])
-def test_the_compiled_weights_are_the_numpy_weights_bit_for_bit(make_map, reduced: bool) -> None:
+def test_the_compiled_weights_are_the_numpy_weights_bit_for_bit(make_map, reduced: bool,
+                                                                   numpy_baselines: ModuleType) -> None:
     """`benchmarks/numpy_baselines.py`'s numpy edge weights and the compiled ones: the same bits on a costmap with
     walls, inflation, unknown cells and corners, whole and as a patch (a window of views, as a scan's patch is), so
     every plan and every seeded run stays what it was."""
-    import importlib.util
-    from pathlib import Path
-
     from atemr.skills.nav.global_planner import _potential, edge_weights
 
-    path = Path(__file__).resolve().parents[3] / "benchmarks" / "numpy_baselines.py"
-    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test", path)
-    assert spec is not None and spec.loader is not None
-    baselines = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(baselines)
     rng = np.random.default_rng(11)
     data = np.where(rng.random((90, 70)) < 0.04, 100, 0).astype(np.int8)
     data[30:60, 20:25] = -1  # unknown
@@ -278,10 +272,10 @@ def test_the_compiled_weights_are_the_numpy_weights_bit_for_bit(make_map, reduce
     params = PlannerParams()
     for passable in (cm.traversable(), cm.traversable(allow_unknown=True)):
         h = _potential(cm.shape, (80, 10), RES, params) if reduced else None
-        want = baselines.numpy_edge_weights(cm.cost, passable, RES, params, h)
+        want = numpy_baselines.numpy_edge_weights(cm.cost, passable, RES, params, h)
         assert edge_weights(cm.cost, passable, RES, params, h).tobytes() == want.tobytes()
         window = (slice(20, 70), slice(15, 55))
-        want = baselines.numpy_edge_weights(cm.cost[window], passable[window], RES, params,
+        want = numpy_baselines.numpy_edge_weights(cm.cost[window], passable[window], RES, params,
                                             None if h is None else h[window])
         got = edge_weights(cm.cost[window], passable[window], RES, params, None if h is None else h[window])
         assert got.tobytes() == want.tobytes()

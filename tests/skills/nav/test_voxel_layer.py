@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
@@ -218,23 +219,16 @@ def test_what_the_lidar_now_sees_through_is_cleared_above_its_plane_and_a_table_
     assert (np.abs(xy[:, 1] - 1.3) < 0.15).any()  # the shoe under the lidar's plane: still marked
 
 
-def test_the_compiled_marks_fill_the_voxels_the_numpy_ones_did() -> None:
+def test_the_compiled_marks_fill_the_voxels_the_numpy_ones_did(numpy_baselines: ModuleType) -> None:
     """`benchmarks/numpy_baselines.py`'s numpy ``_mark`` and the compiled one fill the same voxels, frame after
     frame round the studio, people and the cat included, with every pixel or every other one: a seeded run's
     obstacles stay what they were."""
-    import importlib.util
-
-    path = Path(__file__).resolve().parents[3] / "benchmarks" / "numpy_baselines.py"
-    spec = importlib.util.spec_from_file_location("numpy_baselines_under_test", path)
-    assert spec is not None and spec.loader is not None
-    baselines = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(baselines)
     sim = build_simulation("studio", 4, params=PARAMS)
     rng = np.random.default_rng(4)
     for stride in (1, 2):
         params = replace(VoxelLayerParams.for_body(KAY), stride=stride)
         ours = VoxelLayer(Costmap(sim.world.map), params)
-        before = baselines.NumpyMarkLayer(Costmap(sim.world.map), params)
+        before = numpy_baselines.NumpyMarkLayer(Costmap(sim.world.map), params)
         marked = 0
         for i in range(25):
             x, y = float(rng.uniform(0.5, 9.0)), float(rng.uniform(-2.0, 8.0))
