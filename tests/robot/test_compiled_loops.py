@@ -18,13 +18,13 @@ import json
 import numpy as np
 from atemr.config import load_config
 from atemr.io.sim import depth, raycast
-from atemr.msgs import Twist
+from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Ticker
 from atemr.robot.headless import build_headless_robot
 from atemr.skills.localization import likelihood_field
 from atemr.skills.nav import global_planner, voxel_layer
 
-loops = {"walk_rays": raycast.walk_rays, "traced": likelihood_field._traced, "sampled": likelihood_field._sampled,
+loops = {"walk_rays": raycast._walk_rays, "traced": likelihood_field._traced, "sampled": likelihood_field._sampled,
          "marks": voxel_layer._marks, "box_hits": depth._box_hits, "cylinder_hits": depth._cylinder_hits,
          "weights": global_planner._weights_into, "cells": likelihood_field._cells_into}
 robot = build_headless_robot(load_config(environ={}, overrides={"sim.camera_hz": 10.0, "sim.seed": 2}))
@@ -44,6 +44,18 @@ planner = global_planner.GlobalPlanner(navigator.costmap)
 assert planner.plan((2.6, 2.6), (7.0, 3.0)) is not None
 navigator.costmap.cost[60:64, 60:64] = 200
 planner.plan((2.6, 2.6), (7.0, 3.0))
+# Every loop reached through the robot's own parts, whatever the run happened to meet: the cameras facing each
+# piece of furniture and each person, the depth layer taking those frames, the field scoring particles.
+sim = robot.parts.sim
+targets = [((o.params[0] + o.params[2]) / 2, (o.params[1] + o.params[3]) / 2)
+           for o in sim.scene.objects.values() if o.shape == "box"] + [(m.x_m, m.y_m) for m in sim.movers.items]
+layer = robot.parts.navigation.voxels
+for k, (tx, ty) in enumerate(targets):
+    pose = Pose2D(tx - 1.2, ty, 0.0)
+    image = sim.depth_camera.render(20.0 + k, pose, sim.scene, sim.movers)
+    sim.camera.render(pose, sim.scene, sim.movers)
+    layer.update(image, pose, sim.read_lidar(20.0 + k))
+field.log_likelihood(poses[:500], rng.uniform(-5, 5, (60, 2)))
 ran = {name: len(loop.signatures) for name, loop in loops.items()}
 robot.shutdown()
 print(json.dumps({"built": built, "ran": ran}))

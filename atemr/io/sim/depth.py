@@ -2,7 +2,8 @@
 
 Defaults follow the D415 at its 424 x 240 mode: about 65° x 40° field of view, 0.3 to 3 m, 10 frames per
 second. Every pixel's ray (from `atemr.skills.depth_cloud.pixel_rays` and the mount, the very model the
-obstacle layer reads the image back with) is intersected with everything at once, vectorised over pixels:
+obstacle layer reads the image back with) is intersected with everything, vectorised over pixels (the shapes'
+tests are compiled loops over the pixels they span):
 
 * the floor (z = 0) and the ceiling (at the wall height);
 * the walls, extruded from the floor to the wall height: one 2-D grid cast per azimuth bin (twice as many

@@ -7,8 +7,12 @@ is exact (to float precision) for any angle, with no step size to tune.
 
 The walk is a compiled loop (`numba`): a ray costs a few nanoseconds a cell, where the numpy traversal it
 replaced paid numpy's per-call overhead dozens of times a chunk of crossings. It computes every crossing with
-the same expressions in the same order, so a seed gives the same scans and images, to the bit, as before
-(``tests/io/sim/test_raycast.py`` compares the two).
+the same expressions in the same order, so a seed gives the same distances and cells, to the bit, as before
+(``tests/io/sim/test_raycast.py`` compares the two). One thing may differ: which face a ray is said to enter
+(``GridHits.side``, the camera's shading of a wall) when it crosses a grid corner exactly and both faces there
+are blocked. The walk names the vertical line's face (side 0); the numpy traversal named the one it happened to
+examine first in its chunks of crossings. The simulated robot's poses are never that exact, so no seeded run
+meets it.
 
 All distances are in metres; the grid frame is the map's (see `atemr.domain.maps.OccupancyMap`).
 """
@@ -44,13 +48,10 @@ class GridHits:
 class GridCaster:
     """Casts rays through one fixed grid; build once per grid, cast many times.
 
-    Besides the padded grid (a border of empty cells, so a walk needs no bounds test inside the grid) it
-    keeps a distance transform, `clearance_cells`, which the scene uses to place things in the open.
+    It keeps the grid padded with a border of empty cells, so a walk needs no bounds test inside the grid.
     """
 
     def __init__(self, blocked: NDArray[np.bool_], resolution_m: float) -> None:
-        from scipy import ndimage
-
         self.shape = blocked.shape
         self.resolution_m = float(resolution_m)
         height, width = blocked.shape
@@ -61,10 +62,18 @@ class GridCaster:
         self.blocked = blocked
         self._flat = padded.ravel()
         self._stride = width + 2
-        #: Distance from each cell's centre to the nearest blocked cell's centre, in cells (inf: none).
-        self.clearance_cells = (ndimage.distance_transform_edt(~blocked).astype(np.float64) if blocked.any()
-                                else np.full(blocked.shape, np.inf))
         load_compiled()
+
+    @functools.cached_property
+    def clearance_cells(self) -> FloatArray:
+        """Distance from each cell's centre to the nearest blocked cell's centre, in cells (inf: none): the scene
+        places things in the open with it. Computed when first asked (only the scene's whole-grid caster is)."""
+        from scipy import ndimage
+
+        blocked = self.blocked
+        out: FloatArray = (ndimage.distance_transform_edt(~blocked).astype(np.float64) if blocked.any()
+                           else np.full(blocked.shape, np.inf))
+        return out
 
     def cast(self, origin_xy: tuple[float, float], angles_rad: FloatArray,
              max_range_m: float | FloatArray) -> GridHits:
@@ -94,7 +103,7 @@ class GridCaster:
         hit_row = np.empty(n, dtype=np.intp)
         hit_col = np.empty(n, dtype=np.intp)
         side = np.empty(n, dtype=np.int8)
-        walk_rays(self._flat, self._stride, width, height, gx0, gy0, dx, dy, np.abs(1.0 / dx), np.abs(1.0 / dy),
+        _walk_rays(self._flat, self._stride, width, height, gx0, gy0, dx, dy, np.abs(1.0 / dx), np.abs(1.0 / dy),
                   t_max, res, dist, hit_row, hit_col, side)
         return GridHits(dist, hit_row, hit_col, side)
 
@@ -108,7 +117,7 @@ def _blocked(flat: NDArray[np.bool_], stride: int, height: int, row: int, col: i
 
 
 @njit(cache=True, nogil=True)
-def walk_rays(flat: NDArray[np.bool_], stride: int, width: int, height: int,  # noqa: PLR0915, PLR0917  one compiled loop, its arrays passed in
+def _walk_rays(flat: NDArray[np.bool_], stride: int, width: int, height: int,  # noqa: PLR0912, PLR0915, PLR0917  one compiled loop
               gx0: float, gy0: float, dx: FloatArray, dy: FloatArray, inv_dx: FloatArray, inv_dy: FloatArray,
               t_max: FloatArray, res: float, dist: FloatArray, hit_row: IntArray, hit_col: IntArray,
               side: NDArray[np.int8]) -> None:  # pragma: no cover  compiled by numba; tested through GridCaster
@@ -140,6 +149,12 @@ def walk_rays(flat: NDArray[np.bool_], stride: int, width: int, height: int,  # 
             far_x = ((float(width) if pos_x else 0.0) - gx0) / ddx
             far_y = ((float(height) if pos_y else 0.0) - gy0) / ddy
             lim = min(t_max[i], far_x + 1.0, far_y + 1.0)
+        if not lim >= 0.0 or math.isnan(ddx) or math.isnan(ddy):  # a NaN angle or range: no hit, not an endless walk
+            dist[i] = math.inf
+            hit_row[i] = -1
+            hit_col[i] = -1
+            side[i] = -1
+            continue
         step_x = 1.0 if pos_x else -1.0
         step_y = 1.0 if pos_y else -1.0
         off_x = 1 if pos_x else 0
@@ -195,7 +210,7 @@ def load_compiled() -> None:
     use (a test checks that a running robot has one compiled version of each loop)."""
     flat = np.zeros(9, dtype=np.bool_)  # one empty cell and its border
     out = (np.empty(1), np.empty(1, dtype=np.intp), np.empty(1, dtype=np.intp), np.empty(1, dtype=np.int8))
-    walk_rays(flat, 3, 1, 1, 0.5, 0.5, np.ones(1), np.full(1, 1e-12), np.ones(1), np.full(1, 1e12), np.ones(1), 1.0,
+    _walk_rays(flat, 3, 1, 1, 0.5, 0.5, np.ones(1), np.full(1, 1e-12), np.ones(1), np.full(1, 1e12), np.ones(1), 1.0,
               *out)
 
 

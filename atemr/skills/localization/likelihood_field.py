@@ -126,8 +126,8 @@ class LikelihoodField:
 
         The ``N × M`` arithmetic runs in float32 (a tenth of a millimetre at 1 km from the origin, far below a
         cell) in a compiled loop (`_cells_into`), the pose transforms in float64."""
-        frames = _float32_frames(self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3)))
-        with np.errstate(invalid="ignore", over="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):  # absurd poses land off the map, never warn
+            frames = _float32_frames(self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3)))
             px = np.ascontiguousarray(points[:, 0], dtype=np.float32)
             py = np.ascontiguousarray(points[:, 1], dtype=np.float32)
         out = np.empty((frames[0].shape[0], px.shape[0]), dtype=np.intp)
@@ -178,14 +178,16 @@ class LikelihoodField:
         length = np.hypot(ray[:, 0], ray[:, 1])
         reach = np.maximum(length - stop_short_m, 0.0)
         samples = max(2, math.ceil(float(reach.max()) / (0.5 * self.map.resolution_m)) + 1)
-        g = self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
+        with np.errstate(invalid="ignore", over="ignore"):  # absurd poses land off the map, never warn
+            g = self._to_grid_frame(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
         h, w = self.map.height, self.map.width
         if n * pts.shape[0] * samples > DENSE_LOOKUPS:
-            c, s = np.cos(g[:, 2])[:, None], np.sin(g[:, 2])[:, None]
-            x0 = (g[:, 0:1] + c * start[0, 0] - s * start[0, 1]) + np.zeros((1, pts.shape[0]))
-            y0 = (g[:, 1:2] + s * start[0, 0] + c * start[0, 1]) + np.zeros((1, pts.shape[0]))
-            unit = np.divide(ray, length[:, None], out=np.zeros_like(ray), where=length[:, None] > 0)
-            ux, uy = c * unit[:, 0] - s * unit[:, 1], s * unit[:, 0] + c * unit[:, 1]
+            with np.errstate(invalid="ignore", over="ignore"):
+                c, s = np.cos(g[:, 2])[:, None], np.sin(g[:, 2])[:, None]
+                x0 = (g[:, 0:1] + c * start[0, 0] - s * start[0, 1]) + np.zeros((1, pts.shape[0]))
+                y0 = (g[:, 1:2] + s * start[0, 0] + c * start[0, 1]) + np.zeros((1, pts.shape[0]))
+                unit = np.divide(ray, length[:, None], out=np.zeros_like(ray), where=length[:, None] > 0)
+                ux, uy = c * unit[:, 0] - s * unit[:, 1], s * unit[:, 0] + c * unit[:, 1]
             res = self.map.resolution_m
             _traced(self._dist_flat, (h, w), 1.0 / res, (res * math.sqrt(2.0), 0.5 * res),
                     (x0, y0, ux, uy), reach, crossed)
@@ -287,12 +289,20 @@ def _traced(dist_flat: FloatArray, shape: tuple[int, int], inv: float, steps: tu
             crossed: NDArray[np.bool_]) -> None:  # pragma: no cover  compiled by numba
     """Sphere tracing of every segment (pose ``i``, point ``j``) from ``(x0, y0)`` along ``(ux, uy)`` up to
     ``reach[j]``: from a point ``d`` from the nearest occupied cell centre, nothing occupied lies within
-    ``d − margin`` (``steps``: the margin, a cell's diagonal, and the least step, half a cell)."""
+    ``d − margin`` (``steps``: the margin, a cell's diagonal, and the least step, half a cell).
+
+    A walk ends a cell past where its line leaves the map for good: nothing beyond can be occupied, so the answer
+    is the one the whole walk would give, and a segment a million kilometres long (or one from a NaN pose) does
+    not walk for ever."""
     x0, y0, ux, uy = rays
     margin, least = steps
+    height, width = shape
     for i in range(x0.shape[0]):
         for j in range(x0.shape[1]):
+            leaves = min(_leaves(x0[i, j], ux[i, j], width / inv), _leaves(y0[i, j], uy[i, j], height / inv))
             end = reach[j]
+            if not leaves + 2.0 * least >= end:  # the map's far edge comes first, or NaN: no walk beyond it
+                end = 0.0 if math.isnan(leaves) else max(leaves + 2.0 * least, 0.0)
             t = 0.0
             while True:
                 d = _occupied(dist_flat, shape, inv, x0[i, j] + ux[i, j] * t, y0[i, j] + uy[i, j] * t)
@@ -302,6 +312,17 @@ def _traced(dist_flat: FloatArray, shape: tuple[int, int], inv: float, steps: tu
                 if not t < end:  # one last look exactly at the end, then stop
                     break
                 t = min(t + max(d - margin, least), end)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _leaves(start: float, step: float, size: float) -> float:  # pragma: no cover  compiled by numba
+    """How far along a line ``start + t · step`` (metres) its coordinate leaves ``[0, size]`` for good (negative:
+    behind it already; -inf: never inside)."""
+    if step > 0.0:
+        return (size - start) / step
+    if step < 0.0:
+        return -start / step
+    return np.inf if 0.0 <= start <= size else -np.inf
 
 
 @njit(cache=True, nogil=True)

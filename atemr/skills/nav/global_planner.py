@@ -19,10 +19,10 @@ cell entered; cells at or above ``INSCRIBED`` cannot be entered (unknown ones on
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
-from functools import lru_cache
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 from numba import njit
@@ -81,7 +81,7 @@ class GlobalPath:
         return self.length_m
 
 
-@lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=8)
 def _structure(rows: int, cols: int) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
     """CSR indptr and column indices of the 8-neighbour grid graph (a slot off the grid points at the node
     itself and always gets the blocked weight)."""
@@ -97,12 +97,6 @@ def _structure(rows: int, cols: int) -> tuple[NDArray[np.int32], NDArray[np.int3
     indptr.setflags(write=False)
     indices.setflags(write=False)
     return indptr, indices
-
-
-def _shifted(padded: NDArray[Any], dr: int, dc: int) -> NDArray[Any]:
-    """The view of a one-cell-padded grid seen from each cell's neighbour at (dr, dc)."""
-    rows, cols = padded.shape[0] - 2, padded.shape[1] - 2
-    return padded[1 + dr:1 + dr + rows, 1 + dc:1 + dc + cols]
 
 
 def edge_weights(cost: NDArray[np.uint8], passable: NDArray[np.bool_], resolution_m: float,
@@ -149,7 +143,7 @@ def _weights_into(per_m: FloatArray, passable: NDArray[np.bool_], steps: FloatAr
                 out[u, k] = w
 
 
-@lru_cache(maxsize=1)
+@functools.cache
 def load_compiled() -> None:
     """Compile (a checkout's first run) or load (from numba's cache) `_weights_into` when the first planner is
     built, not at the robot's first plan: the call has the argument types of `edge_weights`' (a test checks that

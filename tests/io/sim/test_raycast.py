@@ -167,3 +167,30 @@ def test_the_compiled_walk_answers_with_the_numpy_traversals_bits_in_the_studio(
         for grid in (scene.blocked, scene.walls, scene.furniture):
             assert_same_bits(numpy_baselines.NumpyGridCaster, grid, scene.resolution_m, origin,
                              angles + rng.uniform(-1, 1), 12.0)
+
+
+def test_a_ray_through_a_grid_corner_names_the_vertical_face(numpy_baselines: ModuleType) -> None:
+    """Crossing a grid line of each family at the same distance into a blocked cell, the walk says the ray entered
+    through the vertical line (side 0). The distance and the cell are the numpy traversal's; the face it named
+    depended on its chunks of crossings (here it said 1), which is the one documented difference."""
+    grid = np.zeros((80, 80), dtype=bool)
+    grid[16, 27] = True
+    angle = np.array([math.atan2(1.0, 2.0)])
+    ours = cast_grid(grid, 1.0, (5.5, 5.25), angle, 200.0)
+    before = numpy_baselines.NumpyGridCaster(grid, 1.0).cast((5.5, 5.25), angle, 200.0)
+    assert ours.distance_m.tobytes() == before.distance_m.tobytes()
+    assert (ours.row[0], ours.col[0]) == (before.row[0], before.col[0]) == (16, 27)
+    assert ours.side[0] == 0
+
+
+def test_nan_angles_and_ranges_hit_nothing_and_a_ray_from_outside_ends() -> None:
+    """A NaN heading or range is no hit (the numpy traversal walked such a ray forever, as would the compiled one,
+    which no signal can interrupt); a ray from outside the grid with no range limit stops once past the grid."""
+    hits = cast_grid(room(), RES, (2.0, 1.5), np.array([math.nan, 0.0]), 10.0)
+    assert math.isinf(hits.distance_m[0]) and hits.side[0] == -1 and hits.row[0] == -1
+    assert hits.distance_m[1] == pytest.approx(3.9)
+    assert math.isinf(cast_grid(room(), RES, (2.0, 1.5), np.array([0.0]), math.nan).distance_m[0])
+    outside = cast_grid(room(), RES, (-1.0, 2.0), np.array([0.0, math.pi, 0.3]), math.inf)
+    assert outside.distance_m[0] == pytest.approx(1.0)  # into the wall at x = 0
+    assert math.isinf(outside.distance_m[1])  # away from the grid
+    assert outside.distance_m[2] == pytest.approx(reference(room(), RES, (-1.0, 2.0), 0.3, 10.0), abs=RES / 1000)

@@ -96,8 +96,19 @@ def test_the_compiled_cells_are_the_numpy_cells_and_the_scores_the_same_bits(num
         grid = OccupancyMap(data, 0.05, origin)
         ours, before = LikelihoodField(grid), numpy_baselines.NumpyLikelihoodField(grid)
         poses = np.column_stack([rng.uniform(-3, 5, 400), rng.uniform(-2, 6, 400), rng.uniform(-4, 4, 400)])
-        poses[:3] = [(1e12, 0.0, 0.0), (np.nan, 1.0, 0.2), (0.5, 0.5, np.inf)]
+        poses[:4] = [(1e12, 0.0, 0.0), (np.nan, 1.0, 0.2), (0.5, 0.5, np.inf), (np.inf, -np.inf, 0.0)]
         points = rng.uniform(-6, 6, (90, 2))
         points[:2] = [(np.nan, 0.0), (np.inf, -np.inf)]
         np.testing.assert_array_equal(ours._indices(poses, points), before._indices(poses, points))
         assert ours.log_likelihood(poses, points).tobytes() == before.log_likelihood(poses, points).tobytes()
+
+
+def test_a_segment_too_long_for_its_steps_to_move_ends_the_walk() -> None:
+    """Sphere tracing adds steps of at least half a cell; past 1e300 m a step no longer moves a float, so such a
+    segment ends where floats end instead of walking for ever (uninterruptibly, in a compiled loop)."""
+    data = np.zeros((40, 40), dtype=np.int8)
+    data[20, 20] = 100
+    field = LikelihoodField(OccupancyMap(data, 0.05, Pose2D(0.0, 0.0, 0.0)))
+    poses = np.zeros((3000, 3))
+    crossed = field.crossings(poses, (0.0, 0.0), np.array([[1e300, 0.0], [2.0, 1.0]]), 0.0)
+    assert crossed.shape == (3000, 2) and not crossed.any()
