@@ -104,7 +104,7 @@ class GridCaster:
         hit_col = np.empty(n, dtype=np.intp)
         side = np.empty(n, dtype=np.int8)
         _walk_rays(self._flat, self._stride, width, height, gx0, gy0, dx, dy, np.abs(1.0 / dx), np.abs(1.0 / dy),
-                  t_max, res, dist, hit_row, hit_col, side)
+                   t_max, res, dist, hit_row, hit_col, side)
         return GridHits(dist, hit_row, hit_col, side)
 
 
@@ -117,90 +117,88 @@ def _blocked(flat: NDArray[np.bool_], stride: int, height: int, row: int, col: i
 
 
 @njit(cache=True, nogil=True)
-def _walk_rays(flat: NDArray[np.bool_], stride: int, width: int, height: int,  # noqa: PLR0912, PLR0915, PLR0917  one compiled loop
-              gx0: float, gy0: float, dx: FloatArray, dy: FloatArray, inv_dx: FloatArray, inv_dy: FloatArray,
-              t_max: FloatArray, res: float, dist: FloatArray, hit_row: IntArray, hit_col: IntArray,
-              side: NDArray[np.int8]) -> None:  # pragma: no cover  compiled by numba; tested through GridCaster
-    """Walk each ray's crossings in order of distance (in cells) and write where it stopped.
+def _walk_rays(flat: NDArray[np.bool_], stride: int, width: int, height: int,  # noqa: PLR0917  one compiled loop
+               gx0: float, gy0: float, dx: FloatArray, dy: FloatArray, inv_dx: FloatArray, inv_dy: FloatArray,
+               t_max: FloatArray, res: float, dist: FloatArray, hit_row: IntArray, hit_col: IntArray,
+               side: NDArray[np.int8]) -> None:  # pragma: no cover  compiled by numba; tested through GridCaster
+    """Walk each ray's crossings in order of distance (in cells) and write where it stopped (`_first_hit`).
 
     ``flat`` is the padded grid (``height + 2`` rows of ``stride = width + 2``), the origin ``(gx0, gy0)``
     is in cells, and a ray with no blocked cell within ``t_max`` gets distance inf, cell -1 and side -1.
-    Where the two families cross at the same distance, the vertical line (an x-face) is looked at first.
-    The cell across the other axis is found from where the crossing lands, nudged 1e-9 of a cell along the
-    ray, so a crossing exactly on a grid corner enters the cell the ray heads into.
     """
     inside = 0.0 <= gx0 <= width and 0.0 <= gy0 <= height
-    fx = math.floor(gx0)
-    fy = math.floor(gy0)
     for i in range(dx.shape[0]):
         ddx = dx[i]
         ddy = dy[i]
         pos_x = ddx > 0
         pos_y = ddy > 0
-        ix = inv_dx[i]
-        iy = inv_dy[i]
         if inside:
             # Nothing beyond the grid's edge can stop a ray that started inside it.
-            tx_exit = abs((float(width) if pos_x else 0.0) - gx0) * ix
-            ty_exit = abs((float(height) if pos_y else 0.0) - gy0) * iy
+            tx_exit = abs((float(width) if pos_x else 0.0) - gx0) * inv_dx[i]
+            ty_exit = abs((float(height) if pos_y else 0.0) - gy0) * inv_dy[i]
             lim = min(t_max[i], tx_exit, ty_exit)
         else:
             # From outside: stop once the ray has passed the grid's far side on either axis (no hit there).
             far_x = ((float(width) if pos_x else 0.0) - gx0) / ddx
             far_y = ((float(height) if pos_y else 0.0) - gy0) / ddy
             lim = min(t_max[i], far_x + 1.0, far_y + 1.0)
-        if not lim >= 0.0 or math.isnan(ddx) or math.isnan(ddy):  # a NaN angle or range: no hit, not an endless walk
-            dist[i] = math.inf
-            hit_row[i] = -1
-            hit_col[i] = -1
-            side[i] = -1
-            continue
-        step_x = 1.0 if pos_x else -1.0
-        step_y = 1.0 if pos_y else -1.0
-        off_x = 1 if pos_x else 0
-        off_y = 1 if pos_y else 0
-        nudge_x = math.copysign(1e-9, ddx)
-        nudge_y = math.copysign(1e-9, ddy)
-        line_x = fx + (1.0 if pos_x else 0.0)
-        line_y = fy + (1.0 if pos_y else 0.0)
-        tx = abs(line_x - gx0) * ix
-        ty = abs(line_y - gy0) * iy
-        found = False
-        t_hit = 0.0
-        row = 0
-        col = 0
-        face = -1
-        while True:
-            if tx <= ty:
-                if tx > lim:
-                    break
-                col = int(line_x) + off_x
-                row = math.floor(gy0 + tx * ddy + nudge_y) + 1
-                if _blocked(flat, stride, height, row, col):
-                    found, t_hit, face = True, tx, 0
-                    break
-                line_x += step_x
-                tx = abs(line_x - gx0) * ix
-            else:
-                if ty > lim:
-                    break
-                row = int(line_y) + off_y
-                col = math.floor(gx0 + ty * ddx + nudge_x) + 1
-                if _blocked(flat, stride, height, row, col):
-                    found, t_hit, face = True, ty, 1
-                    break
-                line_y += step_y
-                ty = abs(line_y - gy0) * iy
-        if found:
-            dist[i] = t_hit * res
-            hit_row[i] = row - 1
-            hit_col[i] = col - 1
-            side[i] = face
+        # A NaN angle or range hits nothing (it is not walked: it would never end).
+        walk = lim >= 0.0 and not (math.isnan(ddx) or math.isnan(ddy))
+        t, row, col, face = (_first_hit((flat, stride, height), (gx0, gy0), (ddx, ddy, inv_dx[i], inv_dy[i]), lim)
+                             if walk else (0.0, 0, 0, -1))
+        found = face >= 0
+        dist[i] = t * res if found else math.inf
+        hit_row[i] = row - 1 if found else -1
+        hit_col[i] = col - 1 if found else -1
+        side[i] = face
+
+
+@njit(cache=True, nogil=True)
+def _first_hit(grid: tuple[NDArray[np.bool_], int, int], origin: tuple[float, float],
+               ray: tuple[float, float, float, float], lim: float
+               ) -> tuple[float, int, int, int]:  # pragma: no cover  compiled by numba
+    """The first blocked cell one ray enters within ``lim`` (cells): its distance in cells, its padded row and
+    column, and the face it entered through (0: a vertical grid line, 1: a horizontal one, -1: none).
+
+    ``grid``: the padded grid, its stride and height; ``ray``: its direction and the absolute inverses of both
+    components. Where the two families cross at the same distance, the vertical line (an x-face) is looked at
+    first. The cell across the other axis is found from where the crossing lands, nudged 1e-9 of a cell along
+    the ray, so a crossing exactly on a grid corner enters the cell the ray heads into.
+    """
+    flat, stride, height = grid
+    gx0, gy0 = origin
+    ddx, ddy, ix, iy = ray
+    pos_x = ddx > 0
+    pos_y = ddy > 0
+    step_x = 1.0 if pos_x else -1.0
+    step_y = 1.0 if pos_y else -1.0
+    off_x = 1 if pos_x else 0
+    off_y = 1 if pos_y else 0
+    nudge_x = math.copysign(1e-9, ddx)
+    nudge_y = math.copysign(1e-9, ddy)
+    line_x = math.floor(gx0) + (1.0 if pos_x else 0.0)
+    line_y = math.floor(gy0) + (1.0 if pos_y else 0.0)
+    tx = abs(line_x - gx0) * ix
+    ty = abs(line_y - gy0) * iy
+    while True:
+        if tx <= ty:
+            if tx > lim:
+                return 0.0, 0, 0, -1
+            col = int(line_x) + off_x
+            row = math.floor(gy0 + tx * ddy + nudge_y) + 1
+            if _blocked(flat, stride, height, row, col):
+                return tx, row, col, 0
+            line_x += step_x
+            tx = abs(line_x - gx0) * ix
         else:
-            dist[i] = math.inf
-            hit_row[i] = -1
-            hit_col[i] = -1
-            side[i] = -1
+            if ty > lim:
+                return 0.0, 0, 0, -1
+            row = int(line_y) + off_y
+            col = math.floor(gx0 + ty * ddx + nudge_x) + 1
+            if _blocked(flat, stride, height, row, col):
+                return ty, row, col, 1
+            line_y += step_y
+            ty = abs(line_y - gy0) * iy
 
 
 @functools.cache
@@ -211,7 +209,7 @@ def load_compiled() -> None:
     flat = np.zeros(9, dtype=np.bool_)  # one empty cell and its border
     out = (np.empty(1), np.empty(1, dtype=np.intp), np.empty(1, dtype=np.intp), np.empty(1, dtype=np.int8))
     _walk_rays(flat, 3, 1, 1, 0.5, 0.5, np.ones(1), np.full(1, 1e-12), np.ones(1), np.full(1, 1e12), np.ones(1), 1.0,
-              *out)
+               *out)
 
 
 def cast_grid(
