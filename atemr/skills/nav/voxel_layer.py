@@ -212,16 +212,13 @@ class VoxelLayer:
         res = self.resolution_m
         c, s, gx, gy = frame
         mount = image.mount
-        # the camera's cell and the window of cells it can see
+        # the marked voxels in the window of cells the camera can see
         cam_x = gx + c * mount.x_m - s * mount.y_m
         cam_y = gy + s * mount.x_m + c * mount.y_m
-        reach = math.ceil(image.range_max_m / res) + 1
-        h, w = self.shape
-        r0, c0 = math.floor(cam_y / res), math.floor(cam_x / res)
-        rs, re, cs, ce = max(r0 - reach, 0), min(r0 + reach + 1, h), max(c0 - reach, 0), min(c0 + reach + 1, w)
-        if rs >= re or cs >= ce or not self.columns[rs:re, cs:ce].any():
+        rows, cols, layers = self._marked_in(self._window((cam_x, cam_y), image.range_max_m), (0, p.layers))
+        if len(rows) == 0:
             return np.zeros(0, dtype=np.int32)
-        rows, cols, layers = self._marked_in((rs, re, cs, ce), (0, self.params.layers))
+        w = self.shape[1]
         # voxel centres: grid frame → base frame → optical frame
         ex = (cols + 0.5) * res - gx
         ey = (rows + 0.5) * res - gy
@@ -257,15 +254,10 @@ class VoxelLayer:
         mount = scan.sensor_pose
         lx = gx + c * mount.x_m - s * mount.y_m
         ly = gy + s * mount.x_m + c * mount.y_m
-        reach = math.ceil(scan.range_max_m / res) + 1
-        h, w = self.shape
-        r0, c0 = math.floor(ly / res), math.floor(lx / res)
-        rs, re, cs, ce = max(r0 - reach, 0), min(r0 + reach + 1, h), max(c0 - reach, 0), min(c0 + reach + 1, w)
-        if rs >= re or cs >= ce or not self.columns[rs:re, cs:ce].any():
-            return empty
-        rows, cols, layers = self._marked_in((rs, re, cs, ce), (first, end))
+        rows, cols, layers = self._marked_in(self._window((lx, ly), scan.range_max_m), (first, end))
         if len(rows) == 0:
             return empty
+        w = self.shape[1]
         ex = (cols + 0.5) * res - lx
         ey = (rows + 0.5) * res - ly
         dist = np.hypot(ex, ey)
@@ -283,6 +275,15 @@ class VoxelLayer:
         flat = ((rows[through] * w + cols[through]) * p.layers + layers[through]).astype(np.int32)
         self._voxels_flat[flat] = False
         return flat
+
+    def _window(self, centre: tuple[float, float], reach_m: float) -> tuple[int, int, int, int]:
+        """The cells (rows rs:re, columns cs:ce, clipped to the grid; empty off it) within ``reach_m`` of a sensor at
+        ``centre`` (grid-frame metres), a cell to spare."""
+        res = self.resolution_m
+        reach = math.ceil(reach_m / res) + 1
+        h, w = self.shape
+        r0, c0 = math.floor(centre[1] / res), math.floor(centre[0] / res)
+        return max(r0 - reach, 0), min(r0 + reach + 1, h), max(c0 - reach, 0), min(c0 + reach + 1, w)
 
     def _marked_in(self, box: tuple[int, int, int, int], band: tuple[int, int]
                    ) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
