@@ -297,12 +297,13 @@ def _traced(dist_flat: FloatArray, shape: tuple[int, int], inv: float, steps: tu
     x0, y0, ux, uy = rays
     margin, least = steps
     height, width = shape
+    size_x, size_y, cell = width / inv, height / inv, 2.0 * least
     for i in range(x0.shape[0]):
         for j in range(x0.shape[1]):
-            leaves = min(_leaves(x0[i, j], ux[i, j], width / inv), _leaves(y0[i, j], uy[i, j], height / inv))
+            beyond = min(_leaves(x0[i, j], ux[i, j], size_x), _leaves(y0[i, j], uy[i, j], size_y)) + cell
             end = reach[j]
-            if not leaves + 2.0 * least >= end:  # the map's far edge comes first, or NaN: no walk beyond it
-                end = 0.0 if math.isnan(leaves) else max(leaves + 2.0 * least, 0.0)
+            if not beyond >= end:  # the map's far edge comes first, or NaN: no walk beyond it
+                end = 0.0 if math.isnan(beyond) else max(beyond, 0.0)
             t = 0.0
             while True:
                 d = _occupied(dist_flat, shape, inv, x0[i, j] + ux[i, j] * t, y0[i, j] + uy[i, j] * t)
