@@ -69,6 +69,7 @@ def _baseline_caster() -> type:
 
 NumpyGridCaster = _baseline_caster()
 
+
 def real_time_factor(camera_hz: float, sim_seconds: float, *, whole_robot: bool = False, watched: bool = False
                      ) -> tuple[float, float, Simulation]:
     """Simulated seconds per CPU second of this (single-threaded) process, i.e. on one core, and per wall
