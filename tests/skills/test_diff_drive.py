@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from atemr.errors import ConfigError
 from atemr.msgs import Pose2D, Twist, WheelSpeeds
-from atemr.skills.diff_drive import DiffDrive, Odometry, arc_step, wrap_angle
+from atemr.skills.diff_drive import DiffDrive, Odometry, arc_step, arc_step_one, wrap_angle
 
 DRIVE = DiffDrive(0.085, 0.40, max_wheel_radps=math.inf)
 
@@ -68,6 +68,25 @@ def test_arc_steps_compose_exactly(v, w, dt, n):
         x, y, th = (float(a) for a in arc_step(x, y, th, v, w, dt_s=dt / n))
     one_step = tuple(float(a) for a in arc_step(0.0, 0.0, 0.0, v, w, dt_s=dt))
     assert (x, y, th) == pytest.approx(one_step, abs=1e-9)
+
+
+def test_one_arc_step_in_floats_gives_the_arrays_bits():
+    """The odometry filters step one pose in plain floats (`arc_step_one`); a seeded run must not depend on which
+    path a step took, so both agree to the last bit: at ω = 0 (sinc's substitute), for tiny and large turns, and
+    with infinities and NaN (which take the array path)."""
+    rng = np.random.default_rng(4)
+    n = 100_000
+    x, y = rng.normal(0, 20, n), rng.normal(0, 20, n)
+    yaw, v = rng.uniform(-7, 7, n), rng.normal(0, 1, n)
+    w = np.where(rng.random(n) < 0.2, 0.0, rng.normal(0, 2, n) * 10.0 ** rng.integers(-12, 2, n))
+    dt = rng.uniform(0, 0.05, n)
+    w[:3], v[3], yaw[4], dt[5], w[6] = (-0.0, 1e-300, 5e-324), np.inf, np.nan, np.inf, np.inf
+    with np.errstate(invalid="ignore"):
+        batch = np.stack(arc_step(x, y, yaw, v, w, dt_s=dt), axis=1)
+        for k in range(n):
+            one = np.array(arc_step_one(float(x[k]), float(y[k]), float(yaw[k]), float(v[k]), float(w[k]),
+                                        dt_s=float(dt[k])))
+            assert one.tobytes() == batch[k].tobytes(), (k, one, batch[k])
 
 
 def test_odometry_from_speeds_drives_a_full_circle():

@@ -131,7 +131,7 @@ class LocalizationPipeline:
 
     def set_initial_pose(self, now: float, pose: Pose2D, covariance: np.ndarray | None = None) -> None:
         """The operator's pose on the map (`NavigationError` if it is not in free space)."""
-        self._need().set_initial_pose(now, pose, covariance, odom=self.odometry.estimate.pose)
+        self._need().set_initial_pose(now, pose, covariance, odom=self.odometry.pose)
 
     def start_global(self, now: float, why: str = "requested", *, look_around: bool = False) -> None:
         """Global localization (the pose is unknown); ``why`` goes into the event; ``look_around``: the operator
@@ -140,9 +140,8 @@ class LocalizationPipeline:
 
     # -- inputs ------------------------------------------------------------------------------------
     def _remember(self) -> None:
-        est = self.odometry.estimate
-        self._times.append(est.t)
-        self._poses.append(est.pose)
+        self._times.append(self.odometry.t)
+        self._poses.append(self.odometry.pose)
 
     def on_wheels(self, now: float, wheels: WheelSpeeds) -> None:
         """Measured wheel speeds at ``now``."""
@@ -174,7 +173,7 @@ class LocalizationPipeline:
     def odom_at(self, t: float) -> Pose2D:
         """The ``odom`` pose at time ``t`` (the latest one recorded at or before it)."""
         if not self._times:
-            return self.odometry.estimate.pose
+            return self.odometry.pose
         i = bisect.bisect_right(self._times, t) - 1
         return self._poses[max(i, 0)]
 
@@ -206,7 +205,7 @@ class LocalizationPipeline:
     # -- outputs -----------------------------------------------------------------------------------
     @property
     def odom_pose(self) -> Pose2D:
-        return self.odometry.estimate.pose
+        return self.odometry.pose
 
     @property
     def localized(self) -> bool:
