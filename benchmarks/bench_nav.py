@@ -12,6 +12,9 @@ Rows (``python benchmarks/bench_nav.py``):
   changed, as in the navigator) against the same baseline (informational).
 * one costmap update from a 360-beam scan (clear + mark + inflate), updates per second (goal >= 10 Hz,
   the lidar's rate).
+* the obstacle layer's clearing, compiled (``_clear_beams``), against the numpy version it replaced
+  (``numpy_baselines.py``: every beam's samples at once), on a 400x400 map whose layer holds marks: the same
+  cells, updates per second, interleaved. Goal >= 1x.
 * one local-planner tick (dynamic window, all (v, w) samples and time steps at once), ticks per second
   (goal >= 10 Hz).
 * A* against tcod (libtcod's C pathfinder, a benchmark-only dependency: the ``bench`` extra) on the same cost
@@ -27,6 +30,7 @@ Rows (``python benchmarks/bench_nav.py``):
 from __future__ import annotations
 
 import heapq
+import importlib.util
 import math
 import statistics
 import sys
@@ -112,6 +116,28 @@ def textbook_astar(cost: NDArray[np.uint8], start: tuple[int, int], goal: tuple[
     return math.inf
 
 
+def clearing_row(occ: OccupancyMap, scan: LaserScan, pose: Pose2D, repeats: int) -> dict[str, Any]:
+    """A scan's update of the obstacle layer (marks in it, so the beams clear), the compiled clearing against the
+    numpy one it replaced, interleaved best-of; the layers must come out the same."""
+    path = Path(__file__).with_name("numpy_baselines.py")
+    spec = importlib.util.spec_from_file_location("atemr_bench_numpy_baselines", path)
+    assert spec is not None and spec.loader is not None
+    baselines = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(baselines)
+    maps = {"ours": Costmap(occ), "numpy": baselines.NumpyClearingCostmap(occ)}
+    marks = np.random.default_rng(2).random(occ.data.shape) < 0.02
+    best = dict.fromkeys(maps, math.inf)
+    for _ in range(repeats):
+        for name, cm in maps.items():
+            cm.obstacles[:] = marks
+            t, _ = _best(lambda cm=cm: cm.update_from_scan(scan, pose), 1)
+            best[name] = min(best[name], t)
+    assert np.array_equal(maps["ours"].obstacles, maps["numpy"].obstacles)
+    return {"what": "  the layer's clearing compiled vs the numpy one it replaced (same cells)",
+            "ours": round(1.0 / best["ours"], 1), "baseline": round(1.0 / best["numpy"], 1),
+            "ratio": round(best["numpy"] / best["ours"], 2), "goal": 1.0, "unit": "updates/s"}
+
+
 def _best(fn: Any, repeats: int) -> tuple[float, Any]:
     best = math.inf
     out = None
@@ -191,6 +217,7 @@ def run(quick: bool = False) -> list[dict[str, Any]]:  # noqa: PLR0915  the benc
     rows.append({"what": "costmap update from a 360-beam scan (clear, mark, inflate), 400x400",
                  "ours": round(1.0 / t_update, 1), "baseline": 10.0, "ratio": round(0.1 / t_update, 1),
                  "goal": 1.0, "unit": "updates/s (baseline: the lidar's 10 Hz)"})
+    rows.append(clearing_row(occ, scan, pose, 5 if quick else 20))
 
     cm.clear_obstacles()
     free_rows, free_cols = np.nonzero(cm.cost == 0)

@@ -9,11 +9,14 @@
 * `NumpyShapesDepthCamera`: the simulated depth camera with the numpy slab and cylinder tests of furniture,
   people and pets that `atemr.io.sim.depth` replaced;
 * `numpy_edge_weights`: the global planner's edge weights (every cell's eight steps, reduced by A*'s heuristic)
-  that `atemr.skills.nav.global_planner.edge_weights` replaced.
+  that `atemr.skills.nav.global_planner.edge_weights` replaced;
+* `NumpyClearingCostmap`: the costmap whose obstacle layer clears a scan's beams with numpy, every beam's samples at
+  once, which `atemr.skills.nav.costmap`'s ``_clear_beams`` replaced (as it was at `b413e01`).
 
-Kept as they were at `096bdec` (renamed, with the helpers of their own) for two uses: the benchmarks measure the
-compiled loops against them, and the tests check that the two answer with the same bits, which is what keeps every
-seeded run the same as before (the one exception is `atemr.io.sim.raycast`'s face at an exact grid corner).
+Kept as they were at `096bdec` unless said otherwise (renamed, with the helpers of their own) for two uses: the
+benchmarks measure the compiled loops against them, and the tests check that the two answer with the same bits,
+which is what keeps every seeded run the same as before (the one exception is `atemr.io.sim.raycast`'s face at an
+exact grid corner).
 """
 
 from __future__ import annotations
@@ -25,12 +28,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from atemr.errors import NavigationError
 from atemr.io.sim.depth import F32, DepthCamera
 from atemr.io.sim.depth import _inverse as inverse_directions
 from atemr.io.sim.raycast import FloatArray, GridHits
-from atemr.msgs import DepthImage, LaserScan
+from atemr.msgs import DepthImage, LaserScan, Pose2D
 from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField
-from atemr.skills.nav.costmap import MAX_NON_OBSTACLE
+from atemr.skills.nav.costmap import MAX_NON_OBSTACLE, Costmap
 from atemr.skills.nav.global_planner import _BLOCKED, _MOVES, PlannerParams
 from atemr.skills.nav.voxel_layer import VoxelLayer
 
@@ -406,3 +410,49 @@ def numpy_edge_weights(cost: NDArray[np.uint8], passable: NDArray[np.bool_], res
             np.copyto(w, _BLOCKED, where=~ok)
         out[r0:r1] = planes.transpose(1, 2, 0)
     return out.reshape(rows * cols, 8)
+
+
+class NumpyClearingCostmap(Costmap):
+    """`Costmap` with ``update_from_scan`` as numpy computed it before the compiled clearing loop."""
+
+    def update_from_scan(self, scan: LaserScan, pose: Pose2D) -> int:
+        """Clear along every valid beam, then mark each return's cell; returns how many cells are marked."""
+        if not all(math.isfinite(v) for v in (pose.x_m, pose.y_m, pose.yaw_rad)):
+            raise NavigationError(f"costmap: robot pose must be finite, got {pose}")
+        p = self.params
+        ranges = np.asarray(scan.ranges_m, dtype=np.float64)
+        too_close = np.isneginf(ranges)
+        r = np.where(too_close, scan.range_min_m, ranges)
+        valid = np.isfinite(r) & (r >= scan.range_min_m) & (r <= scan.range_max_m)
+        valid &= r > 0
+        if not valid.any():
+            self.unmapped_points = np.zeros((0, 2))
+            return int(self.obstacles.sum())
+        r = r[valid]
+        mount = scan.sensor_pose
+        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+        sx = pose.x_m + c * mount.x_m - s * mount.y_m
+        sy = pose.y_m + s * mount.x_m + c * mount.y_m
+        ang = pose.yaw_rad + mount.yaw_rad + scan.angles_rad[valid]
+        ux, uy = np.cos(ang), np.sin(ang)
+        reach = np.minimum(r, p.raytrace_range_m) - self.resolution_m
+        step = self.resolution_m / 2
+        n = int(max(reach.max(), 0.0) / step) + 1
+        t = np.arange(n, dtype=np.float64) * step
+        along = t[None, :] <= reach[:, None]
+        cx = (sx + ux[:, None] * t[None, :])[along]
+        cy = (sy + uy[:, None] * t[None, :])[along]
+        row, col, inside = self.cells(cx, cy)
+        before = self.obstacles.copy() if self.obstacles.any() else None
+        self.obstacles[row[inside], col[inside]] = False
+        near = r <= p.obstacle_range_m
+        mx, my = sx + ux[near] * r[near], sy + uy[near] * r[near]
+        row, col, inside = self.cells(mx, my)
+        row, col = row[inside], col[inside]
+        match = np.maximum(1.5 * self.resolution_m, p.wall_match_m + p.wall_match_per_m * r[near][inside])
+        new = self._static_distance[row, col] > match
+        self.obstacles[row[new], col[new]] = True
+        self.unmapped_points = np.column_stack([mx[inside][new], my[inside][new]])
+        if before is None or not np.array_equal(before, self.obstacles):
+            self.version += 1
+        return int(self.obstacles.sum())

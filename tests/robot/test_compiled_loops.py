@@ -22,11 +22,12 @@ from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Ticker
 from atemr.robot.headless import build_headless_robot
 from atemr.skills.localization import likelihood_field
-from atemr.skills.nav import global_planner, voxel_layer
+from atemr.skills.nav import costmap, global_planner, voxel_layer
 
 loops = {"walk_rays": raycast._walk_rays, "traced": likelihood_field._traced, "sampled": likelihood_field._sampled,
          "marks": voxel_layer._marks, "box_hits": depth._box_hits, "cylinder_hits": depth._cylinder_hits,
-         "weights": global_planner._weights_into, "cells": likelihood_field._cells_into}
+         "weights": global_planner._weights_into, "cells": likelihood_field._cells_into,
+         "clear_beams": costmap._clear_beams}
 robot = build_headless_robot(load_config(environ={}, overrides={"sim.camera_hz": 10.0, "sim.seed": 2}))
 built = {name: len(loop.signatures) for name, loop in loops.items()}
 inputs = robot.parts.inputs
@@ -56,6 +57,9 @@ for k, (tx, ty) in enumerate(targets):
     sim.camera.render(pose, sim.scene, sim.movers)
     layer.update(image, pose, sim.read_lidar(20.0 + k))
 field.log_likelihood(poses[:500], rng.uniform(-5, 5, (60, 2)))
+# The navigator's obstacle layer clearing a scan's beams through what it holds.
+navigator.costmap.obstacles[40:80, 40:80] = True
+navigator.costmap.update_from_scan(sim.read_lidar(30.0), sim.pose)
 ran = {name: len(loop.signatures) for name, loop in loops.items()}
 robot.shutdown()
 print(json.dumps({"built": built, "ran": ran}))

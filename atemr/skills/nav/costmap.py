@@ -11,8 +11,9 @@ Cell costs use ROS costmap_2d's scale so maps and intuition carry over:
 
 Layers. The static layer is the `OccupancyMap` (occupied cells lethal; unknown cells lethal, free or
 unknown as configured). The obstacle layer holds what the lidar sees that the map does not: each scan
-first *clears* the cells its beams pass through (ray tracing, all beams and samples at once) and then
-*marks* the cells its returns end in, so a person who walked away disappears and a new box appears.
+first *clears* the cells its beams pass through (ray tracing: a sample every half cell along each beam, in a
+compiled loop, `_clear_beams`) and then *marks* the cells its returns end in, so a person who walked away
+disappears and a new box appears.
 A third layer, ``voxels``, holds what the depth camera sees between the floor and the robot's height
 (`atemr.skills.nav.voxel_layer` marks and clears it); the lidar's clearing never touches it, since its beams
 pass under a table top the camera sees. Both count as obstacles alike.
@@ -23,11 +24,13 @@ marks, so a 10 Hz update stays cheap on big maps.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy import ndimage
 
@@ -138,6 +141,7 @@ class Costmap:
         self._hard: NDArray[np.float32] = self._static_distance
         self._static_cost: NDArray[np.uint8] | None = None
         self._inflate_cells = math.ceil((p.inflation_radius_m + p.obstacle_padding_m) / self.resolution_m) + 1
+        load_compiled()
 
     # -- distances and costs -------------------------------------------------------------------------
     def _distance(self, lethal: NDArray[np.bool_]) -> NDArray[np.float32]:
@@ -305,17 +309,16 @@ class Costmap:
         sy = pose.y_m + s * mount.x_m + c * mount.y_m
         ang = pose.yaw_rad + mount.yaw_rad + scan.angles_rad[valid]
         ux, uy = np.cos(ang), np.sin(ang)
-        # Clearing: samples every half cell from the sensor to just before the return, all beams at once.
+        # Clearing: samples every half cell from the sensor to just before the return.
         reach = np.minimum(r, p.raytrace_range_m) - self.resolution_m
-        step = self.resolution_m / 2
-        n = int(max(reach.max(), 0.0) / step) + 1
-        t = np.arange(n, dtype=np.float64) * step
-        along = t[None, :] <= reach[:, None]
-        cx = (sx + ux[:, None] * t[None, :])[along]
-        cy = (sy + uy[:, None] * t[None, :])[along]
-        row, col, inside = self.cells(cx, cy)
         before = self.obstacles.copy() if self.obstacles.any() else None
-        self.obstacles[row[inside], col[inside]] = False
+        if before is not None:  # nothing to clear in an empty layer
+            origin = self.map.origin
+            c0, s0 = (math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)) if origin.yaw_rad else (1.0, 0.0)
+            step = self.resolution_m / 2
+            samples = int(max(reach.max(), 0.0) / step) + 1
+            _clear_beams(self.obstacles, (sx, sy), (ux, uy, reach), (step, samples),
+                         (origin.x_m, origin.y_m, c0, s0, bool(origin.yaw_rad), self.resolution_m))
         # Marking: the cells the returns end in, unless they are a mapped wall: a return within a cell and a
         # half (or ``wall_match_m`` and more with range) of a static obstacle is that obstacle seen with range
         # noise and pose error, and marking it would narrow every doorway by a cell.
@@ -339,3 +342,44 @@ class Costmap:
         if allow_unknown:
             ok |= cost == NO_INFORMATION
         return ok
+
+
+@functools.cache
+def load_compiled() -> None:
+    """Compile (a checkout's first run) or load (from numba's cache) `_clear_beams` when the first costmap is built,
+    not at the robot's first scan: the call has the argument types of `Costmap.update_from_scan`'s (a test checks
+    that a running robot has one compiled version of each loop)."""
+    one = np.ones(1)
+    _clear_beams(np.zeros((1, 1), dtype=np.bool_), (0.0, 0.0), (one, one, one), (1.0, 1),
+                 (0.0, 0.0, 1.0, 0.0, False, 1.0))
+
+
+@njit(cache=True, nogil=True)
+def _clear_beams(obstacles: NDArray[np.bool_], sensor: tuple[float, float],  # pragma: no cover  compiled by numba
+                 beams: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+                 samples: tuple[float, int], grid: tuple[float, float, float, float, bool, float]) -> None:
+    """Empty the cells of ``obstacles`` that samples ``0, step, 2 step, ...`` (at most ``count``) along each beam
+    (unit direction ``ux, uy`` from ``sensor``, world frame) reach up to ``reach``. A sample's cell is
+    `OccupancyMap.world_to_cell`'s arithmetic in the same order (``grid``: the map origin's x, y, the cosine and sine
+    of its yaw, whether it is rotated, and the resolution), so the same cells as the numpy version this replaced,
+    which built arrays of every beam's samples several times over."""
+    sx, sy = sensor
+    ux, uy, reach = beams
+    step, count = samples
+    ox, oy, c, s, rotated, resolution_m = grid
+    h, w = obstacles.shape
+    for b in range(ux.shape[0]):
+        bx, by, end = ux[b], uy[b], reach[b]
+        for k in range(count):
+            t = k * step
+            if not t <= end:
+                break
+            dx = (sx + bx * t) - ox
+            dy = (sy + by * t) - oy
+            if rotated:
+                dx, dy = c * dx + s * dy, -s * dx + c * dy
+            row = np.floor(dy / resolution_m)  # a float: NaN and huge values fall outside, as numpy's do
+            col = np.floor(dx / resolution_m)
+            if 0 <= row < h and 0 <= col < w:
+                obstacles[int(row), int(col)] = False
+
