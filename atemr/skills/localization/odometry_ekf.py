@@ -64,7 +64,7 @@ class OdometryEkfParams:
     def __post_init__(self) -> None:
         _check_positive(self, tuple(self.__dataclass_fields__), "localization.odometry")
         for name in self.__dataclass_fields__:  # the filter works with variances
-            if not math.isfinite(getattr(self, name) ** 2):
+            if not math.isfinite(getattr(self, name) * getattr(self, name)):
                 raise ConfigError(f"is too large: its square is not a finite number, got {getattr(self, name)!r}",
                                   path=f"localization.odometry.{name}")
 
@@ -156,8 +156,12 @@ class OdometryEkf:
             if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
                 self.rejected += 1
                 return False
-            var_v = max(var_v, float(cov[0, 0]) / dt_s**2)
-            var_w = max(var_w, float(cov[2, 2]) / dt_s**2)
+            rate2 = dt_s * dt_s
+            if rate2 == 0.0:  # too short an interval to be a rate
+                self.rejected += 1
+                return False
+            var_v = max(var_v, float(cov[0, 0]) / rate2)
+            var_w = max(var_w, float(cov[2, 2]) / rate2)
         if not (math.isfinite(var_v) and math.isfinite(var_w)):  # a tiny dt can overflow the rate's variance
             self.rejected += 1
             return False

@@ -77,6 +77,13 @@ def test_odometry_ekf_rejects_bad_input() -> None:
     assert np.isfinite(ekf.state).all() and np.isfinite(ekf.covariance).all()
     with pytest.raises(ConfigError):
         OdometryEkfParams(gyro_std_radps=-1.0)
+    with pytest.raises(ConfigError, match="square") as err:  # a variance of inf would poison every update
+        OdometryEkfParams(wheel_v_std_mps=1e200)
+    assert err.value.path == "localization.odometry.wheel_v_std_mps"
+    # scan matches over tiny intervals: the rate's variance overflows or the interval squared is 0; refused, not fused
+    assert not ekf.update_scan_match(0.3, Pose2D(0.01, 0.0, 0.0), 1e-300, np.eye(3))
+    assert not ekf.update_scan_match(0.3, Pose2D(0.01, 0.0, 0.0), 1e-160, np.eye(3) * 1e-10)
+    assert ekf.rejected == 7 and np.isfinite(ekf.state).all()
 
 
 def test_fusion_in_the_simulator(living_room_drive) -> None:  # type: ignore[no-untyped-def]
