@@ -11,7 +11,9 @@ Rows (``python benchmarks/bench_sim.py`` or ``./benchmarks/run sim``):
 * the same with the motors behind the RMD driver and two emulators on a virtual CAN bus (no goal: the
   price of the whole chain);
 * the same with the camera at 10 fps (goal >= 1x: the stream keeps up with real time);
-* the whole robot (``atemr sim --headless``) with the camera off, against issue 22's 50x real time on one core;
+* the whole robot (``atemr sim --headless``) with the camera off, against issue 22's 50x real time on one core
+  (the joystick holds a curve: the robot drives it for about 18 simulated seconds, until the safety stop halts it
+  at the dining table, and stands there for the rest of the window, so this is mostly a robot standing still);
   with the camera at 10 fps: nobody watching (a headless run renders no frame for nobody,
   `FrameSource`), and watched (a subscriber takes every frame, as the dashboard's camera view), each against
   the whole robot with the camera off, in interleaved trials, the best of each (goal >= 0.5x watched: issue
@@ -75,7 +77,8 @@ def real_time_factor(camera_hz: float, sim_seconds: float, *, whole_robot: bool 
     """Simulated seconds per CPU second of this (single-threaded) process, i.e. on one core, and per wall
     second, for a robot driving a curve in the studio: the simulator alone (wheel models commanded
     directly), or the whole robot as ``atemr sim --headless`` runs it (motors over virtual CAN, secondary
-    core, motion pipeline, localization, agent; the curve held on the operator's joystick). CPU time is the
+    core, motion pipeline, localization, agent; the curve held on the operator's joystick, until the safety stop
+    halts the robot at the dining table after about 18 simulated seconds). CPU time is the
     measure that does not depend on what else the machine is running. ``watched``: a consumer takes every camera
     frame (the whole robot renders none for nobody)."""
     robot = None
