@@ -51,8 +51,8 @@ def arc_step_one(x: float, y: float, yaw: float, linear_mps: float, angular_radp
     """`arc_step` for one pose, in plain floats: the odometry filters step one pose 100 times a simulated second,
     where a dozen ufunc calls on single numbers cost ten times the arithmetic. The same operations in the same
     order, with `np.sinc`'s own substitute for 0, so the same bits as `arc_step`
-    (``tests/skills/test_diff_drive.py``); a non-finite input takes `arc_step` itself (``math`` raises on
-    infinities where numpy answers NaN); the angles are checked, the rest is arithmetic."""
+    (``tests/skills/test_diff_drive.py``). A step whose angles are not finite takes `arc_step` itself: ``math``
+    raises on an infinite angle where numpy answers NaN."""
     dth = angular_radps * dt_s
     mid = yaw + dth / 2.0
     if not (math.isfinite(dth) and math.isfinite(mid)):
