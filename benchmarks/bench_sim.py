@@ -12,12 +12,14 @@ Rows (``python benchmarks/bench_sim.py`` or ``./benchmarks/run sim``):
   price of the whole chain);
 * the same with the camera at 10 fps (goal >= 1x: the stream keeps up with real time);
 * the whole robot (``atemr sim --headless``) with the camera off, against issue 22's 50x real time on one core
-  (the joystick holds a curve: the robot drives it for about 18 simulated seconds, until the safety stop halts it
-  at the dining table, and stands there for the rest of the window, so this is mostly a robot standing still);
-  with the camera at 10 fps: nobody watching (a headless run renders no frame for nobody,
-  `FrameSource`), and watched (a subscriber takes every frame, as the dashboard's camera view), each against
-  the whole robot with the camera off, in interleaved trials, the best of each (goal >= 0.5x watched: issue
-  22 asks 25x real time with the camera where 50x without);
+  (the joystick holds a curve; the window, 6 to 16 simulated seconds (to 11 with --quick), ends before the robot
+  reaches the dining table, about 18 s in, where the safety stop would halt it); with the camera at 10 fps: nobody
+  watching (a headless run renders no frame for nobody, `FrameSource`), and watched (a subscriber takes every
+  frame, as the dashboard's camera view), each against the whole robot with the camera off, in interleaved trials,
+  the best of each (goal >= 0.5x watched: issue 22 asks 25x real time with the camera where 50x without);
+* the whole robot navigating, camera off: goals one after the other between three places of the studio, set as the
+  dashboard sets them (AUTO, a goal, the next once the robot is idle), so the navigator (costmap, planners) and scan
+  matching run all the time (no goal: what a mission costs beside the row above);
 * one 360-beam lidar scan: our compiled exact traversal against the same traversal written per beam
   in plain Python (Amanatides & Woo), on the same poses and with the same answers, in the studio and in an open
   hall (long beams); goal >= 2x; and the compiled walk against the numpy traversal it replaced
@@ -77,8 +79,7 @@ def real_time_factor(camera_hz: float, sim_seconds: float, *, whole_robot: bool 
     """Simulated seconds per CPU second of this (single-threaded) process, i.e. on one core, and per wall
     second, for a robot driving a curve in the studio: the simulator alone (wheel models commanded
     directly), or the whole robot as ``atemr sim --headless`` runs it (motors over virtual CAN, secondary
-    core, motion pipeline, localization, agent; the curve held on the operator's joystick, until the safety stop
-    halts the robot at the dining table after about 18 simulated seconds). CPU time is the
+    core, motion pipeline, localization, agent; the curve held on the operator's joystick). CPU time is the
     measure that does not depend on what else the machine is running. ``watched``: a consumer takes every camera
     frame (the whole robot renders none for nobody)."""
     robot = None
@@ -328,6 +329,7 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
                  "ours": round(rtf_wall, 1), "baseline": 1.0, "ratio": round(rtf_wall, 1), "goal": None,
                  "unit": "x real time"})
     rows.extend(whole_robot_rows(5.0 if quick else 10.0, 1 if quick else 3))
+    rows.append(navigating_row(10.0 if quick else 30.0, 1 if quick else 3))
     rtf_cam, _, _ = real_time_factor(10.0, 3.0 if quick else 10.0)
     rows.append({"what": "real-time factor on one core, studio, lidar 10 Hz, camera 10 fps",
                  "ours": round(rtf_cam, 2), "baseline": 1.0, "ratio": round(rtf_cam, 2), "goal": 1.0,
@@ -357,6 +359,44 @@ def whole_robot_rows(sim_seconds: float, trials: int) -> list[dict[str, Any]]:
                      "baseline": round(off, 1), "ratio": round(best[name] / off, 2),
                      "goal": 0.5 if name == "watched" else None, "unit": "x real time"})
     return rows
+
+
+#: Three places of the studio the navigating robot goes between, in turn (free, and reachable from each other).
+PLACES = (Pose2D(4.725, 5.025, 0.65), Pose2D(7.125, 2.925, -0.86), Pose2D(2.6, 2.6, 0.0))
+
+
+def navigating_row(sim_seconds: float, trials: int) -> dict[str, Any]:
+    """The whole robot, camera off, navigating between `PLACES` for ``sim_seconds`` after its start-up: the best
+    of ``trials`` (CPU time of this process, as `real_time_factor`)."""
+    from atemr.robot.gateway import RobotGatewayImpl
+
+    best, goals = 0.0, 0
+    for _ in range(trials):
+        robot = build_headless_robot(load_config(environ={}, overrides={"sim.camera_hz": 0.0, "sim.seed": 1}))
+        gateway = RobotGatewayImpl(robot)
+        try:
+            sched = robot.scheduler
+            robot.start()
+            sched.run(duration=6.0)  # start-up to IDLE, as the joystick rows
+            assert gateway.set_mode("AUTO").ok
+            sched.run(duration=0.5)
+            place, reached = 0, 0
+            assert gateway.set_goal(PLACES[place]).ok
+            end = sched.clock.now() + sim_seconds
+            c0 = time.process_time()
+            while sched.clock.now() < end:
+                sched.run(duration=min(0.5, end - sched.clock.now()))
+                if str(gateway.state()["agent_state"]).startswith("IDLE"):  # there (or gave up): the next place
+                    place, reached = (place + 1) % len(PLACES), reached + 1
+                    assert gateway.set_goal(PLACES[place]).ok
+            best = max(best, sim_seconds / (time.process_time() - c0))
+            goals = reached
+        finally:
+            gateway.close()
+            robot.shutdown()
+    return {"what": f"  the whole robot navigating between three places of the studio, camera off (places reached "
+                    f"in {sim_seconds:.0f} s: {goals})", "ours": round(best, 1), "baseline": 1.0,
+            "ratio": round(best, 1), "goal": None, "unit": "x real time"}
 
 
 if __name__ == "__main__":
