@@ -33,6 +33,7 @@ from types import ModuleType
 from typing import Any
 
 import numpy as np
+from numpy_baselines import NumpyLikelihoodField
 
 from atemr.io.sim.maps import load_map
 from atemr.skills.localization.amcl import Amcl, AmclParams
@@ -122,18 +123,9 @@ def scan_target_row(rec: Any, tgt: np.ndarray, repeats: int, quick: bool) -> dic
             "goal": 1.0, "unit": "targets/s"}
 
 
-def _numpy_baselines() -> ModuleType:
-    path = ROOT / "benchmarks" / "numpy_baselines.py"
-    spec = importlib.util.spec_from_file_location("atemr_bench_numpy_baselines", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def crossings_rows(grid: Any, rec: Any, repeats: int) -> list[dict[str, Any]]:
     """Map agreement's beam walks, compiled, against the numpy ones they replaced: the same booleans."""
-    ours, base = LikelihoodField(grid), _numpy_baselines().NumpyLikelihoodField(grid)
+    ours, base = LikelihoodField(grid), NumpyLikelihoodField(grid)
     pts = scan_points(rec.scans[60], max_beams=AgreementParams().max_beams)  # as many beams as `measure` walks
     rng = np.random.default_rng(0)
     many = np.column_stack([rng.normal(rec.truth[60].x_m, 0.5, 500), rng.normal(rec.truth[60].y_m, 0.5, 500),

@@ -30,7 +30,6 @@ Rows (``python benchmarks/bench_nav.py``):
 from __future__ import annotations
 
 import heapq
-import importlib.util
 import math
 import statistics
 import sys
@@ -41,6 +40,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from numpy_baselines import NumpyClearingCostmap
 
 from atemr.domain.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D, Twist
@@ -119,12 +119,7 @@ def textbook_astar(cost: NDArray[np.uint8], start: tuple[int, int], goal: tuple[
 def clearing_row(occ: OccupancyMap, scan: LaserScan, pose: Pose2D, repeats: int) -> dict[str, Any]:
     """A scan's update of the obstacle layer (marks in it, so the beams clear), the compiled clearing against the
     numpy one it replaced, interleaved best-of; the layers must come out the same."""
-    path = Path(__file__).with_name("numpy_baselines.py")
-    spec = importlib.util.spec_from_file_location("atemr_bench_numpy_baselines", path)
-    assert spec is not None and spec.loader is not None
-    baselines = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(baselines)
-    maps = {"ours": Costmap(occ), "numpy": baselines.NumpyClearingCostmap(occ)}
+    maps = {"ours": Costmap(occ), "numpy": NumpyClearingCostmap(occ)}
     marks = np.random.default_rng(2).random(occ.data.shape) < 0.02
     best = dict.fromkeys(maps, math.inf)
     for _ in range(repeats):

@@ -34,17 +34,16 @@ Rows (``python benchmarks/bench_sim.py`` or ``./benchmarks/run sim``):
 from __future__ import annotations
 
 import gc
-import importlib.util
 import math
 import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from numpy_baselines import NumpyGridCaster
 from scipy import ndimage
 
 from atemr.clock import SimClock
@@ -57,21 +56,6 @@ from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Ticker
 from atemr.robot.headless import build_headless_robot
 from atemr.scheduler import Scheduler
-
-
-def _baseline_caster() -> type:
-    """`NumpyGridCaster` from ``numpy_baselines.py`` beside this file (benchmarks are loaded by path, not as a
-    package)."""
-    path = Path(__file__).with_name("numpy_baselines.py")
-    spec = importlib.util.spec_from_file_location("atemr_bench_numpy_baselines", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    caster: type = module.NumpyGridCaster
-    return caster
-
-
-NumpyGridCaster = _baseline_caster()
 
 
 def real_time_factor(camera_hz: float, sim_seconds: float, *, whole_robot: bool = False, watched: bool = False

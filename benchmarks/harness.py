@@ -34,6 +34,11 @@ def discover(names: Sequence[str] = ()) -> list[Path]:
 
 
 def _load(path: Path) -> ModuleType:
+    """The benchmark module at ``path``, with its folder importable as when it runs as a script (``python
+    benchmarks/bench_sim.py``), so benchmarks import the modules beside them (``numpy_baselines``) by name."""
+    folder = str(path.resolve().parent)
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
     spec = importlib.util.spec_from_file_location(f"atemr_bench_{path.stem}", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
