@@ -203,6 +203,8 @@ class MotionPipeline:
         self.drive = s.drive
         self._scan: LaserScan | None = None
         self._hex: HexSectors | None = None
+        #: The scan's nearest obstacle by direction, found once per scan (a control tick runs five times a scan).
+        self._scan_clearance = Clearance()
         self._mode: str | None = None
         self._awareness: bool | None = None
         # dead reckoning along the heading from our own commands, to age the scan's clearances
@@ -231,6 +233,7 @@ class MotionPipeline:
             return None
         if scan is not self._scan or self._hex is None:
             self._hex = self._hex_pattern(scan)
+            self._scan_clearance = Clearance(*self._hex.nearest_by_direction())
             self._scan = scan
             self._travel_at_scan_m = self._travel_m - self._last_v * max(0.0, now - scan.t)
         return self._hex
@@ -314,7 +317,7 @@ class MotionPipeline:
             self.ramp.halt()  # lost input or safety stop: stop now, not along the ramp
         clearance = None
         if hexes is not None:
-            clearance = self._aged(Clearance(*hexes.nearest_by_direction()), self._travel_at_scan_m)
+            clearance = self._aged(self._scan_clearance, self._travel_at_scan_m)
             clearance = self._with_depth(clearance, inputs.depth_clearance, now)
         ramped = self.ramp.step(now, chosen.twist, clearance, command=command)
         verdict = self.cliff.check(now, ramped.twist, inputs.cliff)

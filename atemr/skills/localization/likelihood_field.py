@@ -194,8 +194,11 @@ class LikelihoodField:
             return crossed
         scale = np.divide(reach, length, out=np.zeros_like(length), where=length > 0)
         frac = np.linspace(0.0, 1.0, samples)
+        # A sample's cell that far from every occupied one has free cells all round it: the samples within that
+        # distance, less a cell's diagonal and a margin for float32's rounding, are not looked at.
+        slack = self.map.resolution_m * (math.sqrt(2.0) + 0.05)
         _sampled(self._dist_flat, (h, w), np.float32(1.0 / self.map.resolution_m), _float32_frames(g),
-                 (start[0, 0], start[0, 1]), (ray, scale, frac), crossed)
+                 (start[0, 0], start[0, 1]), (ray, scale, frac), slack, crossed)
         return crossed
 
     def agreement(self, poses: FloatArray, points: FloatArray) -> FloatArray:
@@ -238,7 +241,7 @@ def load_compiled() -> None:
     ray = np.ones((1, 2))
     f32 = np.ones(1, dtype=np.float32)
     _sampled(field, (1, 1), np.float32(1.0), (f32, f32, f32, f32), (ray[0, 0], ray[0, 1]),
-             (ray, np.ones(1), np.ones(2)), crossed)
+             (ray, np.ones(1), np.ones(2)), 1.5, crossed)
     _cells_into((f32, f32, f32, f32), (f32, f32), np.float32(1.0), (1, 1), np.empty((1, 1), dtype=np.intp))
 
 
@@ -329,24 +332,42 @@ def _leaves(start: float, step: float, size: float) -> float:  # pragma: no cove
 @njit(cache=True, nogil=True)
 def _sampled(dist_flat: FloatArray, shape: tuple[int, int], inv: np.float32,  # noqa: PLR0917  one compiled loop
              frames: Float32Frames,
-             start: tuple[float, float], segments: tuple[FloatArray, FloatArray, FloatArray],
+             start: tuple[float, float], segments: tuple[FloatArray, FloatArray, FloatArray], slack_m: float,
              crossed: NDArray[np.bool_]) -> None:  # pragma: no cover  compiled by numba
     """Every segment sampled at the fractions ``frac`` of its reach (``segments``: each point's ray from
-    ``start``, its reach over its length, and the fractions), each sample turned into every pose's grid frame in
-    float32; a segment is crossed at its first sample in an occupied cell."""
+    ``start``, its reach over its length, and the evenly spaced fractions), each sample turned into every pose's
+    grid frame in float32; a segment is crossed at its first sample in an occupied cell.
+
+    The answer is that of looking at every sample, but a sample in a cell ``d`` from the nearest occupied cell
+    centre vouches for the samples after it within ``d - slack_m``: two points that far apart are in cells whose
+    centres are at most that plus a cell's diagonal apart, and the distance table changes no faster than the
+    distance between centres (a clipped distance too). Border cells (off the map) vouch for nothing: they hold
+    ``max_dist_m`` whatever the map's edge holds."""
     c, s, gx0, gy0 = frames
     ray, scale, frac = segments
+    height, width = shape
+    last = frac.shape[0] - 1
     for j in range(ray.shape[0]):
+        # the samples' spacing along the segment, rounded up by a millionth: a skip never reaches too far
+        spacing = scale[j] * math.hypot(ray[j, 0], ray[j, 1]) / max(last, 1) * (1.0 + 1e-6)
         for i in range(c.shape[0]):
-            for k in range(frac.shape[0]):
+            k = 0
+            while k <= last:
                 along = scale[j] * frac[k]
                 px = np.float32(start[0] + along * ray[j, 0])
                 py = np.float32(start[1] + along * ray[j, 1])
                 gx = c[i] * px - s[i] * py + gx0[i]
                 gy = s[i] * px + c[i] * py + gy0[i]
-                if _occupied(dist_flat, shape, inv, gx, gy) <= 0.0:
+                index = _cell(shape, inv, gx, gy)
+                d = dist_flat[index]
+                if d <= 0.0:
                     crossed[i, j] = True
                     break
+                free = d - slack_m
+                row, col = divmod(index, width + 2)
+                if 0.0 < spacing < free and 0 < row <= height and 0 < col <= width:
+                    k += int(free / spacing)
+                k += 1
 
 
 __all__ = ["FieldParams", "LikelihoodField"]
