@@ -61,6 +61,8 @@ DEFAULT_AGENT_FILE = Path(__file__).resolve().parents[2] / "trees" / "agent.yaml
 RELOAD = "__reload__"
 RELOAD_MISSION = "__reload_mission__"
 _OUTCOMES = {"reached": "reached", "failed": "failed", "cancel": "cancelled"}
+#: Where the agent's state lies on the blackboard (`Agent._write_blackboard` checks it is still there).
+_STATE_KEY = f"{AGENT_NS}/state"
 
 
 @dataclass(frozen=True)
@@ -145,6 +147,8 @@ class Agent:
         self._bb = py_trees.blackboard.Client(name=f"{name}/agent", namespace=AGENT_NS)
         for key in ("state", "code", "mode", "task", "error", "last_transition", "now"):
             self._bb.register_key(key, access=py_trees.common.Access.WRITE)
+        #: What `_write_blackboard` wrote last (state, mode, task, error, last transition).
+        self._written: tuple[Any, ...] | None = None
 
     @classmethod
     def from_file(cls, path: str | Path, port: RobotPort, link: LinkPort | None = None, **kwargs: Any) -> Agent:
@@ -574,13 +578,21 @@ class Agent:
             self.context.post(state.on_failure, why, origin, error=error)
 
     def _write_blackboard(self) -> None:
+        """The agent's keys; those that did not change since the last tick are not written again (a write costs
+        py_trees an activity record and the watch a JSON rendering, ten times a second), unless the blackboard
+        lost them (`atemr.trees.context.clear_blackboard`)."""
         last = self.lifecycle.trace[-1] if self.lifecycle.trace else None
-        self._bb.state = self.state
-        self._bb.code = int(state_code(self.state))
-        self._bb.mode = self.context.mode
-        self._bb.task = getattr(self.context.task, "name", None)
-        self._bb.error = str(self.context.error) if self.context.error else None
-        self._bb.last_transition = last.as_dict() if last else None
+        written = (self.state, self.context.mode, getattr(self.context.task, "name", None),
+                   str(self.context.error) if self.context.error else None, last)
+        if written != self._written or _STATE_KEY not in py_trees.blackboard.Blackboard.storage:
+            state, mode, task, error, _ = written
+            self._bb.state = state
+            self._bb.code = int(state_code(state))
+            self._bb.mode = mode
+            self._bb.task = task
+            self._bb.error = error
+            self._bb.last_transition = last.as_dict() if last else None
+            self._written = written
         self._bb.now = self.context.now
 
     # -- snapshot ----------------------------------------------------------------------------------

@@ -8,6 +8,7 @@ import json
 import math
 from pathlib import Path
 
+import py_trees
 import pytest
 
 from atemr.clock import SimClock
@@ -19,6 +20,7 @@ from atemr.fsm.machine import replay
 from atemr.fsm.spec import AgentSpec
 from atemr.msgs import Pose2D, Twist
 from atemr.scheduler import Scheduler
+from atemr.trees.context import clear_blackboard
 from atemr.trees.fakes import RecordingLink, RecordingPort, StraightLineNavigation
 from atemr.trees.missions import parse_mission
 from atemr.yamlsafe import load_yaml
@@ -352,6 +354,23 @@ def test_snapshot_is_json_and_counts_ticks(rig: Rig) -> None:
     assert snap["transitions"][-1]["dest"] == "IDLE.MANUAL" and "set_auto" in snap["valid_triggers"]
     assert "SHUTDOWN.POWEROFF" in snap["machine"]["states"]
     assert {"trigger": "cancel", "source": ["EXEC"], "dest": "IDLE.AUTO"} in snap["machine"]["transitions"]
+
+
+def test_the_blackboard_gets_back_what_it_lost(rig: Rig) -> None:
+    """The agent and the status leaf write their keys only when they change; a blackboard cleared under them (or a
+    status overwritten by someone else) has them again after the next tick."""
+    idle(rig)
+    rig.run(0.5)
+    storage = py_trees.blackboard.Blackboard.storage
+    status = storage["/monitor/status"]
+    rig.run(0.5)
+    assert storage["/monitor/status"] is status  # unchanged: not written again
+    clear_blackboard()
+    storage["/monitor/status"] = {"state": "stale"}
+    rig.run(0.2)
+    assert storage["/agent/state"] == "IDLE.MANUAL" and storage["/agent/mode"] == rig.agent.context.mode
+    assert storage["/agent/last_transition"]["dest"] == "IDLE.MANUAL"
+    assert storage["/monitor/status"] == status
 
 
 def test_trace_replays_to_the_same_states(rig: Rig, agent_spec: AgentSpec) -> None:

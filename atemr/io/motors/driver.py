@@ -17,7 +17,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, Self
+from typing import Self
 
 import can
 
@@ -489,13 +489,17 @@ class RmdDriver(Publishes[MotorsReading], DriveMotors):
 
 def _updated(state: MotorState, reply: AnyReply, sign: int, now: float) -> MotorState:
     """``state`` with the reply's time and what ``reply`` (of either protocol version) says; speeds and currents
-    signed by ``sign``. One copy of the state per reply: the driver reads about 200 replies a second."""
-    if isinstance(reply, Status2Reply | V4Status2Reply):
-        position: dict[str, Any] = {"angle_rad": sign * reply.angle_rad} if isinstance(reply, V4Status2Reply) \
-            else {"encoder": reply.encoder}
-        return replace(state, last_reply_t=now, speed_radps=sign * reply.speed_radps, current_a=sign * reply.current_a,
-                       temperature_c=reply.temperature_c, last_feedback_t=now, **position)
+    signed by ``sign``. One copy of the state per reply: the driver reads about 200 replies a second, so the copy is
+    built field by field (`dataclasses.replace` costs twice as much)."""
+    s = state
+    if isinstance(reply, Status2Reply):
+        return MotorState(s.side, s.motor_id, sign * reply.speed_radps, reply.encoder, s.angle_rad,
+                          sign * reply.current_a, reply.temperature_c, s.voltage_v, s.errors, now, now)
+    if isinstance(reply, V4Status2Reply):
+        return MotorState(s.side, s.motor_id, sign * reply.speed_radps, s.encoder, sign * reply.angle_rad,
+                          sign * reply.current_a, reply.temperature_c, s.voltage_v, s.errors, now, now)
     if isinstance(reply, Status1Reply | V4Status1Reply):
-        return replace(state, last_reply_t=now, temperature_c=reply.temperature_c, voltage_v=reply.voltage_v,
-                       errors=reply.errors)
-    return replace(state, last_reply_t=now)
+        return MotorState(s.side, s.motor_id, s.speed_radps, s.encoder, s.angle_rad, s.current_a, reply.temperature_c,
+                          reply.voltage_v, reply.errors, now, s.last_feedback_t)
+    return MotorState(s.side, s.motor_id, s.speed_radps, s.encoder, s.angle_rad, s.current_a, s.temperature_c,
+                      s.voltage_v, s.errors, now, s.last_feedback_t)

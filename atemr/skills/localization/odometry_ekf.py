@@ -77,7 +77,8 @@ def _read_only(a: FloatArray) -> FloatArray:
 #: What the sensors measure of ``[x, y, θ, v, ω]``: the twist (wheels, scan matcher), the yaw rate (gyro).
 _H_TWIST = _read_only(np.array([[0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]]))
 _H_GYRO = _read_only(np.array([[0.0, 0.0, 0.0, 0.0, 1.0]]))
-_DIAGONAL = (np.arange(5), np.arange(5))
+_IDENTITY = _read_only(np.eye(5))
+_ZEROS = _read_only(np.zeros((5, 5)))
 
 
 class OdometryEkf:
@@ -111,13 +112,15 @@ class OdometryEkf:
         x0, x1, th, v, w = self.kf.x.tolist()
         mid = th + w * dt / 2.0
         c, s = math.cos(mid), math.sin(mid)
-        f = np.eye(5)  # Jacobian of the midpoint form of the arc (exact to second order)
+        # Copies of fixed templates, filled in element by element: np.eye and a fancy-indexed diagonal cost a
+        # microsecond each, a third of the prediction (the same matrices, so the same bits).
+        f = _IDENTITY.copy()  # Jacobian of the midpoint form of the arc (exact to second order)
         f[0, 2], f[0, 3], f[0, 4] = -v * dt * s, dt * c, -v * dt * dt / 2.0 * s
         f[1, 2], f[1, 3], f[1, 4] = v * dt * c, dt * s, v * dt * dt / 2.0 * c
         f[2, 4] = dt
-        q = np.zeros((5, 5))
-        q[_DIAGONAL] = [per_s * dt for per_s in self._q_per_s]
-        self.kf.F, self.kf.Q = f, q
+        q = _ZEROS.copy()
+        q0, q1, q2, q3, q4 = self._q_per_s
+        q[0, 0], q[1, 1], q[2, 2], q[3, 3], q[4, 4] = q0 * dt, q1 * dt, q2 * dt, q3 * dt, q4 * dt
         nx, ny, nth = arc_step_one(x0, x1, th, v, w, dt_s=dt)
         self.kf.P = f @ self.kf.P @ f.T + q
         self.kf.x = np.array([nx, ny, wrap_angle(nth), v, w])

@@ -52,6 +52,10 @@ def compose_status(leaf: Leaf) -> PrimaryStatus:
     return PrimaryStatus(agent, hardware, state_code(ctx.state))
 
 
+#: Where `PublishStatus` leaves the last status on the blackboard.
+_STATUS_KEY = f"{MONITOR_NS}/status"
+
+
 @dataclass(frozen=True)
 class PublishStatusParams:
     period_s: float = field(default=0.5, metadata={"min": 0.05, "max": 10.0, "help": "0.5 s = 2 Hz"})
@@ -71,6 +75,7 @@ class PublishStatus(Leaf):
         self.sent = 0
         self.bb = self.attach_blackboard_client(self.name, MONITOR_NS)
         self.bb.register_key("status", access=py_trees.common.Access.WRITE)
+        self._written: tuple[PrimaryStatus, dict[str, object]] | None = None
 
     def update(self) -> py_trees.common.Status:
         status = compose_status(self)
@@ -79,7 +84,14 @@ class PublishStatus(Leaf):
             self.ctx.link.publish_status(status)
             self.last, self._last_t = status, self.ctx.now
             self.sent += 1
-        self.bb.status = status.fields()
+        # Written when it changes (or the blackboard no longer holds what this leaf wrote), not at every tick: the
+        # same value again costs py_trees an activity record and the blackboard's watch a JSON rendering.
+        written = self._written
+        if (written is None or status != written[0]
+                or py_trees.blackboard.Blackboard.storage.get(_STATUS_KEY) is not written[1]):
+            fields = status.fields()
+            self.bb.status = fields
+            self._written = (status, fields)
         self.feedback_message = f"0x153 {status.agent.value:02X} {status.hardware.value:02X} {status.state.value:02X}"
         return Status.RUNNING
 

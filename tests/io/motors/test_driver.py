@@ -4,17 +4,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import can
 import pytest
 
 from atemr.clock import SimClock
 from atemr.errors import BusError, HardwareError
-from atemr.io.motors.driver import RmdDriver, WatchdogEvent
+from atemr.io.motors.driver import MotorState, RmdDriver, WatchdogEvent, _updated
 from atemr.io.motors.emulator import RmdMotorEmulator
 from atemr.io.motors.model import RmdMotorModel
-from atemr.io.motors.rmd_codec import MotorErrorFlags, RmdCommand, RmdRequest
+from atemr.io.motors.rmd_codec import AckReply, MotorErrorFlags, RmdCommand, RmdRequest, Status1Reply, Status2Reply
+from atemr.io.motors.rmd_v4 import V4Status1Reply, V4Status2Reply
 from atemr.msgs import WheelSpeeds
 from atemr.scheduler import Scheduler
 
@@ -286,3 +287,27 @@ def test_metres_per_second_helpers() -> None:
     assert wheel_speeds_to_mps(speeds, 0.1) == pytest.approx((0.5, -0.25))
     with pytest.raises(HardwareError, match="wheel radius"):
         wheel_speeds_from_mps(1.0, 1.0, 0.0)
+
+
+def test_a_reply_updates_the_state_as_replacing_its_fields_would() -> None:
+    """`_updated` builds the new state field by field (for speed); this pins it to what `dataclasses.replace` with
+    the reply's fields gives, for every kind of reply of both versions, so a field added to `MotorState` (or
+    put in another order) cannot be filled from the wrong value."""
+    state = MotorState("right", 2, speed_radps=1.5, encoder=77, angle_rad=0.25, current_a=0.5, temperature_c=31,
+                       voltage_v=23.9, errors=MotorErrorFlags.UNDER_VOLTAGE, last_reply_t=3.0, last_feedback_t=2.5)
+    assert len(fields(MotorState)) == 11  # the constructor calls in `_updated` list all eleven
+    s2 = Status2Reply(2, RmdCommand.SPEED_CONTROL, 40, 1.25, 2.0, 1234)
+    v4s2 = V4Status2Reply(2, RmdCommand.SPEED_CONTROL, 41, -1.0, 3.0, 0.5)
+    s1 = Status1Reply(2, RmdCommand.READ_STATUS_1, 42, 24.5, MotorErrorFlags.OVER_TEMPERATURE)
+    v4s1 = V4Status1Reply(2, RmdCommand.READ_STATUS_1, 43, 24.0, MotorErrorFlags.NONE)
+    expected = {
+        s2: replace(state, last_reply_t=9.0, speed_radps=-s2.speed_radps, current_a=-s2.current_a,
+                    temperature_c=40, last_feedback_t=9.0, encoder=1234),
+        v4s2: replace(state, last_reply_t=9.0, speed_radps=-v4s2.speed_radps, current_a=-v4s2.current_a,
+                      temperature_c=41, last_feedback_t=9.0, angle_rad=-v4s2.angle_rad),
+        s1: replace(state, last_reply_t=9.0, temperature_c=42, voltage_v=s1.voltage_v, errors=s1.errors),
+        v4s1: replace(state, last_reply_t=9.0, temperature_c=43, voltage_v=v4s1.voltage_v, errors=v4s1.errors),
+        AckReply(2, RmdCommand.MOTOR_STOP): replace(state, last_reply_t=9.0),
+    }
+    for reply, want in expected.items():
+        assert _updated(state, reply, -1, 9.0) == want, type(reply).__name__
