@@ -11,7 +11,9 @@
 * `numpy_edge_weights`: the global planner's edge weights (every cell's eight steps, reduced by A*'s heuristic)
   that `atemr.skills.nav.global_planner.edge_weights` replaced;
 * `NumpyClearingCostmap`: the costmap whose obstacle layer clears a scan's beams with numpy, every beam's samples at
-  once, which `atemr.skills.nav.costmap`'s ``_clear_beams`` replaced (as it was at `b413e01`).
+  once, which `atemr.skills.nav.costmap`'s ``_clear_beams`` replaced (as it was at `b413e01`);
+* `numpy_cast_circles`: the lidar's and the camera's rays against people and pets (circles), every ray against every
+  circle at once, which `atemr.io.sim.raycast.cast_circles`'s compiled loop replaced (as it was at `989bbad`).
 
 Kept as they were at `096bdec` unless said otherwise (renamed, with the helpers of their own) for two uses: the
 benchmarks measure the compiled loops against them, and the tests check that the two answer with the same bits,
@@ -31,7 +33,7 @@ from scipy import ndimage
 from atemr.errors import NavigationError
 from atemr.io.sim.depth import F32, DepthCamera
 from atemr.io.sim.depth import _inverse as inverse_directions
-from atemr.io.sim.raycast import FloatArray, GridHits
+from atemr.io.sim.raycast import FloatArray, GridHits, IntArray
 from atemr.msgs import DepthImage, LaserScan, Pose2D
 from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField
 from atemr.skills.nav.costmap import MAX_NON_OBSTACLE, Costmap
@@ -364,6 +366,42 @@ def numpy_cylinder_hits(origin: tuple[float, float, float], rays: tuple[F32, F32
         cap = np.where((t_cap >= 0) & (hx * hx + hy * hy <= r * r) & (dz != 0), t_cap, np.inf)
     out: F32 = np.minimum(side, cap).astype(np.float32)
     return out
+
+
+def numpy_cast_circles(
+    origin_xy: tuple[float, float],
+    angles_rad: FloatArray,
+    centres_xy: FloatArray,
+    radii_m: FloatArray,
+    max_range_m: float = math.inf,
+) -> tuple[FloatArray, IntArray]:
+    """Distance along each ray to the nearest circle, and that circle's index (-1: none within range): every ray
+    against every circle as (rays, circles) arrays, as `atemr.io.sim.raycast.cast_circles` did at `989bbad`.
+
+    ``centres_xy`` is (N, 2) in the same frame as the origin. A ray starting inside a circle has
+    distance 0 to it.
+    """
+    angles = np.asarray(angles_rad, dtype=np.float64)
+    centres = np.asarray(centres_xy, dtype=np.float64).reshape(-1, 2)
+    radii = np.asarray(radii_m, dtype=np.float64).reshape(-1)
+    if centres.shape[0] == 0:
+        return np.full(angles.shape[0], np.inf), np.full(angles.shape[0], -1, dtype=np.intp)
+    dx = np.cos(angles)[:, None]
+    dy = np.sin(angles)[:, None]
+    fx = (origin_xy[0] - centres[:, 0])[None, :]
+    fy = (origin_xy[1] - centres[:, 1])[None, :]
+    b = fx * dx + fy * dy
+    c = fx * fx + fy * fy - radii[None, :] ** 2
+    disc = b * b - c
+    root = np.sqrt(np.maximum(disc, 0.0))
+    t_near = -b - root
+    t_far = -b + root
+    t = np.where(t_near >= 0, t_near, np.where(t_far >= 0, 0.0, np.inf))
+    t = np.where((disc >= 0) & (t <= max_range_m), t, np.inf)
+    which = t.argmin(axis=1)
+    best = t[np.arange(t.shape[0]), which]
+    which = np.where(np.isfinite(best), which, -1)
+    return best, which.astype(np.intp)
 
 
 def _shifted(padded: NDArray[Any], dr: int, dc: int) -> NDArray[Any]:

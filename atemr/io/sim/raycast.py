@@ -210,6 +210,7 @@ def load_compiled() -> None:
     out = (np.empty(1), np.empty(1, dtype=np.intp), np.empty(1, dtype=np.intp), np.empty(1, dtype=np.int8))
     _walk_rays(flat, 3, 1, 1, 0.5, 0.5, np.ones(1), np.full(1, 1e-12), np.ones(1), np.full(1, 1e12), np.ones(1), 1.0,
                *out)
+    _circle_hits(np.ones(1), np.zeros(1), np.ones(1), np.ones(1), np.ones(1), 1.0, out[0], out[1])
 
 
 def cast_grid(
@@ -238,26 +239,43 @@ def cast_circles(
     """Distance along each ray to the nearest circle, and that circle's index (-1: none within range).
 
     ``centres_xy`` is (N, 2) in the same frame as the origin. A ray starting inside a circle has
-    distance 0 to it.
+    distance 0 to it. Ties go to the circle listed first.
     """
     angles = np.asarray(angles_rad, dtype=np.float64)
     centres = np.asarray(centres_xy, dtype=np.float64).reshape(-1, 2)
     radii = np.asarray(radii_m, dtype=np.float64).reshape(-1)
     if centres.shape[0] == 0:
         return np.full(angles.shape[0], np.inf), np.full(angles.shape[0], -1, dtype=np.intp)
-    dx = np.cos(angles)[:, None]
-    dy = np.sin(angles)[:, None]
-    fx = (origin_xy[0] - centres[:, 0])[None, :]
-    fy = (origin_xy[1] - centres[:, 1])[None, :]
-    b = fx * dx + fy * dy
-    c = fx * fx + fy * fy - radii[None, :] ** 2
-    disc = b * b - c
-    root = np.sqrt(np.maximum(disc, 0.0))
-    t_near = -b - root
-    t_far = -b + root
-    t = np.where(t_near >= 0, t_near, np.where(t_far >= 0, 0.0, np.inf))
-    t = np.where((disc >= 0) & (t <= max_range_m), t, np.inf)
-    which = t.argmin(axis=1)
-    best = t[np.arange(t.shape[0]), which]
-    which = np.where(np.isfinite(best), which, -1)
-    return best, which.astype(np.intp)
+    best = np.empty(angles.shape[0])
+    which = np.empty(angles.shape[0], dtype=np.intp)
+    # The trigonometry stays in numpy (see `GridCaster.cast`); a ray's tests of every circle are one compiled loop.
+    _circle_hits(np.cos(angles), np.sin(angles), origin_xy[0] - centres[:, 0], origin_xy[1] - centres[:, 1],
+                 radii ** 2, float(max_range_m), best, which)
+    return best, which
+
+
+@njit(cache=True, nogil=True)
+def _circle_hits(dx: FloatArray, dy: FloatArray, fx: FloatArray, fy: FloatArray,  # noqa: PLR0917  one compiled loop
+                 r2: FloatArray, max_range_m: float, best: FloatArray,
+                 which: IntArray) -> None:  # pragma: no cover  compiled by numba; tested through cast_circles
+    """For each ray (direction ``(dx, dy)``), the nearest circle it meets within ``max_range_m``: the quadratic
+    ``|f + t d|^2 = r^2`` with ``f`` the origin less the centre, in the order and the expressions the numpy
+    version used (`benchmarks/numpy_baselines.py`'s `numpy_cast_circles`), so the distances have the same bits."""
+    for i in range(dx.shape[0]):
+        nearest = math.inf
+        found = -1
+        for k in range(fx.shape[0]):
+            b = fx[k] * dx[i] + fy[k] * dy[i]
+            c = fx[k] * fx[k] + fy[k] * fy[k] - r2[k]
+            disc = b * b - c
+            root = math.sqrt(max(disc, 0.0))
+            t_near = -b - root
+            t_far = -b + root
+            t = t_near if t_near >= 0 else (0.0 if t_far >= 0 else math.inf)
+            if not (disc >= 0 and t <= max_range_m):
+                t = math.inf
+            if t < nearest:  # the first of equal distances, as argmin
+                nearest = t
+                found = k
+        best[i] = nearest
+        which[i] = found

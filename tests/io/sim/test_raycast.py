@@ -132,6 +132,29 @@ def assert_same_bits(before: type, grid: np.ndarray, res: float, origin: tuple[f
 
 
 @settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_circles=st.integers(1, 12))
+def test_the_compiled_circles_answer_with_the_numpy_versions_bits(seed, n_circles, numpy_baselines: ModuleType):
+    """People and pets as circles: the same distances, to the bit, and the same circles as the numpy version
+    (`benchmarks/numpy_baselines.py`), from outside and inside them, with touching and equal circles (ties go to
+    the first), ranges that cut them, and NaN."""
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform(-3, 3, (n_circles, 2))
+    radii = rng.uniform(0.05, 0.6, n_circles)
+    if n_circles > 1:
+        centres[1], radii[1] = centres[0], radii[0]  # the same circle twice: the first is the one named
+    origin = (float(rng.uniform(-4, 4)), float(rng.uniform(-4, 4)))
+    if seed % 3 == 0:
+        origin = (float(centres[-1, 0]), float(centres[-1, 1]) + 0.5 * float(radii[-1]))  # inside a circle
+    aims = np.arctan2(centres[:, 1] - origin[1], centres[:, 0] - origin[0])
+    angles = np.concatenate([rng.uniform(-math.pi, math.pi, 100), aims, [math.nan]])
+    for reach in (math.inf, float(rng.uniform(0.5, 5.0)), math.nan):
+        got = cast_circles(origin, angles, centres, radii, reach)
+        want = numpy_baselines.numpy_cast_circles(origin, angles, centres, radii, reach)
+        assert got[0].tobytes() == want[0].tobytes()
+        np.testing.assert_array_equal(got[1], want[1])
+
+
+@settings(max_examples=60, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
     where=st.sampled_from(["inside", "cell centre", "outside"]),
