@@ -22,6 +22,10 @@ covariance, gating outliers by their Mahalanobis distance. Its output is the rob
 
 Bad input (NaN, a measurement older than the filter, a non-positive-definite covariance) is dropped
 and counted in ``rejected``: a glitching sensor must never turn the estimate into NaN.
+
+Both hold their state in filterpy's `ExtendedKalmanFilter`. The odometry EKF, which runs 150 times a simulated
+second, does its own prediction in plain floats and its corrections with `kalman_update` (filterpy's update without
+its bookkeeping): the same operations, so the same bits, at about two thirds of the cost.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
+from scipy import linalg
 
 from atemr.errors import ConfigError, NavigationError
 from atemr.msgs import ImuSample, Pose2D, Twist
@@ -79,6 +84,25 @@ _H_TWIST = _read_only(np.array([[0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 
 _H_GYRO = _read_only(np.array([[0.0, 0.0, 0.0, 0.0, 1.0]]))
 _IDENTITY = _read_only(np.eye(5))
 _ZEROS = _read_only(np.zeros((5, 5)))
+
+
+def kalman_update(x: FloatArray, p: FloatArray, z: FloatArray, h: FloatArray, r: FloatArray
+                  ) -> tuple[FloatArray, FloatArray]:
+    """The state and covariance after measuring ``z`` of ``h @ x`` with noise ``r``: filterpy's
+    `ExtendedKalmanFilter.update` for a linear measurement (Joseph form), the same numpy and scipy operations in
+    the same order, so the same bits (a test holds it to filterpy's). It leaves out what filterpy keeps for its
+    history (copies of ``z``, ``x`` and ``P``, the gain and the innovation), which cost a third of an update at 150
+    updates a simulated second; a one-row measurement (the gyro's) is inverted as ``1 / s``, which is what
+    `scipy.linalg.inv` answers for a positive finite ``s``, at a tenth of its cost."""
+    pht = np.dot(p, h.T)
+    s = np.dot(h, pht) + r
+    # scipy decides anything else (and refuses a singular or non-finite s)
+    si = np.array([[1.0 / float(s[0, 0])]]) if s.shape == (1, 1) and 0.0 < s[0, 0] < math.inf else linalg.inv(s)
+    k = pht.dot(si)
+    x = x + np.dot(k, z - h @ x)
+    i_kh = _IDENTITY - np.dot(k, h)
+    p = np.dot(i_kh, p).dot(i_kh.T) + np.dot(k, r).dot(k.T)
+    return x, p
 
 
 class OdometryEkf:
@@ -136,7 +160,7 @@ class OdometryEkf:
             return False
         if not self.predict_to(now):  # counts its own rejection
             return False
-        self.kf.update(np.array(z), lambda _x: h, h.__matmul__, R=r)
+        self.kf.x, self.kf.P = kalman_update(self.kf.x, self.kf.P, np.array(z), h, r)
         return True
 
     def update_wheels(self, now: float, twist: Twist) -> bool:

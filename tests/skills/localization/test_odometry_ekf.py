@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from filterpy.kalman import ExtendedKalmanFilter
 from scipy import stats
 
 from atemr.errors import ConfigError, NavigationError
@@ -14,7 +15,7 @@ from atemr.skills.diff_drive import arc_step, wrap_angle
 from atemr.skills.localization.amcl import PoseEstimate
 from atemr.skills.localization.geometry import as_array, as_pose, compose, relative
 from atemr.skills.localization.icp import icp
-from atemr.skills.localization.odometry_ekf import MapEkf, OdometryEkf, OdometryEkfParams
+from atemr.skills.localization.odometry_ekf import MapEkf, OdometryEkf, OdometryEkfParams, kalman_update
 from atemr.skills.localization.scan import scan_points
 
 
@@ -135,3 +136,27 @@ def test_map_ekf_fuses_amcl_and_gates_outliers() -> None:
     # map→odom composed with odometry gives the map pose
     corr = ekf.map_to_odom()
     assert compose(as_array(corr), [1.0, 0.0, 0.0]) == pytest.approx(as_array(ekf.estimate.pose))
+
+
+def test_the_update_is_filterpys_to_the_bit() -> None:
+    """`kalman_update` leaves out filterpy's bookkeeping and inverts a one-row innovation as ``1 / s``: on random
+    states and covariances, with the measurements the filter makes (the gyro's one row, the wheels' and the scan
+    matcher's two), it answers exactly as `ExtendedKalmanFilter.update`; a singular innovation is refused as scipy
+    refuses it."""
+    rng = np.random.default_rng(11)
+    h_twist = np.array([[0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]])
+    h_gyro = h_twist[1:]
+    for trial in range(400):
+        a = rng.normal(size=(5, 5)) * 10.0 ** rng.uniform(-4, 1)
+        p = a @ a.T + np.diag(rng.uniform(1e-12, 1e-3, 5))
+        x = rng.normal(size=5)
+        h = h_gyro if trial % 2 else h_twist
+        r = np.diag(rng.uniform(1e-8, 1e-2, h.shape[0]))
+        z = rng.normal(size=h.shape[0])
+        kf = ExtendedKalmanFilter(dim_x=5, dim_z=h.shape[0])
+        kf.x, kf.P = x.copy(), p.copy()
+        kf.update(z, lambda _x, h=h: h, h.__matmul__, R=r)
+        got_x, got_p = kalman_update(x, p, z, h, r)
+        assert got_x.tobytes() == kf.x.tobytes() and got_p.tobytes() == kf.P.tobytes(), trial
+    with pytest.raises(np.linalg.LinAlgError):
+        kalman_update(np.zeros(5), np.zeros((5, 5)), np.zeros(1), h_gyro, np.zeros((1, 1)))
