@@ -195,6 +195,7 @@ def icp(
         return IcpResult(as_pose(xf), math.inf, 0.0, 0, False, inf_cov)
     converged = False
     rmse, inlier_fraction, cov = math.inf, 0.0, inf_cov
+    last: tuple[FloatArray, FloatArray] | None = None
     it = 0
     for it in range(1, p.max_iterations + 1):
         moved = transform_points(xf, src)
@@ -222,13 +223,15 @@ def icp(
             return IcpResult(as_pose(xf), math.inf, float(keep.sum() / src.shape[0]), it, False, inf_cov)
         xf = compose(delta, xf)  # δ acts in the target frame, after xf
         inlier_fraction = float(keep.sum() / src.shape[0])
-        dof = max(1, r.size - 3)
-        rmse = float(np.sqrt(np.mean(r**2)))
-        sigma2 = float(r @ r) / dof
-        cov = sigma2 * np.linalg.pinv(hess)
+        last = (r, hess)
         if math.hypot(delta[0], delta[1]) < p.translation_tol_m and abs(delta[2]) < p.rotation_tol_rad:
             converged = True
             break
+    if last is not None:  # the quality of the last step (only the result's own is ever read: not every step's)
+        r, hess = last
+        rmse = float(np.sqrt(np.mean(r**2)))
+        sigma2 = float(r @ r) / max(1, r.size - 3)
+        cov = sigma2 * np.linalg.pinv(hess)
     if converged and not np.all(np.isfinite(cov)):
         converged = False
     # The covariance is of the correction applied in the target frame at the converged pose; for the

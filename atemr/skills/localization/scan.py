@@ -79,23 +79,31 @@ def open_ray_ends(scan: LaserScan, *, short_m: float = OPEN_SHORT_M, silent_run:
 
 def _in_runs(flags: np.ndarray, length: int, *, wrap: bool) -> np.ndarray:
     """Which of ``flags`` lie in a run of at least ``length`` true neighbours (``wrap``: a whole revolution, whose
-    last beam neighbours the first)."""
-    if not wrap:
-        padded = np.concatenate([np.zeros(length, bool), flags, np.zeros(length, bool)])
-        return _in_runs(padded, length, wrap=True)[length:length + flags.size]
+    last beam neighbours the first). Runs are found from where the flags switch on and off (a few array passes
+    whatever ``length`` is); a revolution is first turned to start at a false flag, so no run crosses its ends."""
     n = flags.size
     if length <= 1 or n == 0:
         return flags.copy()
     if length > n:
         return np.zeros(n, dtype=bool)
-    # a run of ``length`` starts at i when flags i .. i+length-1 all hold; each such start marks its whole run
-    starts = flags.copy()
-    for k in range(1, length):
-        starts &= np.roll(flags, -k)
-    marked = starts.copy()
-    for k in range(1, length):
-        marked |= np.roll(starts, k)
-    return marked
+    if not wrap:
+        return _in_linear_runs(flags, length)
+    first_false = int(np.argmin(flags))
+    if flags[first_false]:  # all true: one run round the whole revolution
+        return np.ones(n, dtype=bool)
+    return np.roll(_in_linear_runs(np.roll(flags, -first_false), length), first_false)
+
+
+def _in_linear_runs(flags: np.ndarray, length: int) -> np.ndarray:
+    """`_in_runs` of a row of flags whose ends neighbour nothing."""
+    switches = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(switches == 1), np.flatnonzero(switches == -1)
+    long = ends - starts >= length
+    marks = np.zeros(flags.size + 1, dtype=np.int64)
+    marks[starts[long]] = 1  # runs are apart: each index starts or ends one run at most
+    marks[ends[long]] -= 1
+    out: np.ndarray = np.cumsum(marks[:-1]) > 0
+    return out
 
 
 def sensor_origin(scan: LaserScan) -> tuple[float, float]:
