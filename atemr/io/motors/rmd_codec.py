@@ -34,6 +34,7 @@ import math
 import struct
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
+from functools import lru_cache
 from typing import Any
 
 import can
@@ -136,7 +137,10 @@ def is_rmd_id(arbitration_id: int) -> bool:
     return arbitration_id - RMD_BASE_ID in MOTOR_IDS
 
 
+@lru_cache(maxsize=64)
 def _where(motor_id: int) -> str:
+    """Where a frame's error lies: its ID and motor. Every frame names its motor before it is checked: the name is
+    made once per motor, not on every frame."""
     return f"0x{RMD_BASE_ID + motor_id:03X} RMD motor {motor_id}"
 
 

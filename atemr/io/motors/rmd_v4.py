@@ -102,7 +102,9 @@ def is_v4_reply_id(arbitration_id: int) -> bool:
     return arbitration_id - RMD_V4_REPLY_BASE_ID in MOTOR_IDS
 
 
+@lru_cache(maxsize=64)
 def _where(motor_id: int) -> str:
+    """Where a reply's error lies (made once per motor, as `rmd_codec._where`)."""
     return f"0x{RMD_V4_REPLY_BASE_ID + motor_id:03X} RMD motor {motor_id} (V4.2 reply)"
 
 
