@@ -23,9 +23,10 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from numpy_baselines import numpy_sectorise
 
 from atemr.msgs import CliffReadings, LaserScan, Pose2D, Twist
-from atemr.skills.hexpattern import HEX90, SECTORS, HexSectors
+from atemr.skills.hexpattern import HEX90, SECTORS, HexSectors, scan_to_base, sectorise
 from atemr.skills.motion_pipeline import ControlInputs, MotionPipeline, TimedTwist
 from atemr.skills.reactive import ReactiveEngine
 
@@ -161,7 +162,28 @@ def run(quick: bool = False) -> list[dict[str, Any]]:
             assert x.source == y.source and abs(x.wheels.left_radps - y.wheels.left_radps) < 1e-6
         rows.append({"what": f"{label}, new scan every tick, vs per-beam Python loop hex", "ours": a,
                      "baseline": b, "ratio": a / b, "goal": 3.0 if case == "plain" else 1.0, "unit": "ticks/s"})
+    rows.append(sectors_row(pool, 20 if quick else 100))
     return rows
+
+
+def sectors_row(pool: list[LaserScan], rounds: int) -> dict[str, Any]:
+    """A scan's sectors (`sectorise`): the compiled pass against the numpy version it replaced
+    (`numpy_baselines.py`), interleaved, on the same scans, which must answer with the same bits."""
+    points = [scan_to_base(scan) for scan in pool]
+    for p in points:
+        a, b = sectorise(p, HEX90, 1.2), numpy_sectorise(p, HEX90, 1.2)
+        assert a.mean_m.tobytes() == b.mean_m.tobytes() and a.nearest_m.tobytes() == b.nearest_m.tobytes()
+    best = {"ours": math.inf, "base": math.inf}
+    for _ in range(3):
+        for name, reduce in (("ours", sectorise), ("base", numpy_sectorise)):
+            t0 = time.perf_counter()
+            for _ in range(rounds):
+                for p in points:
+                    reduce(p, HEX90, 1.2)
+            best[name] = min(best[name], time.perf_counter() - t0)
+    rate_ours, rate_base = rounds * len(points) / best["ours"], rounds * len(points) / best["base"]
+    return {"what": f"  hex pattern's sectors of a {N_BEAMS}-beam scan: compiled vs numpy (same bits)",
+            "ours": rate_ours, "baseline": rate_base, "ratio": rate_ours / rate_base, "goal": 1.0, "unit": "scans/s"}
 
 
 if __name__ == "__main__":

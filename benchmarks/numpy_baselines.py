@@ -13,7 +13,9 @@
 * `NumpyClearingCostmap`: the costmap whose obstacle layer clears a scan's beams with numpy, every beam's samples at
   once, which `atemr.skills.nav.costmap`'s ``_clear_beams`` replaced (as it was at `b413e01`);
 * `numpy_cast_circles`: the lidar's and the camera's rays against people and pets (circles), every ray against every
-  circle at once, which `atemr.io.sim.raycast.cast_circles`'s compiled loop replaced (as it was at `989bbad`).
+  circle at once, which `atemr.io.sim.raycast.cast_circles`'s compiled loop replaced (as it was at `989bbad`);
+* `numpy_sectorise`: the hex pattern's sectors of a scan (nearest, count and mean range of each), which
+  `atemr.skills.hexpattern.sectorise`'s compiled loop replaced (as it was at `fb3fde7`).
 
 Kept as they were at `096bdec` unless said otherwise (renamed, with the helpers of their own) for two uses: the
 benchmarks measure the compiled loops against them, and the tests check that the two answer with the same bits,
@@ -35,6 +37,7 @@ from atemr.io.sim.depth import F32, DepthCamera
 from atemr.io.sim.depth import _inverse as inverse_directions
 from atemr.io.sim.raycast import FloatArray, GridHits, IntArray
 from atemr.msgs import DepthImage, LaserScan, Pose2D
+from atemr.skills.hexpattern import DEFAULT_RADIUS_M, HEX90, SECTORS, BasePoints, HexLayout, HexSectors, _layout_tables
 from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField
 from atemr.skills.nav.costmap import MAX_NON_OBSTACLE, Costmap
 from atemr.skills.nav.global_planner import _BLOCKED, _MOVES, PlannerParams
@@ -402,6 +405,23 @@ def numpy_cast_circles(
     best = t[np.arange(t.shape[0]), which]
     which = np.where(np.isfinite(best), which, -1)
     return best, which.astype(np.intp)
+
+
+def numpy_sectorise(points: BasePoints, layout: HexLayout = HEX90, radius_m: float = DEFAULT_RADIUS_M) -> HexSectors:
+    """Base-frame points reduced to the six sectors of ``layout`` with numpy: a searchsorted, ``np.minimum.at`` and
+    two ``np.bincount``."""
+    first, edges, to_canonical = _layout_tables(layout)
+    rel = np.mod(points.bearing_rad - first, 2.0 * math.pi)
+    in_layout = np.searchsorted(edges, rel, side="right") - 1
+    idx = to_canonical[np.clip(in_layout, 0, len(SECTORS) - 1)]
+    n = len(SECTORS)
+    nearest = np.full(n, np.inf)
+    np.minimum.at(nearest, idx, points.range_m)
+    near = points.range_m <= radius_m
+    count = np.bincount(idx[near], minlength=n)
+    total = np.bincount(idx[near], weights=points.range_m[near], minlength=n)
+    mean = np.where(count > 0, total / np.maximum(count, 1), radius_m)
+    return HexSectors(layout, float(radius_m), mean, nearest, count.astype(np.int64))
 
 
 def _shifted(padded: NDArray[Any], dr: int, dc: int) -> NDArray[Any]:

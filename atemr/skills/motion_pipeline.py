@@ -44,7 +44,7 @@ from atemr.errors import ConfigError
 from atemr.msgs import CliffReadings, LaserScan, Twist, WheelSpeeds
 from atemr.skills.cliff import CliffStop
 from atemr.skills.diff_drive import DiffDrive
-from atemr.skills.hexpattern import DEFAULT_RADIUS_M, HEX90, HexSectors, hex_pattern
+from atemr.skills.hexpattern import DEFAULT_RADIUS_M, HEX90, HexSectors, hex_pattern, load_compiled
 from atemr.skills.ramp import Clearance, MotionLimits, SpeedRamp
 from atemr.skills.reactive import ReactiveEngine
 from atemr.skills.twist_mux import (
@@ -202,6 +202,7 @@ class MotionPipeline:
         self.cliff = cliff or CliffStop()
         self.drive = s.drive
         self._scan: LaserScan | None = None
+        load_compiled()  # the hex pattern's loop, ready before the first scan
         self._hex: HexSectors | None = None
         #: The scan's nearest obstacle by direction, found once per scan (a control tick runs five times a scan).
         self._scan_clearance = Clearance()

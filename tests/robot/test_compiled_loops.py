@@ -21,13 +21,15 @@ from atemr.io.sim import depth, raycast
 from atemr.msgs import Pose2D, Twist
 from atemr.robot.core import Ticker
 from atemr.robot.headless import build_headless_robot
+from atemr.skills import hexpattern
 from atemr.skills.localization import likelihood_field
 from atemr.skills.nav import costmap, global_planner, voxel_layer
 
 loops = {"walk_rays": raycast._walk_rays, "traced": likelihood_field._traced, "sampled": likelihood_field._sampled,
          "marks": voxel_layer._marks, "box_hits": depth._box_hits, "cylinder_hits": depth._cylinder_hits,
          "weights": global_planner._weights_into, "cells": likelihood_field._cells_into,
-         "clear_beams": costmap._clear_beams, "circles": raycast._circle_hits}
+         "clear_beams": costmap._clear_beams, "circles": raycast._circle_hits,
+         "sectors": hexpattern._sector_stats}
 robot = build_headless_robot(load_config(environ={}, overrides={"sim.camera_hz": 10.0, "sim.seed": 2}))
 built = {name: len(loop.signatures) for name, loop in loops.items()}
 inputs = robot.parts.inputs
