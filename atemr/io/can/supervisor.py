@@ -133,16 +133,19 @@ class Inbox(can.BusABC):
             self._ready.notify()
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        with self._ready:
-            empty = not self._frames
-        if empty and not self.supervisor.threaded:
+        # A deque's popleft is atomic: a frame already there needs no lock (a polled robot reads its inboxes a few
+        # hundred times a simulated second); only waiting for one does.
+        frames = self._frames
+        if not frames and not self.supervisor.threaded:
             self.supervisor.poll()  # polled: drain the bus now, as a bus of the consumer's own would be read
-        with self._ready:
-            if not self._frames and self.supervisor.threaded and timeout != 0:
-                self._ready.wait(timeout)
-            if self._frames:
-                return self._frames.popleft(), False
-        return None, False
+        elif not frames and timeout != 0:
+            with self._ready:
+                if not frames:
+                    self._ready.wait(timeout)
+        try:
+            return frames.popleft(), False
+        except IndexError:
+            return None, False
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         self.supervisor.bus.send(msg, timeout)
