@@ -175,6 +175,21 @@ def _beam_covariances(points: FloatArray, k: int, max_gap_m: float
     return count, (window(x * x) - mx * mx, window(y * y) - my * my, window(x * y) - mx * my)
 
 
+def _median(values: FloatArray) -> float:
+    """`np.median` of a 1-D array, the same number (the middle one, or the two middle ones' sum halved; NaN if
+    any is NaN), from one `np.partition` without np.median's generic wrapping, a quarter of its cost: ICP takes
+    two medians an iteration."""
+    half = values.size // 2
+    # numpy's mean of the middle ones sums from +0.0 (so a middle -0.0 comes out +0.0)
+    if values.size % 2:
+        part = np.partition(values, (half, -1))
+        middle = 0.0 + float(part[half])
+    else:
+        part = np.partition(values, (half - 1, half, -1))
+        middle = (0.0 + float(part[half - 1]) + float(part[half])) / 2.0
+    return math.nan if math.isnan(part[-1]) else middle
+
+
 def icp(
     source: FloatArray,
     target: FloatArray | IcpTarget,
@@ -208,7 +223,7 @@ def icp(
             return IcpResult(as_pose(xf), math.inf, float(ok.mean()), it, False, inf_cov)
         m, q, n = moved[ok], tgt.points[idx_ok[ok]], normals[ok]
         r = np.einsum("ij,ij->i", n, m - q)
-        mad = float(np.median(np.abs(r - np.median(r))))
+        mad = _median(np.abs(r - _median(r)))
         gate = max(p.reject_sigmas * 1.4826 * mad, p.min_reject_m)
         keep = np.abs(r) <= gate
         if keep.sum() < p.min_inliers:

@@ -11,7 +11,7 @@ import pytest
 from atemr.errors import ConfigError
 from atemr.msgs import Pose2D
 from atemr.skills.localization.geometry import as_array, as_pose, compose, inverse, relative, transform_points
-from atemr.skills.localization.icp import IcpParams, IcpTarget, icp
+from atemr.skills.localization.icp import IcpParams, IcpTarget, _median, icp
 from atemr.skills.localization.scan import scan_points
 
 
@@ -145,3 +145,20 @@ def test_pose_algebra() -> None:
     assert np.allclose(compose(a, inverse(a)), 0.0, atol=1e-12)
     assert np.allclose(compose(a, relative(a, b)), b)
     assert as_array(Pose2D(1, 2, 3)) == pytest.approx([1, 2, 3])
+
+
+def test_the_median_is_numpys() -> None:
+    """ICP's `_median` (one partition) gives `np.median`'s number to the bit: odd and even sizes, ties, signed
+    zeros, tiny and huge spreads, and NaN."""
+    rng = np.random.default_rng(8)
+    for trial in range(5000):
+        n = int(rng.integers(1, 400))
+        values = rng.normal(size=n) * 10.0 ** rng.uniform(-8, 8)
+        if trial % 5 == 0:
+            values[: n // 2] = values[0]  # ties across the middle
+        if trial % 11 == 0:
+            values[rng.integers(0, n, 3)] = rng.choice([0.0, -0.0])
+        if trial % 97 == 0:
+            values[rng.integers(0, n)] = math.nan
+        want = np.float64(np.median(values))
+        assert np.float64(_median(values)).tobytes() == want.tobytes(), (trial, values)
