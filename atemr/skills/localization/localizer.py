@@ -245,11 +245,12 @@ class Localizer:
         return self.map_ekf.map_to_odom() if self.localized else None
 
     # -- per scan ----------------------------------------------------------------------------------
-    def update(self, now: float, odom: Pose2D, scan: LaserScan) -> str:
-        """Feed one scan with the odometry pose at its time; returns `state` after it."""
+    def update(self, now: float, odom: Pose2D, scan: LaserScan, *, points: FloatArray | None = None) -> str:
+        """Feed one scan with the odometry pose at its time; returns `state` after it. ``points``: the scan's
+        `scan_points`, when the caller made them already."""
         if not (math.isfinite(now) and is_finite_pose(odom)):
             return self.state
-        points, sensor = scan_points(scan), sensor_origin(scan)
+        points, sensor = scan_points(scan) if points is None else points, sensor_origin(scan)
         self._opens = open_ray_ends(scan)  # global localization's evidence besides the returns
         if self.wants_a_look and self._odom is not None:
             self._look_turned += abs(float(wrap_angle(odom.yaw_rad - self._odom.yaw_rad)))

@@ -199,7 +199,7 @@ class LocalizationPipeline:
         self._prev = _PreviousScan(scan, points, odom)
         self._wheel_samples, self._wheels_moved = 0, False
         if self.localizer is not None:
-            self.localizer.update(scan.t, odom, scan)
+            self.localizer.update(scan.t, odom, scan, points=points)
         self.scans_used += 1
 
     # -- outputs -----------------------------------------------------------------------------------

@@ -79,30 +79,35 @@ def open_ray_ends(scan: LaserScan, *, short_m: float = OPEN_SHORT_M, silent_run:
 
 def _in_runs(flags: np.ndarray, length: int, *, wrap: bool) -> np.ndarray:
     """Which of ``flags`` lie in a run of at least ``length`` true neighbours (``wrap``: a whole revolution, whose
-    last beam neighbours the first). Runs are found from where the flags switch on and off (a few array passes
-    whatever ``length`` is); a revolution is first turned to start at a false flag, so no run crosses its ends."""
+    last beam neighbours the first). The runs are read off the true flags' indices (a scan holds a few silent
+    beams, dropouts most of them), so the cost is that of the few, not a dozen array passes over the scan."""
     n = flags.size
     if length <= 1 or n == 0:
         return flags.copy()
-    if length > n:
-        return np.zeros(n, dtype=bool)
-    if not wrap:
-        return _in_linear_runs(flags, length)
-    first_false = int(np.argmin(flags))
-    if flags[first_false]:  # all true: one run round the whole revolution
-        return np.ones(n, dtype=bool)
-    return np.roll(_in_linear_runs(np.roll(flags, -first_false), length), first_false)
-
-
-def _in_linear_runs(flags: np.ndarray, length: int) -> np.ndarray:
-    """`_in_runs` of a row of flags whose ends neighbour nothing."""
-    switches = np.diff(np.concatenate(([0], flags.astype(np.int8), [0])))
-    starts, ends = np.flatnonzero(switches == 1), np.flatnonzero(switches == -1)
-    long = ends - starts >= length
-    marks = np.zeros(flags.size + 1, dtype=np.int64)
-    marks[starts[long]] = 1  # runs are apart: each index starts or ends one run at most
-    marks[ends[long]] -= 1
-    out: np.ndarray = np.cumsum(marks[:-1]) > 0
+    out = np.zeros(n, dtype=bool)
+    on: list[int] = np.flatnonzero(flags).tolist()
+    if length > n or len(on) < length:
+        return out
+    if len(on) == n:  # all true: one run (round the whole revolution, or end to end)
+        out[:] = True
+        return out
+    runs: list[tuple[int, int]] = []  # [start, end) of each run of consecutive true flags
+    start = prev = on[0]
+    for index in on[1:]:
+        if index != prev + 1:
+            runs.append((start, prev + 1))
+            start = index
+        prev = index
+    runs.append((start, prev + 1))
+    if wrap and len(runs) > 1 and runs[0][0] == 0 and runs[-1][1] == n:  # the last run goes on into the first
+        (_, head_end), (tail_start, _) = runs[0], runs[-1]
+        if head_end + (n - tail_start) >= length:
+            out[:head_end] = True
+            out[tail_start:] = True
+        runs = runs[1:-1]
+    for begin, end in runs:
+        if end - begin >= length:
+            out[begin:end] = True
     return out
 
 
