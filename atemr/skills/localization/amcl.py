@@ -47,6 +47,7 @@ from atemr.skills.diff_drive import wrap_angle
 from atemr.skills.localization.geometry import FloatArray, as_array, compose, is_finite_pose, relative
 from atemr.skills.localization.likelihood_field import FieldParams, LikelihoodField
 from atemr.skills.localization.motion_model import OdometryNoise, sample_motion_model_odometry
+from atemr.skills.localization.scan import evenly_spread
 
 
 @dataclass(frozen=True)
@@ -297,7 +298,7 @@ class Amcl:
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         pts = pts[np.isfinite(pts).all(axis=1)]
         if pts.shape[0] > p.max_beams:
-            pts = pts[np.linspace(0, pts.shape[0] - 1, p.max_beams).round().astype(np.intp)]
+            pts = pts[evenly_spread(pts.shape[0], p.max_beams)]
         if pts.shape[0] == 0:
             self._estimate_from(now, self.weights)
             return True

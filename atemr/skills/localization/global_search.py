@@ -50,6 +50,7 @@ from atemr.skills.localization.geometry import FloatArray, as_array, as_pose, co
 from atemr.skills.localization.icp import IcpParams, IcpTarget, icp
 from atemr.skills.localization.likelihood_field import LikelihoodField
 from atemr.skills.localization.map_agreement import HIT, MapAgreement
+from atemr.skills.localization.scan import evenly_spread
 from atemr.skills.localization.scan_to_map import pose_grid
 
 Outcome = Literal["localized", "ambiguous", "failed"]
@@ -346,7 +347,7 @@ class GlobalSearch:
         pts = pts[np.hypot(pts[:, 0], pts[:, 1]) <= self.params.range_max_m]
         if pts.shape[0] <= self.params.beams:
             return pts
-        return pts[np.linspace(0, pts.shape[0] - 1, self.params.beams).round().astype(np.intp)]
+        return pts[evenly_spread(pts.shape[0], self.params.beams)]
 
     def refine(self, world: FloatArray, points: FloatArray, *, wide: bool = True) -> FloatArray:
         """Each map-frame pose moved to the best of a pattern search on the likelihood field: a grid over a

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from atemr.errors import ConfigError
 from atemr.skills.localization.geometry import FloatArray
 from atemr.skills.localization.likelihood_field import LikelihoodField
+from atemr.skills.localization.scan import evenly_spread
 
 HIT, THROUGH, UNEXPLAINED = 0, 1, 2
 
@@ -101,7 +102,7 @@ class MapAgreement:
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         pts = pts[np.isfinite(pts).all(axis=1)]
         if pts.shape[0] > self.params.max_beams:
-            pts = pts[np.linspace(0, pts.shape[0] - 1, self.params.max_beams).round().astype(np.intp)]
+            pts = pts[evenly_spread(pts.shape[0], self.params.max_beams)]
         return pts
 
     def classify(self, poses: FloatArray, points: FloatArray, sensor_xy: tuple[float, float] = (0.0, 0.0)

@@ -9,8 +9,10 @@ carry nearly the same information, and the filter's cost grows with their number
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
+from numpy.typing import NDArray
 
 from atemr.msgs import LaserScan
 from atemr.skills.localization.geometry import FloatArray
@@ -20,6 +22,15 @@ OPEN_SHORT_M = 0.3
 #: Beams without a return (NaN) count as open only in runs of at least this many neighbours: a lone one is a
 #: dropout or a dark spot, a run is a direction with nothing within the device's reach.
 SILENT_RUN = 3
+
+
+@lru_cache(maxsize=64)
+def evenly_spread(count: int, keep: int) -> NDArray[np.intp]:
+    """The indices of ``keep`` of ``count`` items spread evenly from the first to the last (read-only): how every
+    matcher thins a scan. Scans come in a few sizes, so each is worked out once."""
+    out = np.linspace(0, count - 1, keep).round().astype(np.intp)
+    out.setflags(write=False)
+    return out
 
 
 def valid_mask(scan: LaserScan) -> np.ndarray:
@@ -40,7 +51,7 @@ def scan_points(scan: LaserScan, *, max_beams: int | None = None) -> FloatArray:
     ok = valid_mask(scan)
     idx = np.flatnonzero(ok)
     if max_beams is not None and 0 < max_beams < idx.size:
-        idx = idx[np.linspace(0, idx.size - 1, max_beams).round().astype(np.intp)]
+        idx = idx[evenly_spread(idx.size, max_beams)]
     return _base_points(scan, idx, r[idx])
 
 
@@ -116,4 +127,4 @@ def sensor_origin(scan: LaserScan) -> tuple[float, float]:
     return scan.sensor_pose.x_m, scan.sensor_pose.y_m
 
 
-__all__ = ["OPEN_SHORT_M", "SILENT_RUN", "open_ray_ends", "scan_points", "sensor_origin", "valid_mask"]
+__all__ = ["OPEN_SHORT_M", "SILENT_RUN", "evenly_spread", "open_ray_ends", "scan_points", "sensor_origin", "valid_mask"]

@@ -23,6 +23,7 @@ from atemr.msgs import Pose2D
 from atemr.skills.localization.geometry import FloatArray, as_array, as_pose, is_finite_pose
 from atemr.skills.localization.icp import IcpParams, IcpTarget, icp
 from atemr.skills.localization.likelihood_field import LikelihoodField
+from atemr.skills.localization.scan import evenly_spread
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,7 @@ class ScanToMapMatcher:
         pts_all = pts_all[np.isfinite(pts_all).all(axis=1)]
         if pts_all.shape[0] == 0:
             return MapMatch(guess, 0.0, -math.inf, False)
-        sel = np.linspace(0, pts_all.shape[0] - 1, min(self.max_points, pts_all.shape[0])).round().astype(np.intp)
+        sel = evenly_spread(pts_all.shape[0], min(self.max_points, pts_all.shape[0]))
         pts = pts_all[sel]
         res = self.field.map.resolution_m
         center = as_array(guess)
