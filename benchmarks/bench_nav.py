@@ -254,7 +254,7 @@ def against_tcod(quick: bool = False) -> list[dict[str, Any]]:
     rows = [] if LARGE_MAP.is_file() else [_skipped(f"A* vs tcod on a large map: skipped, {LARGE_MAP} is absent")]
     for label, costmap, start, goal in cases:
         rows += _astar_vs_tcod(label, costmap, (int(start[0]), int(start[1])), (int(goal[0]), int(goal[1])),
-                               3 if quick else 9)
+                               5 if quick else 9)
     return rows
 
 
