@@ -293,8 +293,12 @@ class VoxelLayer:
         clearing may leave a column up whose voxels are gone), and most of a 6 m window is empty."""
         rs, re, cs, ce = box
         first, end = band
-        col_rows, col_cols = np.nonzero(self.columns[rs:re, cs:ce])
-        col_rows += rs
+        # the window's rows that hold a marked column first (one quick pass), then those rows only: np.nonzero of a
+        # strided window walks every cell of it, three times slower on a 6 m window
+        window = self.columns[rs:re, cs:ce]
+        marked_rows = np.flatnonzero(window.any(axis=1))
+        which_row, col_cols = np.nonzero(window[marked_rows])
+        col_rows = marked_rows[which_row] + rs
         col_cols += cs
         which, layers = np.nonzero(self.voxels[col_rows, col_cols, first:end])
         return col_rows[which], col_cols[which], layers + first
