@@ -42,3 +42,28 @@ def test_every_shipped_benchmark_has_the_run_contract():
     for path in harness.discover():
         module = harness._load(path)
         assert callable(getattr(module, "run", None)), f"{path.name} has no run(quick=False)"
+
+
+def test_each_benchmark_runs_in_a_process_of_its_own(tmp_path):
+    """What one benchmark leaves in its process (here a mark on a shared module) is not there for the next, and a
+    benchmark that kills its process is a failed row, not a lost run."""
+    harness = load_harness()
+    first = tmp_path / "bench_first.py"
+    first.write_text(
+        "import json\n"
+        "def run(quick=False):\n"
+        "    json.left_behind = True\n"
+        "    return [{'what': 'first', 'ours': 1.0, 'baseline': 1.0, 'ratio': 1.0, 'goal': None, 'unit': ''}]\n"
+    )
+    second = tmp_path / "bench_second.py"
+    second.write_text(
+        "import json\n"
+        "def run(quick=False):\n"
+        "    seen = float(getattr(json, 'left_behind', False))\n"
+        "    return [{'what': 'second', 'ours': seen, 'baseline': 1.0, 'ratio': seen, 'goal': None, 'unit': ''}]\n"
+    )
+    dies = tmp_path / "bench_dies.py"
+    dies.write_text("import os\ndef run(quick=False):\n    os._exit(3)\n")
+    rows = harness.run_all([first, second, dies], quick=True, progress=False)
+    assert [r["what"] for r in rows[:2]] == ["first", "second"] and rows[1]["ours"] == 0.0
+    assert rows[2]["benchmark"] == "dies" and rows[2]["what"] == "FAILED: exit status 3, no rows"
