@@ -17,6 +17,7 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Self
 
 import can
@@ -350,7 +351,7 @@ class RmdDriver(Publishes[MotorsReading], DriveMotors):
 
     def _send(self, motor_id: int, command: RmdCommand, speed_radps: float = 0.0) -> None:
         """One request, refused (`ProtocolError`) if the motors' protocol version has no such command."""
-        self.bus.send(self.protocol.encode_request(RmdRequest(motor_id, command, speed_radps)))
+        self.bus.send(self.protocol.encode_request(_request(motor_id, command, speed_radps)))
 
     def _send_both(self, command: RmdCommand) -> None:
         for side in SIDES:
@@ -485,6 +486,11 @@ class RmdDriver(Publishes[MotorsReading], DriveMotors):
     def _close(self) -> None:
         if self.close_bus:
             self.bus.shutdown()
+
+
+#: A request is an immutable value, and a driver holding a speed (or zero) sends the same one every tick: each is
+#: built (and checked) once per distinct value.
+_request = lru_cache(maxsize=64)(RmdRequest)
 
 
 def _updated(state: MotorState, reply: AnyReply, sign: int, now: float) -> MotorState:

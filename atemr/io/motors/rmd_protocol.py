@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Final
 
 import can
@@ -144,6 +145,15 @@ class RmdProtocol(ABC):
         return f"<RMD protocol {self.version} ({self.title})>"
 
 
+# A reply is an immutable value, and a motor that stands still answers each command with the same one tick after
+# tick: each is built (and checked) once per distinct value, not a hundred times a second.
+_ack = lru_cache(maxsize=64)(AckReply)
+_v1_status1 = lru_cache(maxsize=64)(v1.Status1Reply)
+_v1_status2 = lru_cache(maxsize=64)(v1.Status2Reply)
+_v4_status1 = lru_cache(maxsize=64)(v4.V4Status1Reply)
+_v4_status2 = lru_cache(maxsize=64)(v4.V4Status2Reply)
+
+
 def _int8(value: float) -> int:
     return max(-128, min(127, round(value)))
 
@@ -178,14 +188,14 @@ class V1Protocol(RmdProtocol):
 
     def reply(self, motor_id: int, command: RmdCommand, reading: MotorReading) -> AnyReply | None:
         if command in (RmdCommand.MOTOR_OFF, RmdCommand.MOTOR_STOP, RmdCommand.MOTOR_RUN):
-            return AckReply(motor_id, command)
+            return _ack(motor_id, command)
         temperature = _int8(reading.temperature_c)
         if command in (RmdCommand.READ_STATUS_1, RmdCommand.CLEAR_ERRORS):
             errors = MotorErrorFlags(int(reading.errors) & 0xFF)  # V1.61 has no bit for the others
-            return v1.Status1Reply(motor_id, command, temperature, max(0.0, min(6553.5, reading.voltage_v)), errors)
+            return _v1_status1(motor_id, command, temperature, max(0.0, min(6553.5, reading.voltage_v)), errors)
         if command in (RmdCommand.READ_STATUS_2, RmdCommand.SPEED_CONTROL):
-            return v1.Status2Reply(motor_id, command, temperature, _clamp(reading.current_a, 33.0),
-                                   reading.speed_radps, reading.encoder)
+            return _v1_status2(motor_id, command, temperature, _clamp(reading.current_a, 33.0), reading.speed_radps,
+                               reading.encoder)
         return None
 
 
@@ -217,14 +227,13 @@ class V4Protocol(RmdProtocol):
 
     def reply(self, motor_id: int, command: RmdCommand, reading: MotorReading) -> AnyReply | None:
         if command in (RmdCommand.MOTOR_OFF, RmdCommand.MOTOR_STOP):
-            return AckReply(motor_id, command)
+            return _ack(motor_id, command)
         temperature = _int8(reading.temperature_c)
         if command is RmdCommand.READ_STATUS_1:
-            return v4.V4Status1Reply(motor_id, command, temperature, max(0.0, min(6553.5, reading.voltage_v)),
-                                     reading.errors)
+            return _v4_status1(motor_id, command, temperature, max(0.0, min(6553.5, reading.voltage_v)), reading.errors)
         if command in (RmdCommand.READ_STATUS_2, RmdCommand.SPEED_CONTROL):
-            return v4.V4Status2Reply(motor_id, command, temperature, _clamp(reading.current_a, 327.67),
-                                     reading.speed_radps, _int16_angle(reading.angle_rad))
+            return _v4_status2(motor_id, command, temperature, _clamp(reading.current_a, 327.67), reading.speed_radps,
+                               _int16_angle(reading.angle_rad))
         return None  # SYSTEM_RESET: the motor restarts without a reply
 
     def self_clearing(self, errors: MotorErrorFlags) -> MotorErrorFlags:
