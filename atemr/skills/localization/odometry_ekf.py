@@ -328,4 +328,4 @@ class MapEkf:
         return as_pose(compose(self.kf.x, inverse(self._odom)))
 
 
-__all__ = ["MapEkf", "MapEkfParams", "OdometryEkf", "OdometryEkfParams"]
+__all__ = ["MapEkf", "MapEkfParams", "OdometryEkf", "OdometryEkfParams", "kalman_update"]
