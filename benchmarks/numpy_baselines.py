@@ -32,11 +32,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
-from atemr.errors import NavigationError
 from atemr.io.sim.depth import F32, DepthCamera
 from atemr.io.sim.depth import _inverse as inverse_directions
 from atemr.io.sim.raycast import FloatArray, GridHits, IntArray
-from atemr.msgs import DepthImage, LaserScan, Pose2D
+from atemr.msgs import DepthImage, LaserScan
 from atemr.skills.hexpattern import DEFAULT_RADIUS_M, HEX90, SECTORS, BasePoints, HexLayout, HexSectors, _layout_tables
 from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField
 from atemr.skills.nav.costmap import MAX_NON_OBSTACLE, Costmap
@@ -471,29 +470,11 @@ def numpy_edge_weights(cost: NDArray[np.uint8], passable: NDArray[np.bool_], res
 
 
 class NumpyClearingCostmap(Costmap):
-    """`Costmap` with ``update_from_scan`` as numpy computed it before the compiled clearing loop."""
+    """`Costmap` with its clearing as numpy computed it before the compiled loop: every beam's samples at once."""
 
-    def update_from_scan(self, scan: LaserScan, pose: Pose2D) -> int:
-        """Clear along every valid beam, then mark each return's cell; returns how many cells are marked."""
-        if not all(math.isfinite(v) for v in (pose.x_m, pose.y_m, pose.yaw_rad)):
-            raise NavigationError(f"costmap: robot pose must be finite, got {pose}")
-        p = self.params
-        ranges = np.asarray(scan.ranges_m, dtype=np.float64)
-        too_close = np.isneginf(ranges)
-        r = np.where(too_close, scan.range_min_m, ranges)
-        valid = np.isfinite(r) & (r >= scan.range_min_m) & (r <= scan.range_max_m)
-        valid &= r > 0
-        if not valid.any():
-            self.unmapped_points = np.zeros((0, 2))
-            return int(self.obstacles.sum())
-        r = r[valid]
-        mount = scan.sensor_pose
-        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-        sx = pose.x_m + c * mount.x_m - s * mount.y_m
-        sy = pose.y_m + s * mount.x_m + c * mount.y_m
-        ang = pose.yaw_rad + mount.yaw_rad + scan.angles_rad[valid]
-        ux, uy = np.cos(ang), np.sin(ang)
-        reach = np.minimum(r, p.raytrace_range_m) - self.resolution_m
+    def _clear(self, sensor: tuple[float, float], beams: tuple[FloatArray, FloatArray, FloatArray]) -> None:
+        sx, sy = sensor
+        ux, uy, reach = beams
         step = self.resolution_m / 2
         n = int(max(reach.max(), 0.0) / step) + 1
         t = np.arange(n, dtype=np.float64) * step
@@ -501,16 +482,4 @@ class NumpyClearingCostmap(Costmap):
         cx = (sx + ux[:, None] * t[None, :])[along]
         cy = (sy + uy[:, None] * t[None, :])[along]
         row, col, inside = self.cells(cx, cy)
-        before = self.obstacles.copy() if self.obstacles.any() else None
         self.obstacles[row[inside], col[inside]] = False
-        near = r <= p.obstacle_range_m
-        mx, my = sx + ux[near] * r[near], sy + uy[near] * r[near]
-        row, col, inside = self.cells(mx, my)
-        row, col = row[inside], col[inside]
-        match = np.maximum(1.5 * self.resolution_m, p.wall_match_m + p.wall_match_per_m * r[near][inside])
-        new = self._static_distance[row, col] > match
-        self.obstacles[row[new], col[new]] = True
-        self.unmapped_points = np.column_stack([mx[inside][new], my[inside][new]])
-        if before is None or not np.array_equal(before, self.obstacles):
-            self.version += 1
-        return int(self.obstacles.sum())

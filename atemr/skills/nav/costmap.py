@@ -313,12 +313,7 @@ class Costmap:
         reach = np.minimum(r, p.raytrace_range_m) - self.resolution_m
         before = self.obstacles.copy() if self.obstacles.any() else None
         if before is not None:  # nothing to clear in an empty layer
-            origin = self.map.origin
-            c0, s0 = (math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)) if origin.yaw_rad else (1.0, 0.0)
-            step = self.resolution_m / 2
-            samples = int(max(reach.max(), 0.0) / step) + 1
-            _clear_beams(self.obstacles, (sx, sy), (ux, uy, reach), (step, samples),
-                         (origin.x_m, origin.y_m, c0, s0, bool(origin.yaw_rad), self.resolution_m))
+            self._clear((sx, sy), (ux, uy, reach))
         # Marking: the cells the returns end in, unless they are a mapped wall: a return within a cell and a
         # half (or ``wall_match_m`` and more with range) of a static obstacle is that obstacle seen with range
         # noise and pose error, and marking it would narrow every doorway by a cell.
@@ -333,6 +328,17 @@ class Costmap:
         if before is None or not np.array_equal(before, self.obstacles):
             self.version += 1
         return int(self.obstacles.sum())
+
+    def _clear(self, sensor: tuple[float, float],
+               beams: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]) -> None:
+        """Empty the obstacle cells that samples every half cell along each beam (unit direction ``ux, uy`` from
+        ``sensor``, map frame) reach up to ``reach`` (`_clear_beams`)."""
+        origin = self.map.origin
+        c0, s0 = (math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)) if origin.yaw_rad else (1.0, 0.0)
+        step = self.resolution_m / 2
+        samples = int(max(beams[2].max(), 0.0) / step) + 1
+        _clear_beams(self.obstacles, sensor, beams, (step, samples),
+                     (origin.x_m, origin.y_m, c0, s0, bool(origin.yaw_rad), self.resolution_m))
 
     # -- views for the planners and the dashboard -------------------------------------------------------
     def traversable(self, *, allow_unknown: bool = False) -> NDArray[np.bool_]:
