@@ -15,7 +15,10 @@
 * `numpy_cast_circles`: the lidar's and the camera's rays against people and pets (circles), every ray against every
   circle at once, which `atemr.io.sim.raycast.cast_circles`'s compiled loop replaced (as it was at `989bbad`);
 * `numpy_sectorise`: the hex pattern's sectors of a scan (nearest, count and mean range of each), which
-  `atemr.skills.hexpattern.sectorise`'s compiled loop replaced (as it was at `fb3fde7`).
+  `atemr.skills.hexpattern.sectorise`'s compiled loop replaced (as it was at `fb3fde7`);
+* `NumpyFinishDepthCamera`: the simulated depth camera finishing its image (depth, noise, range, dropouts) with
+  numpy passes and ``Generator``'s array draws, which `atemr.io.sim.depth`'s ``_finish`` replaced (as it was at
+  `0fa2758`).
 
 Kept as they were at `096bdec` unless said otherwise (renamed, with the helpers of their own) for two uses: the
 benchmarks measure the compiled loops against them, and the tests check that the two answer with the same bits,
@@ -326,6 +329,23 @@ class NumpyShapesDepthCamera(DepthCamera):
             else:
                 hit = numpy_cylinder_hits(origin, (dx[i:j], dy[i:j], dz[i:j]), outline, (bottom, top))
             np.minimum(t_hit[a:b], hit, out=t_hit[a:b])
+
+
+class NumpyFinishDepthCamera(DepthCamera):
+    """`DepthCamera` finishing its image with numpy and ``Generator``'s array draws (as it was at `0fa2758`)."""
+
+    def _image(self, t_hit: F32) -> F32:
+        p = self.params
+        sorted_depth = np.minimum(t_hit, np.float32(1e3))  # nothing hit: far beyond range
+        sorted_depth *= self._depth_per_t
+        depth = sorted_depth.take(self._unsort)
+        if p.subpixel_px:
+            depth += p.noise_std_m(depth) * self.rng.standard_normal(depth.shape, dtype=np.float32)
+        out_of_range = ~((depth >= p.range_min_m) & (depth <= p.range_max_m))
+        if p.dropout_prob:
+            out_of_range |= self.rng.random(depth.shape, dtype=np.float32) < p.dropout_prob
+        depth[out_of_range] = 0.0
+        return depth
 
 
 def numpy_box_hits(origin: tuple[float, float, float], inv: tuple[F32, F32, F32], lo: tuple[float, float, float],

@@ -29,7 +29,7 @@ loops = {"walk_rays": raycast._walk_rays, "traced": likelihood_field._traced, "s
          "marks": voxel_layer._marks, "box_hits": depth._box_hits, "cylinder_hits": depth._cylinder_hits,
          "weights": global_planner._weights_into, "cells": likelihood_field._cells_into,
          "clear_beams": costmap._clear_beams, "circles": raycast._circle_hits,
-         "sectors": hexpattern._sector_stats}
+         "sectors": hexpattern._sector_stats, "finish": depth._finish}
 robot = build_headless_robot(load_config(environ={}, overrides={"sim.camera_hz": 10.0, "sim.seed": 2}))
 built = {name: len(loop.signatures) for name, loop in loops.items()}
 inputs = robot.parts.inputs

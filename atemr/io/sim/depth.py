@@ -16,7 +16,7 @@ The image holds z-depth (along the optical axis), 0 where nothing is within rang
 is a stereo camera's: its standard deviation grows with the square of the depth,
 ``sigma = subpixel · z² / (fx · baseline)`` (the D415: 55 mm baseline, about 0.08 px subpixel accuracy, so
 4 mm at 1 m and 4 cm at 3 m), plus a small fraction of pixels without data. Seeded: the simulation's own
-generator draws it.
+generator draws it, inside the compiled loop that finishes the image (`_finish`), as numpy's own draws would.
 """
 
 from __future__ import annotations
@@ -26,7 +26,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
+from numba import float32, njit
+from numba.np.random._constants import fi_float, ki_float, wi_float, ziggurat_nor_inv_r_f, ziggurat_nor_r_f
+from numba.np.random.generator_core import next_float, next_uint32
 from numpy.typing import NDArray
 
 from atemr.errors import ConfigError
@@ -84,10 +86,14 @@ class DepthCameraParams:
     def cy(self) -> float:
         return self.height / 2 - 0.5
 
+    @property
+    def noise_per_m2(self) -> np.float32:
+        """The depth noise's standard deviation at 1 m (`noise_std_m` is this times the depth squared)."""
+        return np.float32(self.subpixel_px / (self.fx * self.baseline_m))
+
     def noise_std_m(self, depth_m: F32) -> F32:
         """Depth noise of a stereo camera: grows with the square of the depth."""
-        k = np.float32(self.subpixel_px / (self.fx * self.baseline_m))
-        out: F32 = k * depth_m * depth_m
+        out: F32 = self.noise_per_m2 * depth_m * depth_m
         return out
 
 
@@ -132,6 +138,10 @@ class DepthCamera:
         self._floor_t = np.where(dz < 0, -p.mount.z_m * self._inv_dz, np.inf).astype(np.float32)
         self._ceiling_t: dict[float, F32] = {}
         self._reach = math.hypot(p.range_max_m, p.mount.z_m) + 0.5
+        #: What `_finish` needs of the noise and the range: float32, as numpy compares a float32 image with a
+        #: Python float; and whether the noise and the dropouts are drawn at all.
+        self._noise = (np.array([p.noise_per_m2, p.range_min_m, p.range_max_m, p.dropout_prob], dtype=np.float32),
+                       p.subpixel_px != 0, p.dropout_prob != 0)
         load_compiled()
 
     def render(self, t: float, pose: Pose2D, scene: Scene, movers: Movers | None = None) -> DepthImage:
@@ -162,17 +172,14 @@ class DepthCamera:
                 shapes.append((span, "circle", circle, (0.0, mover.spec.height_m)))
         if shapes:
             self._hit_shapes(t_hit, shapes, (ox, oy, oz), (c, s))
-        sorted_depth = np.minimum(t_hit, np.float32(1e3))  # nothing hit: far beyond range
-        sorted_depth *= self._depth_per_t
-        depth = sorted_depth.take(self._unsort)
-        if p.subpixel_px:
-            depth += p.noise_std_m(depth) * self.rng.standard_normal(depth.shape, dtype=np.float32)
-        out_of_range = ~((depth >= p.range_min_m) & (depth <= p.range_max_m))
-        if p.dropout_prob:
-            out_of_range |= self.rng.random(depth.shape, dtype=np.float32) < p.dropout_prob
-        depth[out_of_range] = 0.0
-        return DepthImage(t, depth.reshape(p.height, p.width), p.fx, p.fy, p.cx, p.cy, p.range_min_m,
+        return DepthImage(t, self._image(t_hit).reshape(p.height, p.width), p.fx, p.fy, p.cx, p.cy, p.range_min_m,
                           p.range_max_m, m)
+
+    def _image(self, t_hit: F32) -> F32:
+        """The image's pixels (row-major) from the sorted pixels' hit distances: z-depth with noise, 0 out of range."""
+        depth = np.empty(len(t_hit), dtype=np.float32)
+        _finish(t_hit, (self._depth_per_t, self._unsort), self.rng, self._noise, depth)
+        return depth
 
     def _ceiling(self, height_m: float) -> F32:
         t = self._ceiling_t.get(height_m)
@@ -260,12 +267,102 @@ def _outline_azimuths(shape: str, params: tuple[float, ...], ox: float, oy: floa
 
 @functools.cache
 def load_compiled() -> None:
-    """Compile (a checkout's first run) or load (from numba's cache) the shape tests when the first camera is
-    built, not at the first frame with a chair in it: the calls have the argument types of `_hit_shapes`'s (a test
-    checks that a running robot has one compiled version of each loop)."""
+    """Compile (a checkout's first run) or load (from numba's cache) the shape tests and the image's finish when
+    the first camera is built, not at the first frame with a chair in it: the calls have the argument types of
+    `_hit_shapes`'s and `_image`'s (a test checks that a running robot has one compiled version of each loop)."""
     rays = (np.ones(1, dtype=np.float32), np.ones(1, dtype=np.float32), np.ones(1, dtype=np.float32))
     _box_hits(np.ones(6, dtype=np.float32), rays, np.ones(1, dtype=np.float32))
     _cylinder_hits(np.ones(7, dtype=np.float32), rays, np.ones(1, dtype=np.float32))
+    _finish(np.ones(1, dtype=np.float32), (np.ones(1, dtype=np.float32), np.zeros(1, dtype=np.intp)),
+            np.random.default_rng(0), (np.ones(4, dtype=np.float32), True, True), np.empty(1, dtype=np.float32))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _finish(t_hit: F32, sorted_to_image: tuple[F32, NDArray[np.intp]], rng: np.random.Generator,
+            noise: tuple[F32, bool, bool], depth: F32) -> None:  # pragma: no cover  compiled by numba
+    """The image from the sorted pixels' hit distances: z-depth (``t_hit`` capped at 1 km, as nothing hit, times
+    each ray's depth per metre), in image order, with the stereo noise drawn from ``rng``, and 0 out of range or
+    dropped. The numbers and the draws of the numpy it replaces, in its order: every pixel's normal first, then
+    every pixel's uniform (`_standard_normal_f`, `_uniform_f`)."""
+    per_t, unsort = sorted_to_image
+    consts, noisy, drops = noise
+    k, lo, hi, drop = consts[0], consts[1], consts[2], consts[3]
+    cap = np.float32(1e3)
+    bitgen = rng.bit_generator
+    for i in range(depth.shape[0]):
+        j = unsort[i]
+        t = t_hit[j]
+        d = (cap if t > cap else t) * per_t[j]  # np.minimum: a NaN stays NaN
+        if noisy:
+            d = d + k * d * d * _standard_normal_f(bitgen)
+        depth[i] = d
+    for i in range(depth.shape[0]):
+        d = depth[i]
+        out = not (d >= lo and d <= hi)
+        if drops and _uniform_f(bitgen) < drop:  # drawn for every pixel, in range or not
+            out = True
+        if out:
+            depth[i] = 0.0
+
+
+# -- numpy's float32 draws, one at a time inside `_finish` ---------------------------------------------------------
+#
+# The noise is a normal and a uniform for each of 100,000 pixels, ten times a second: drawn by
+# ``Generator.standard_normal(dtype=float32)`` and ``Generator.random(dtype=float32)`` and applied in numpy passes,
+# it was most of a frame. Drawn inside the loop that uses them, the normals cost a third of what numpy's did, and the
+# passes are one: the whole finish takes half the time.
+# They must stay numpy's numbers, bit for bit and in numpy's order: every seeded run depends on them. These are
+# numpy's own algorithms (``random_standard_normal_f``, its float32 ziggurat, and ``next_float``), on numba's access
+# to the generator's bit generator (``next_uint32`` advances the numpy object's own state) and numba's copy of
+# numpy's ziggurat tables. Numba's own ``Generator.standard_normal`` is not used: it compares its wedge test in
+# float32 where numpy compares in float64, so one draw in a few million differs and the stream drifts from there
+# on. A test holds these to numpy over millions of draws, tails and wedges included. They live
+# in this module because numba's cache of `_finish` is checked against this file alone.
+
+@njit(cache=True, nogil=True)
+def _standard_normal_f(bitgen):  # type: ignore[no-untyped-def]  # pragma: no cover  compiled by numba
+    """One draw of ``Generator.standard_normal(dtype=np.float32)`` from ``bitgen`` (a jitted function's
+    ``rng.bit_generator``): numpy's float32 ziggurat. The 99.3 % of draws that land in a box are answered here,
+    the rest in `_beyond_the_box` (kept apart, this path is three times faster than with the loop inline)."""
+    r = next_uint32(bitgen)
+    idx = r & 0xFF
+    rabs = (r >> 9) & 0x0007FFFFF
+    if rabs < ki_float[idx]:
+        x = float32(float32(rabs) * wi_float[idx])
+        return -x if (r >> 8) & 0x1 else x
+    return _beyond_the_box(bitgen, r)
+
+
+@njit(cache=True, nogil=True)
+def _beyond_the_box(bitgen, r):  # type: ignore[no-untyped-def]  # pragma: no cover  compiled by numba
+    """numpy's ziggurat loop from a draw ``r`` outside its box: the tail beyond the base strip, or a wedge whose
+    test is compared in float64 as numpy's C does; a rejected draw starts over with a new one."""
+    while True:
+        idx = r & 0xFF
+        rabs = (r >> 9) & 0x0007FFFFF
+        x = float32(float32(rabs) * wi_float[idx])
+        if (r >> 8) & 0x1:
+            x = -x
+        if rabs < ki_float[idx]:
+            return x
+        if idx == 0:
+            while True:
+                xx = float32(-ziggurat_nor_inv_r_f * np.log1p(float32(-next_float(bitgen))))
+                yy = float32(-np.log1p(float32(-next_float(bitgen))))
+                if float32(yy + yy) > float32(xx * xx):
+                    if (rabs >> 8) & 0x1:
+                        return -float32(ziggurat_nor_r_f + xx)
+                    return float32(ziggurat_nor_r_f + xx)
+        wedge = float32(float32((fi_float[idx - 1] - fi_float[idx]) * next_float(bitgen)) + fi_float[idx])
+        if wedge < np.exp(-0.5 * float(x) * float(x)):
+            return x
+        r = next_uint32(bitgen)
+
+
+@njit(cache=True, nogil=True)
+def _uniform_f(bitgen):  # type: ignore[no-untyped-def]  # pragma: no cover  compiled by numba
+    """One draw of ``Generator.random(dtype=np.float32)`` from ``bitgen``: in [0, 1), 24 random bits."""
+    return next_float(bitgen)
 
 
 def _slabs(origin: tuple[float, float, float], lo: tuple[float, float, float], hi: tuple[float, float, float]
