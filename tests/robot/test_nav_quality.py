@@ -11,6 +11,8 @@ import importlib.util
 import json
 import math
 import sys
+import threading
+import time
 from pathlib import Path
 from types import ModuleType
 
@@ -86,6 +88,29 @@ def test_the_bar_is_judged_from_ground_truth() -> None:
     drifted = quality.judge(pair, dict(good, pose_error={"rmse_m": 0.12, "max_m": 0.3}))
     assert not quality.passes(quality.summary([row] * 19 + [drifted]))
     assert quality.passes(quality.summary([row] * 19 + [quality.judge(pair, dict(good, outcome="failed"))]))
+
+
+def test_pairs_run_side_by_side_in_their_order_each_with_a_data_directory_of_its_own(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--jobs 2``: two runs are under way at once (the first waits until the second has started, which one at a
+    time never happens), the rows come back in the pairs' order whatever order the runs end in, and no two runs
+    share a data directory (their users, maps and recordings would mix)."""
+    pairs = quality.pick_pairs("studio", 4, 0)
+    both_started = threading.Barrier(2, timeout=10)
+    dirs: list[Path] = []
+
+    def fake_run(pair, *, data_dir: Path, timeout_s: float, camera: bool = False) -> dict:
+        dirs.append(data_dir)
+        if pair.index < 2:
+            both_started.wait()  # BrokenBarrierError (a failed test) if the other never starts
+        if pair.index == 0:
+            time.sleep(0.2)  # ends after the second
+        return {"index": pair.index, "data_dir": data_dir}
+
+    monkeypatch.setattr(quality, "run_pair", fake_run)
+    out = list(quality.run_pairs(pairs, data_dir=tmp_path, jobs=2, timeout_s=60.0))
+    assert [pair.index for pair, _ in out] == [row["index"] for _, row in out] == [0, 1, 2, 3]
+    assert len(set(dirs)) == 4 and all(d.is_dir() and d.parent == tmp_path for d in dirs)
 
 
 @pytest.mark.slow
