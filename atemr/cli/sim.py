@@ -45,6 +45,7 @@ def summary(sim: Simulation, sim_seconds: float, wall_seconds: float, seed: int)
         "imu_samples": sim.imu_source.count,
         "cliff_readings": sim.cliff_source.count,
         "frames": sim.camera_source.count,
+        "depth_frames": sim.depth_source.count,
     }
 
 
@@ -59,6 +60,8 @@ class SimCommand:
                             help="simulated seconds to run (default: 10 headless, until Ctrl-C otherwise)")
         parser.add_argument("--speed", type=float, help="simulated seconds per real second when not headless")
         parser.add_argument("--camera-hz", type=float, help="camera frames per second (0: camera off)")
+        parser.add_argument("--depth-hz", type=float,
+                            help="depth camera (the D415's) frames per second (0: depth camera off; default 10)")
         parser.add_argument("--twist", type=float, nargs=2, metavar=("V_MPS", "W_RADPS"), default=(0.0, 0.0),
                             help="drive the base with this constant command (default: stand still)")
         parser.add_argument("--stack", choices=("robot", "bare"), default="robot",
@@ -80,7 +83,7 @@ class SimCommand:
 
         config = load_config(args.config, overrides={
             "log_level": args.log_level, "sim.world": args.world, "sim.seed": args.seed,
-            "sim.speed": args.speed, "sim.camera_hz": args.camera_hz,
+            "sim.speed": args.speed, "sim.camera_hz": args.camera_hz, "sim.depth_hz": args.depth_hz,
         })
         duration = args.duration if args.duration is not None else (10.0 if args.headless else None)
         if duration is not None and not duration >= 0:
@@ -133,6 +136,6 @@ class SimCommand:
             print(f"{result['sim_seconds']:.2f} s simulated in {result['wall_seconds']:.2f} s "
                   f"({result['real_time_factor']}x real time); collisions: {result['collisions']}; "
                   f"final pose: ({p['x_m']:.3f}, {p['y_m']:.3f}, {p['yaw_rad']:.3f}); "
-                  f"scans: {result['scans']}, frames: {result['frames']}"
+                  f"scans: {result['scans']}, frames: {result['frames']}, depth frames: {result['depth_frames']}"
                   + (f"; agent: {result['agent_state']}" if "agent_state" in result else ""))
         return 0

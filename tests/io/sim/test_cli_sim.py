@@ -23,6 +23,14 @@ def test_headless_json_summary(capsys):
     assert out["distance_m"] > 0.5
 
 
+def test_the_depth_camera_runs_at_its_rate_and_is_turned_off_from_the_command_line(capsys):
+    """``--depth-hz`` as ``--camera-hz``: the D415's frames per second, 0 for none (both cameras off is what
+    issue 22 measures: ``atemr sim --headless --camera-hz 0 --depth-hz 0``)."""
+    assert run_json(capsys, "--duration", "2", "--camera-hz", "0", "--depth-hz", "5")["depth_frames"] == 11
+    whole = run_json(capsys, "--stack", "robot", "--duration", "1", "--camera-hz", "0", "--depth-hz", "0")
+    assert whole["depth_frames"] == 0 and whole["frames"] == 0 and whole["scans"] == 11
+
+
 def test_same_seed_same_final_pose(capsys):
     a = run_json(capsys, "--duration", "1", "--seed", "5", "--camera-hz", "0", "--twist", "0.4", "0.3")
     b = run_json(capsys, "--duration", "1", "--seed", "5", "--camera-hz", "0", "--twist", "0.4", "0.3")
