@@ -27,9 +27,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import float32, njit
-from numba.np.random._constants import fi_float, ki_float, wi_float, ziggurat_nor_inv_r_f, ziggurat_nor_r_f
-from numba.np.random.generator_core import next_float, next_uint32
 from numpy.typing import NDArray
+
+try:  # numba's own building blocks of its Generator support (numba 0.56 to 0.68 at least): see `_finish`
+    from numba.np.random._constants import fi_float, ki_float, wi_float, ziggurat_nor_inv_r_f, ziggurat_nor_r_f
+    from numba.np.random.generator_core import next_float, next_uint32
+except ImportError as exc:  # pragma: no cover  only with a numba that moved them
+    import numba
+
+    raise ImportError(f"the simulated depth camera draws its noise with numba's numpy-random internals "
+                      f"(numba.np.random.generator_core, ._constants), which numba {numba.__version__} does not "
+                      f"have: install a numba between 0.60 and 0.68, or report it") from exc
 
 from atemr.errors import ConfigError
 from atemr.io.sim.movers import Movers
