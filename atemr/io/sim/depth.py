@@ -150,6 +150,8 @@ class DepthCamera:
         #: Python float; and whether the noise and the dropouts are drawn at all.
         self._noise = (np.array([p.noise_per_m2, p.range_min_m, p.range_max_m, p.dropout_prob], dtype=np.float32),
                        p.subpixel_px != 0, p.dropout_prob != 0)
+        #: The last `_static_view`: (pose and wall height, the scene's caster, the distances, the walls by bin).
+        self._static: tuple[tuple[float, ...], object, F32, NDArray[np.float64]] | None = None
         load_compiled()
 
     def render(self, t: float, pose: Pose2D, scene: Scene, movers: Movers | None = None) -> DepthImage:
@@ -157,31 +159,52 @@ class DepthCamera:
         p = self.params
         c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
         m = p.mount
-        ox = pose.x_m + c * m.x_m - s * m.y_m
-        oy = pose.y_m + s * m.x_m + c * m.y_m
-        oz = m.z_m
+        origin = (pose.x_m + c * m.x_m - s * m.y_m, pose.y_m + s * m.x_m + c * m.y_m, m.z_m)
+        static, flat = self._static_view(pose, scene, origin, (c, s))
+        t_hit = static.copy()
+        # People and pets in view and not behind the walls of every bin they span, as the furniture.
+        shapes: list[tuple[tuple[int, int], str, tuple[float, ...], tuple[float, float]]] = []
+        for mover in movers.items if movers is not None else ():
+            circle = (mover.x_m, mover.y_m, mover.spec.radius_m)
+            span = self._slice(_outline_azimuths("circle", circle, origin[0], origin[1]), pose.yaw_rad, flat)
+            if span is not None:
+                shapes.append((span, "circle", circle, (0.0, mover.spec.height_m)))
+        if shapes:
+            self._hit_shapes(t_hit, shapes, origin, (c, s))
+        return DepthImage(t, self._image(t_hit).reshape(p.height, p.width), p.fx, p.fy, p.cx, p.cy, p.range_min_m,
+                          p.range_max_m, m)
+
+    def _static_view(self, pose: Pose2D, scene: Scene, origin: tuple[float, float, float],
+                     turn: tuple[float, float]) -> tuple[F32, NDArray[np.float64]]:
+        """The sorted pixels' hit distances on what does not move (floor, ceiling, walls, furniture; read-only),
+        and the plan distance to the wall in each azimuth bin. A robot that stands still sees the same, frame
+        after frame: the last view is kept for its pose (to the bit: a standing robot's pose does not change) and
+        its scene (`Scene.blocked_caster` is rebuilt whenever furniture is added or taken away). Each shape lowers
+        a pixel's distance to the nearest of them, so the furniture taken first and the people after give the
+        same distances as all of them at once."""
+        key = (pose.x_m, pose.y_m, pose.yaw_rad, scene.world.wall_height_m)
+        kept = self._static
+        if kept is not None and kept[0] == key and kept[1] is scene.blocked_caster:
+            return kept[2], kept[3]
+        ox, oy = origin[0], origin[1]
         t_hit = np.minimum(self._floor_t, self._ceiling(scene.world.wall_height_m))
         # Walls: one grid cast per azimuth bin, in the grid frame.
         gx, gy, gyaw = scene.to_grid_frame(ox, oy, pose.yaw_rad)
         flat = scene.walls_caster.cast((gx, gy), gyaw + self._bin_azimuth, self._reach).distance_m
         np.minimum(t_hit, flat.astype(np.float32)[self._bin] * self._inv_horizontal, out=t_hit)
-        # Objects and people in view and not behind the walls of every bin they span (a ray meets them no nearer,
-        # in plan, than their outline's nearest point: the wall it meets first hides them). In a flat most of
-        # the furniture is in other rooms.
+        # Furniture in view and not behind the walls of every bin it spans (a ray meets it no nearer, in plan,
+        # than its outline's nearest point: the wall it meets first hides it). In a flat most of the furniture
+        # is in other rooms.
         shapes: list[tuple[tuple[int, int], str, tuple[float, ...], tuple[float, float]]] = []
         for item in scene.objects.values():
             span = self._slice(_outline_azimuths(item.shape, item.params, ox, oy), pose.yaw_rad, flat)
             if span is not None:
                 shapes.append((span, item.shape, item.params, (item.clearance_m, item.height_m)))
-        for mover in movers.items if movers is not None else ():
-            circle = (mover.x_m, mover.y_m, mover.spec.radius_m)
-            span = self._slice(_outline_azimuths("circle", circle, ox, oy), pose.yaw_rad, flat)
-            if span is not None:
-                shapes.append((span, "circle", circle, (0.0, mover.spec.height_m)))
         if shapes:
-            self._hit_shapes(t_hit, shapes, (ox, oy, oz), (c, s))
-        return DepthImage(t, self._image(t_hit).reshape(p.height, p.width), p.fx, p.fy, p.cx, p.cy, p.range_min_m,
-                          p.range_max_m, m)
+            self._hit_shapes(t_hit, shapes, origin, turn)
+        t_hit.setflags(write=False)
+        self._static = (key, scene.blocked_caster, t_hit, flat)
+        return t_hit, flat
 
     def _image(self, t_hit: F32) -> F32:
         """The image's pixels (row-major) from the sorted pixels' hit distances: z-depth with noise, 0 out of range."""

@@ -191,3 +191,34 @@ def test_the_compiled_draws_are_numpys_float32_draws() -> None:
         tail += int((np.abs(expected) > 3.6541528).sum())
     assert tail > 100  # the tail's loop ran
     assert ours.bit_generator.state == numpys.bit_generator.state
+
+
+def test_a_standing_camera_keeps_what_does_not_move_and_sees_what_does() -> None:
+    """A robot standing still sees the same walls and furniture frame after frame, so the camera keeps that view
+    for its pose and adds only the people and pets: its frames are, to the bit, a fresh camera's (nothing kept)
+    while the carer and the cat walk, and a box put down in front of it, or taken away, is seen at once."""
+    from atemr.io.sim.world import Furniture
+
+    sim = build_simulation("studio", 4)
+    pose = Pose2D(3.0, 2.6, 1.45)  # facing the carer's walk along y = 4.25
+    standing = DepthCamera(IDEAL, np.random.default_rng(0))
+
+    def fresh() -> np.ndarray:
+        return DepthCamera(IDEAL, np.random.default_rng(0)).render(0.0, pose, sim.scene, sim.movers).depth_m
+
+    first = standing.render(0.0, pose, sim.scene, sim.movers).depth_m
+    kept = standing._static
+    assert kept is not None and first.tobytes() == fresh().tobytes()
+    changed = 0
+    for k in range(1, 60):
+        sim.step_to(k * 0.5)
+        image = standing.render(0.0, pose, sim.scene, sim.movers).depth_m
+        assert image.tobytes() == fresh().tobytes(), k
+        assert standing._static is kept  # the view was kept, not made again
+        changed += image.tobytes() != first.tobytes()
+    assert changed > 20, changed  # the carer walked through the view meanwhile
+    box = sim.scene.add_object(Furniture("box", "box", (2.9, 3.4, 3.3, 3.7), 0.6))
+    with_box = standing.render(0.0, pose, sim.scene, sim.movers).depth_m
+    assert with_box.tobytes() == fresh().tobytes() and with_box.tobytes() != first.tobytes()
+    sim.scene.remove_object(box)
+    assert standing.render(0.0, pose, sim.scene, sim.movers).depth_m.tobytes() == fresh().tobytes()
