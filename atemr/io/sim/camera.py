@@ -138,12 +138,13 @@ class Camera:
             mover_top = movers.heights[idx]
             mover_color = movers.colors[idx] * cyl[:, None]
 
-        # Painter's order per column: the wall, then furniture and people far to near.
-        if np.isfinite(d_furn).any():
+        # Painter's order per column: the wall, then furniture and people far to near: furniture behind a person
+        # first, the people, then the rest of the furniture (in front of a person, or in a column with nobody).
+        if np.isfinite(d_furn).any() and np.isfinite(d_mover).any():
             self._paint(img, np.where(d_furn >= d_mover, d_furn, np.inf), furn_top, furn_color, furn_bottom)
         if np.isfinite(d_mover).any():
             self._paint(img, d_mover, mover_top, mover_color)
-        if np.isfinite(d_furn).any() and np.isfinite(d_mover).any():
+        if np.isfinite(d_furn).any():
             self._paint(img, np.where(d_furn < d_mover, d_furn, np.inf), furn_top, furn_color, furn_bottom)
         return img
 

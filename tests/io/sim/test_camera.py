@@ -91,6 +91,21 @@ def test_furniture_and_people_are_coloured_blocks(room_sim):
     assert img[150, u][0] > 150 and img[150, u][1] < 80
 
 
+@pytest.mark.parametrize("moving", ["", "moving:\n  - {name: visitor, kind: person, path: [[0.5, 3.5], [0.5, 3.51]],"
+                                     " speed_mps: 0.001, color: [255, 0, 0]}\n"], ids=["nobody", "nobody-in-view"])
+def test_furniture_is_drawn_with_nobody_in_view(room_sim, moving):
+    """The furniture does not need a person in front of the camera to be seen (it was drawn only when someone was:
+    a carer watching an empty room saw no table)."""
+    sim = room_sim("start: [1.0, 2.0, 0.0]\n"
+                   "furniture:\n  - {name: box, box: [3.0, 1.8, 3.4, 2.2], height_m: 0.5, color: [0, 0, 255]}\n"
+                   + moving)
+    img = sim.render_camera(0.0).astype(int)
+    below = img[420, 320]
+    assert below[2] > 150 and below[0] < 60  # blue, below the horizon in the middle
+    red = (img[..., 0] > 150) & (img[..., 1] < 80) & (img[..., 2] < 80)
+    assert not red.any()  # the visitor, if any, is behind the camera
+
+
 def test_drop_zone_floor_is_dark(room_sim):
     sim = room_sim("start: [1.0, 2.0, 0.0]\ndrop_zones:\n  - {name: hole, box: [1.5, 0.5, 5.0, 3.5]}\n")
     img = sim.render_camera(0.0).astype(int)
