@@ -61,6 +61,23 @@ class CameraParams:
         return (self.width / 2) / math.tan(math.radians(self.hfov_deg) / 2)
 
 
+@dataclass(frozen=True)
+class _StaticView:
+    """What a camera at one pose sees of what does not move (`Camera._static_view`; arrays read-only)."""
+
+    key: tuple[float, float, float]
+    #: The scene it was made from (its `Scene.blocked_caster`, rebuilt with every change of the furniture).
+    scene: object
+    #: The background with the walls painted: where people and the furniture around them are painted.
+    walls: NDArray[np.uint8]
+    #: The picture with nobody in view: the walls and the furniture.
+    finished: NDArray[np.uint8]
+    #: Each column's depth to the wall.
+    d_wall: NDArray[np.float64]
+    #: The furniture seen in each column: depth (inf: none), top, colour, bottom; None when none is in view.
+    furniture: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None
+
+
 class Camera:
     """Renders HxWx3 uint8 images of the scene from a robot pose."""
 
@@ -96,6 +113,8 @@ class Camera:
         #: the first two by the checkerboard's parity (one ``np.where`` on bytes) and patches the drops in.
         self._floor_a, self._floor_b, self._floor_drop = (
             (color * fog + HAZE * (1.0 - fog)).astype(np.uint8) for color in (FLOOR_A, FLOOR_B, DROP))
+        #: The last `_static_view` (a standing robot's camera sees it again and again).
+        self._static: _StaticView | None = None
 
     def render(self, pose: Pose2D, scene: Scene, movers: Movers | None = None) -> NDArray[np.uint8]:
         """The image seen from the robot at ``pose``, with the moving obstacles as cylinders."""
@@ -104,24 +123,8 @@ class Camera:
         cam_x = pose.x_m + c * p.mount.x_m - s * p.mount.y_m
         cam_y = pose.y_m + s * p.mount.x_m + c * p.mount.y_m
         yaw = pose.yaw_rad + p.mount.yaw_rad
-        gx, gy, gyaw = scene.to_grid_frame(cam_x, cam_y, yaw)
-        img = self._background(scene, cam_x, cam_y, yaw)
-        rays = gyaw + self.col_angles
-
-        wall = scene.walls_caster.cast((gx, gy), rays, p.max_range_m)
-        d_wall = wall.distance_m * self.col_cos  # perpendicular depth: straight walls stay straight
-        shade = np.where(wall.side == 1, 0.82, 1.0)[:, None]
-        self._paint(img, d_wall, np.full(p.width, scene.world.wall_height_m), scene.label_colors[1][None, :] * shade)
-
-        d_furn = np.full(p.width, np.inf)
-        if scene.furniture.any():
-            # Furniture behind the wall is never drawn: each furniture ray stops at its wall.
-            furn = scene.furniture_caster.cast((gx, gy), rays, np.minimum(wall.distance_m, p.max_range_m))
-            d_furn = np.where(furn.distance_m * self.col_cos < d_wall, furn.distance_m * self.col_cos, np.inf)
-            labels = np.where(np.isfinite(d_furn), scene.labels[np.maximum(furn.row, 0), np.maximum(furn.col, 0)], 0)
-            furn_top = scene.label_heights[labels]
-            furn_bottom = scene.label_bottoms[labels]
-            furn_color = scene.label_colors[labels] * np.where(furn.side == 1, 0.78, 1.0)[:, None]
+        view = self._static_view(pose, scene, (cam_x, cam_y, yaw))
+        d_wall = view.d_wall
 
         d_mover = np.full(p.width, np.inf)
         if movers is not None and len(movers.items):
@@ -137,16 +140,61 @@ class Camera:
             d_mover = np.where(d * self.col_cos < d_wall, d * self.col_cos, np.inf)
             mover_top = movers.heights[idx]
             mover_color = movers.colors[idx] * cyl[:, None]
+        if not np.isfinite(d_mover).any():
+            return view.finished.copy()  # nobody in view: the picture is what does not move
 
         # Painter's order per column: the wall, then furniture and people far to near: furniture behind a person
         # first, the people, then the rest of the furniture (in front of a person, or in a column with nobody).
-        if np.isfinite(d_furn).any() and np.isfinite(d_mover).any():
+        img = view.walls.copy()
+        furniture = view.furniture
+        if furniture is not None:
+            d_furn, furn_top, furn_color, furn_bottom = furniture
             self._paint(img, np.where(d_furn >= d_mover, d_furn, np.inf), furn_top, furn_color, furn_bottom)
-        if np.isfinite(d_mover).any():
-            self._paint(img, d_mover, mover_top, mover_color)
-        if np.isfinite(d_furn).any():
+        self._paint(img, d_mover, mover_top, mover_color)
+        if furniture is not None:
             self._paint(img, np.where(d_furn < d_mover, d_furn, np.inf), furn_top, furn_color, furn_bottom)
         return img
+
+    def _static_view(self, pose: Pose2D, scene: Scene, camera: tuple[float, float, float]) -> _StaticView:
+        """What does not move, seen from ``pose``: the background with the walls painted, the furniture to paint
+        around people, and the whole picture when nobody is in view. A robot standing still sees it frame after
+        frame (a carer watching it), so the last view is kept for its pose (to the bit: a standing robot's pose
+        does not change) and its scene (`Scene.blocked_caster` is rebuilt whenever furniture is added or taken
+        away). Every step is the one a fresh view takes, in the same order, so the pictures are the same."""
+        kept = self._static
+        key = (pose.x_m, pose.y_m, pose.yaw_rad)
+        if kept is not None and kept.key == key and kept.scene is scene.blocked_caster:
+            return kept
+        p = self.params
+        cam_x, cam_y, yaw = camera
+        gx, gy, gyaw = scene.to_grid_frame(cam_x, cam_y, yaw)
+        img = self._background(scene, cam_x, cam_y, yaw)
+        rays = gyaw + self.col_angles
+
+        wall = scene.walls_caster.cast((gx, gy), rays, p.max_range_m)
+        d_wall = wall.distance_m * self.col_cos  # perpendicular depth: straight walls stay straight
+        shade = np.where(wall.side == 1, 0.82, 1.0)[:, None]
+        self._paint(img, d_wall, np.full(p.width, scene.world.wall_height_m), scene.label_colors[1][None, :] * shade)
+
+        furniture = None
+        if scene.furniture.any():
+            # Furniture behind the wall is never drawn: each furniture ray stops at its wall.
+            furn = scene.furniture_caster.cast((gx, gy), rays, np.minimum(wall.distance_m, p.max_range_m))
+            d_furn = np.where(furn.distance_m * self.col_cos < d_wall, furn.distance_m * self.col_cos, np.inf)
+            if np.isfinite(d_furn).any():
+                labels = np.where(np.isfinite(d_furn), scene.labels[np.maximum(furn.row, 0),
+                                                                    np.maximum(furn.col, 0)], 0)
+                furniture = (d_furn, scene.label_heights[labels],
+                             scene.label_colors[labels] * np.where(furn.side == 1, 0.78, 1.0)[:, None],
+                             scene.label_bottoms[labels])
+        finished = img.copy()
+        if furniture is not None:
+            d_furn, furn_top, furn_color, furn_bottom = furniture
+            self._paint(finished, d_furn, furn_top, furn_color, furn_bottom)
+        for array in (img, finished, d_wall):
+            array.setflags(write=False)
+        self._static = _StaticView(key, scene.blocked_caster, img, finished, d_wall, furniture)
+        return self._static
 
     def _paint(self, img: NDArray[np.uint8], depth: NDArray[np.float64], top_m: NDArray[np.float64],
                color: NDArray[np.float64], bottom_m: NDArray[np.float64] | None = None) -> None:

@@ -8,6 +8,7 @@ import pytest
 from atemr.errors import ConfigError
 from atemr.io.sim.camera import Camera, CameraParams
 from atemr.io.sim.simulation import SimParams, build_simulation
+from atemr.io.sim.world import Furniture
 from atemr.msgs import Pose2D
 
 
@@ -124,3 +125,33 @@ def test_camera_params_are_validated():
         CameraParams(hfov_deg=200)
     with pytest.raises(ConfigError, match="image size"):
         CameraParams(width=4)
+
+
+def test_a_standing_camera_keeps_what_does_not_move_and_sees_what_does():
+    """A robot standing still (a carer watching it) sees the same walls and furniture frame after frame, so the
+    camera keeps that view for its pose and paints only the people and pets onto it: its pictures are, to the
+    bit, a fresh camera's while the carer walks through the view, and a box put down or taken away is seen at
+    once."""
+    sim = build_simulation("studio", 4)
+    pose = Pose2D(3.0, 2.6, 1.45)  # facing the carer's walk along y = 4.25
+    standing = Camera(sim.camera.params)
+
+    def fresh():
+        return Camera(sim.camera.params).render(pose, sim.scene, sim.movers)
+
+    first = standing.render(pose, sim.scene, sim.movers)
+    kept = standing._static
+    assert kept is not None and np.array_equal(first, fresh())
+    seen = 0
+    for k in range(1, 60):
+        sim.step_to(k * 0.5)
+        image = standing.render(pose, sim.scene, sim.movers)
+        assert np.array_equal(image, fresh()), k
+        assert standing._static is kept  # the view was kept, not made again
+        seen += not np.array_equal(image, kept.finished)
+    assert 20 < seen < 59, seen  # the carer walked into the view and out of it again
+    box = sim.scene.add_object(Furniture("box", "box", (2.9, 3.4, 3.3, 3.7), 0.6, color=(255, 0, 0)))
+    with_box = standing.render(pose, sim.scene, sim.movers)
+    assert np.array_equal(with_box, fresh()) and not np.array_equal(with_box, first)
+    sim.scene.remove_object(box)
+    assert np.array_equal(standing.render(pose, sim.scene, sim.movers), fresh())

@@ -12,6 +12,7 @@ from atemr.io.sim import depth
 from atemr.io.sim.base import BaseParams
 from atemr.io.sim.depth import DepthCamera, DepthCameraParams
 from atemr.io.sim.simulation import SimParams, build_simulation
+from atemr.io.sim.world import Furniture
 from atemr.msgs import CameraMount, Pose2D
 from atemr.skills.depth_cloud import depth_to_points
 
@@ -197,8 +198,6 @@ def test_a_standing_camera_keeps_what_does_not_move_and_sees_what_does() -> None
     """A robot standing still sees the same walls and furniture frame after frame, so the camera keeps that view
     for its pose and adds only the people and pets: its frames are, to the bit, a fresh camera's (nothing kept)
     while the carer and the cat walk, and a box put down in front of it, or taken away, is seen at once."""
-    from atemr.io.sim.world import Furniture
-
     sim = build_simulation("studio", 4)
     pose = Pose2D(3.0, 2.6, 1.45)  # facing the carer's walk along y = 4.25
     standing = DepthCamera(IDEAL, np.random.default_rng(0))
