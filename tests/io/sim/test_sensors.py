@@ -10,8 +10,10 @@ from atemr.errors import ConfigError
 from atemr.io.sim.base import BaseParams
 from atemr.io.sim.cliff import CliffParams
 from atemr.io.sim.imu import ImuParams
-from atemr.io.sim.lidar import LidarParams
+from atemr.io.sim.lidar import Lidar, LidarParams
 from atemr.io.sim.simulation import SimParams, build_simulation
+from atemr.io.sim.world import Furniture
+from atemr.msgs import Pose2D
 from atemr.scheduler import Scheduler
 
 QUIET_BASE = BaseParams(slip_std=0.0, odom_noise_std=0.0)
@@ -162,3 +164,35 @@ def test_imu_sees_acceleration_and_a_bump(make_world):
     assert ax[1:5].max() > 3.0  # speeding up with the motors' 80 ms time constant
     assert ax.min() < -20.0  # the bump: a sudden stop, clipped at the accelerometer's range
     assert ax.min() >= -4 * 9.80665
+
+
+def test_a_standing_lidar_casts_what_does_not_move_once_and_sees_what_does() -> None:
+    """A robot standing still scans the same walls and furniture revolution after revolution, so the lidar keeps
+    that cast for its pose and casts only the people and pets again: its ranges are, to the bit, a fresh lidar's
+    while the carer and the cat walk, a crate put down or taken away is in the next scan, and what it hands out
+    may be written to without spoiling what it keeps."""
+    sim = build_simulation("studio", 4)
+    pose = Pose2D(3.0, 2.6, 1.45)
+    standing = Lidar(LidarParams(), np.random.default_rng(0))
+
+    def fresh() -> np.ndarray:
+        return Lidar(LidarParams(), np.random.default_rng(0)).true_ranges(pose, sim.scene, sim.movers.centres,
+                                                                           sim.movers.radii)
+
+    first = standing.true_ranges(pose, sim.scene, sim.movers.centres, sim.movers.radii)
+    kept = standing._static
+    first[:] = -1.0  # the caller's to change
+    changed = 0
+    for k in range(1, 60):
+        sim.step_to(k * 0.5)
+        ranges = standing.true_ranges(pose, sim.scene, sim.movers.centres, sim.movers.radii)
+        assert ranges.tobytes() == fresh().tobytes(), k
+        assert standing._static is kept  # the cast was kept, not made again
+        changed += ranges.tobytes() != kept[2].tobytes()
+    assert changed > 20, changed  # the carer walked through the scan meanwhile
+    alone = standing.true_ranges(pose, sim.scene, np.zeros((0, 2)), np.zeros(0))
+    assert alone.tobytes() == kept[2].tobytes() and alone.flags.writeable
+    crate = sim.scene.add_object(Furniture("crate", "box", (2.9, 3.4, 3.3, 3.7), 0.6))
+    assert standing.true_ranges(pose, sim.scene, sim.movers.centres, sim.movers.radii).tobytes() == fresh().tobytes()
+    sim.scene.remove_object(crate)
+    assert standing.true_ranges(pose, sim.scene, sim.movers.centres, sim.movers.radii).tobytes() == fresh().tobytes()
