@@ -61,7 +61,7 @@ class CameraParams:
         return (self.width / 2) / math.tan(math.radians(self.hfov_deg) / 2)
 
 
-@dataclass(frozen=True)
+@dataclass
 class _StaticView:
     """What a camera at one pose sees of what does not move (`Camera._static_view`; arrays read-only)."""
 
@@ -70,12 +70,12 @@ class _StaticView:
     scene: object
     #: The background with the walls painted: where people and the furniture around them are painted.
     walls: NDArray[np.uint8]
-    #: The picture with nobody in view: the walls and the furniture.
-    finished: NDArray[np.uint8]
     #: Each column's depth to the wall.
     d_wall: NDArray[np.float64]
     #: The furniture seen in each column: depth (inf: none), top, colour, bottom; None when none is in view.
     furniture: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None
+    #: The picture with nobody in view (walls and furniture), once a second frame at the pose needed it.
+    finished: NDArray[np.uint8] | None = None
 
 
 class Camera:
@@ -123,7 +123,7 @@ class Camera:
         cam_x = pose.x_m + c * p.mount.x_m - s * p.mount.y_m
         cam_y = pose.y_m + s * p.mount.x_m + c * p.mount.y_m
         yaw = pose.yaw_rad + p.mount.yaw_rad
-        view = self._static_view(pose, scene, (cam_x, cam_y, yaw))
+        view, reused = self._static_view(pose, scene, (cam_x, cam_y, yaw))
         d_wall = view.d_wall
 
         d_mover = np.full(p.width, np.inf)
@@ -140,13 +140,23 @@ class Camera:
             d_mover = np.where(d * self.col_cos < d_wall, d * self.col_cos, np.inf)
             mover_top = movers.heights[idx]
             mover_color = movers.colors[idx] * cyl[:, None]
-        if not np.isfinite(d_mover).any():
-            return view.finished.copy()  # nobody in view: the picture is what does not move
+        furniture = view.furniture
+        if not np.isfinite(d_mover).any():  # nobody in view: the picture is what does not move
+            if view.finished is not None:
+                return view.finished.copy()
+            img = view.walls.copy()
+            if furniture is not None:
+                d_furn, furn_top, furn_color, furn_bottom = furniture
+                self._paint(img, d_furn, furn_top, furn_color, furn_bottom)
+            if not reused:  # a moving robot's view is seen once: nothing to keep
+                return img
+            img.setflags(write=False)
+            view.finished = img
+            return img.copy()
 
         # Painter's order per column: the wall, then furniture and people far to near: furniture behind a person
         # first, the people, then the rest of the furniture (in front of a person, or in a column with nobody).
         img = view.walls.copy()
-        furniture = view.furniture
         if furniture is not None:
             d_furn, furn_top, furn_color, furn_bottom = furniture
             self._paint(img, np.where(d_furn >= d_mover, d_furn, np.inf), furn_top, furn_color, furn_bottom)
@@ -155,16 +165,17 @@ class Camera:
             self._paint(img, np.where(d_furn < d_mover, d_furn, np.inf), furn_top, furn_color, furn_bottom)
         return img
 
-    def _static_view(self, pose: Pose2D, scene: Scene, camera: tuple[float, float, float]) -> _StaticView:
-        """What does not move, seen from ``pose``: the background with the walls painted, the furniture to paint
-        around people, and the whole picture when nobody is in view. A robot standing still sees it frame after
-        frame (a carer watching it), so the last view is kept for its pose (to the bit: a standing robot's pose
-        does not change) and its scene (`Scene.blocked_caster` is rebuilt whenever furniture is added or taken
-        away). Every step is the one a fresh view takes, in the same order, so the pictures are the same."""
+    def _static_view(self, pose: Pose2D, scene: Scene, camera: tuple[float, float, float]
+                     ) -> tuple[_StaticView, bool]:
+        """What does not move, seen from ``pose``: the background with the walls painted and the furniture to
+        paint around people; and whether it was kept from an earlier frame. A robot standing still sees it frame
+        after frame (a carer watching it), so the last view is kept for its pose (to the bit: a standing robot's
+        pose does not change) and its scene (`Scene.blocked_caster` is rebuilt whenever furniture is added or
+        taken away). Every step is the one a fresh view takes, in the same order, so the pictures are the same."""
         kept = self._static
         key = (pose.x_m, pose.y_m, pose.yaw_rad)
         if kept is not None and kept.key == key and kept.scene is scene.blocked_caster:
-            return kept
+            return kept, True
         p = self.params
         cam_x, cam_y, yaw = camera
         gx, gy, gyaw = scene.to_grid_frame(cam_x, cam_y, yaw)
@@ -187,14 +198,10 @@ class Camera:
                 furniture = (d_furn, scene.label_heights[labels],
                              scene.label_colors[labels] * np.where(furn.side == 1, 0.78, 1.0)[:, None],
                              scene.label_bottoms[labels])
-        finished = img.copy()
-        if furniture is not None:
-            d_furn, furn_top, furn_color, furn_bottom = furniture
-            self._paint(finished, d_furn, furn_top, furn_color, furn_bottom)
-        for array in (img, finished, d_wall):
+        for array in (img, d_wall):
             array.setflags(write=False)
-        self._static = _StaticView(key, scene.blocked_caster, img, finished, d_wall, furniture)
-        return self._static
+        self._static = _StaticView(key, scene.blocked_caster, img, d_wall, furniture)
+        return self._static, False
 
     def _paint(self, img: NDArray[np.uint8], depth: NDArray[np.float64], top_m: NDArray[np.float64],
                color: NDArray[np.float64], bottom_m: NDArray[np.float64] | None = None) -> None:
