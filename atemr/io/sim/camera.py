@@ -65,9 +65,8 @@ class CameraParams:
 class _StaticView:
     """What a camera at one pose sees of what does not move (`Camera._static_view`; arrays read-only)."""
 
-    key: tuple[float, float, float]
-    #: The scene it was made from (its `Scene.blocked_caster`, rebuilt with every change of the furniture).
-    scene: object
+    #: The `Scene.view_key` it was made for.
+    key: tuple[float, float, float, object]
     #: The background with the walls painted: where people and the furniture around them are painted.
     walls: NDArray[np.uint8]
     #: Each column's depth to the wall.
@@ -168,13 +167,12 @@ class Camera:
     def _static_view(self, pose: Pose2D, scene: Scene, camera: tuple[float, float, float]
                      ) -> tuple[_StaticView, bool]:
         """What does not move, seen from ``pose``: the background with the walls painted and the furniture to
-        paint around people; and whether it was kept from an earlier frame. A robot standing still sees it frame
-        after frame (a carer watching it), so the last view is kept for its pose (to the bit: a standing robot's
-        pose does not change) and its scene (`Scene.blocked_caster` is rebuilt whenever furniture is added or
-        taken away). Every step is the one a fresh view takes, in the same order, so the pictures are the same."""
+        paint around people; and whether it was kept from an earlier frame (the last view is kept for its
+        `Scene.view_key`: a robot standing still, a carer watching it). Every step is the one a fresh view takes,
+        in the same order, so the pictures are the same."""
         kept = self._static
-        key = (pose.x_m, pose.y_m, pose.yaw_rad)
-        if kept is not None and kept.key == key and kept.scene is scene.blocked_caster:
+        key = scene.view_key(pose)
+        if kept is not None and kept.key == key:
             return kept, True
         p = self.params
         cam_x, cam_y, yaw = camera
@@ -200,7 +198,7 @@ class Camera:
                              scene.label_bottoms[labels])
         for array in (img, d_wall):
             array.setflags(write=False)
-        self._static = _StaticView(key, scene.blocked_caster, img, d_wall, furniture)
+        self._static = _StaticView(key, img, d_wall, furniture)
         return self._static, False
 
     def _paint(self, img: NDArray[np.uint8], depth: NDArray[np.float64], top_m: NDArray[np.float64],

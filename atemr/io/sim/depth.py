@@ -150,8 +150,8 @@ class DepthCamera:
         #: Python float; and whether the noise and the dropouts are drawn at all.
         self._noise = (np.array([p.noise_per_m2, p.range_min_m, p.range_max_m, p.dropout_prob], dtype=np.float32),
                        p.subpixel_px != 0, p.dropout_prob != 0)
-        #: The last `_static_view`: (pose and wall height, the scene's caster, the distances, the walls by bin).
-        self._static: tuple[tuple[float, ...], object, F32, NDArray[np.float64]] | None = None
+        #: The last `_static_view`: (its `Scene.view_key`, the distances, the walls by bin).
+        self._static: tuple[tuple[float, float, float, object], F32, NDArray[np.float64]] | None = None
         load_compiled()
 
     def render(self, t: float, pose: Pose2D, scene: Scene, movers: Movers | None = None) -> DepthImage:
@@ -177,15 +177,13 @@ class DepthCamera:
     def _static_view(self, pose: Pose2D, scene: Scene, origin: tuple[float, float, float],
                      turn: tuple[float, float]) -> tuple[F32, NDArray[np.float64]]:
         """The sorted pixels' hit distances on what does not move (floor, ceiling, walls, furniture; read-only),
-        and the plan distance to the wall in each azimuth bin. A robot that stands still sees the same, frame
-        after frame: the last view is kept for its pose (to the bit: a standing robot's pose does not change) and
-        its scene (`Scene.blocked_caster` is rebuilt whenever furniture is added or taken away). Each shape lowers
-        a pixel's distance to the nearest of them, so the furniture taken first and the people after give the
-        same distances as all of them at once."""
-        key = (pose.x_m, pose.y_m, pose.yaw_rad, scene.world.wall_height_m)
+        and the plan distance to the wall in each azimuth bin; the last ones are kept for their `Scene.view_key`.
+        Each shape lowers a pixel's distance to the nearest of them, so the furniture taken first and the people
+        after give the same distances as all of them at once."""
+        key = scene.view_key(pose)
         kept = self._static
-        if kept is not None and kept[0] == key and kept[1] is scene.blocked_caster:
-            return kept[2], kept[3]
+        if kept is not None and kept[0] == key:
+            return kept[1], kept[2]
         ox, oy = origin[0], origin[1]
         t_hit = np.minimum(self._floor_t, self._ceiling(scene.world.wall_height_m))
         # Walls: one grid cast per azimuth bin, in the grid frame.
@@ -203,7 +201,7 @@ class DepthCamera:
         if shapes:
             self._hit_shapes(t_hit, shapes, origin, turn)
         t_hit.setflags(write=False)
-        self._static = (key, scene.blocked_caster, t_hit, flat)
+        self._static = (key, t_hit, flat)
         return t_hit, flat
 
     def _image(self, t_hit: F32) -> F32:

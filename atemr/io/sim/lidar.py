@@ -61,30 +61,28 @@ class Lidar:
         self.params = params
         self.rng = rng
         self.angles_rad = -math.pi + params.angle_increment_rad * np.arange(params.beams, dtype=np.float64)
-        #: The last cast through what does not move: (pose, the scene's caster at the scan plane, ranges).
-        self._static: tuple[tuple[float, float, float], object, np.ndarray] | None = None
+        #: The last cast through what does not move: (its `Scene.view_key`, the ranges).
+        self._static: tuple[tuple[float, float, float, object], np.ndarray] | None = None
 
     def true_ranges(self, pose: Pose2D, scene: Scene, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """Noise-free distance along each beam to the first wall, object or moving obstacle that crosses the scan
         plane (inf: none within ``reach_m``); a shoe under the plane and a table top above it are not seen.
 
-        What does not move is cast once for a pose: a robot standing still scans the same walls and furniture
-        revolution after revolution (its pose does not change, to the bit), and only the people and pets are
-        cast again. The scene's caster is rebuilt whenever furniture is added or taken away, which casts anew."""
+        The walls and furniture are cast once for a `Scene.view_key` (a robot standing still), and only the people
+        and pets are cast again."""
         p = self.params
         c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
         sx = pose.x_m + c * p.mount.x_m - s * p.mount.y_m
         sy = pose.y_m + s * p.mount.x_m + c * p.mount.y_m
-        caster = scene.caster_at(p.height_m)
-        key = (pose.x_m, pose.y_m, pose.yaw_rad)
+        key = scene.view_key(pose)
         kept = self._static
-        if kept is not None and kept[0] == key and kept[1] is caster:
-            static = kept[2]
+        if kept is not None and kept[0] == key:
+            static = kept[1]
         else:
             gx, gy, gyaw = scene.to_grid_frame(sx, sy, pose.yaw_rad + p.mount.yaw_rad)
-            static = caster.cast((gx, gy), gyaw + self.angles_rad, p.reach_m).distance_m
+            static = scene.caster_at(p.height_m).cast((gx, gy), gyaw + self.angles_rad, p.reach_m).distance_m
             static.setflags(write=False)
-            self._static = (key, caster, static)
+            self._static = (key, static)
         if len(centres):
             world_angles = pose.yaw_rad + p.mount.yaw_rad + self.angles_rad
             d, _ = cast_circles((sx, sy), world_angles, centres, radii, p.reach_m)

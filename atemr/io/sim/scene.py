@@ -24,6 +24,7 @@ from scipy import ndimage
 from atemr.errors import ConfigError
 from atemr.io.sim.raycast import GridCaster
 from atemr.io.sim.world import Color, Furniture, World
+from atemr.msgs import Pose2D
 from atemr.skills.body import RobotBody
 
 WALL = 1
@@ -107,6 +108,8 @@ class Scene:
         return dict(self._objects)
 
     def _rebuild(self) -> None:
+        #: Replaced whenever furniture is put down or taken away (`view_key`).
+        self.revision = object()
         self._masks = {label: item.contains(self._cell_x, self._cell_y) for label, item in self._objects.items()}
         labels = self._labels(None)
         self.labels = labels
@@ -189,6 +192,13 @@ class Scene:
             return "wall"
         item = self._objects.get(label)
         return item.name if item is not None else f"object {label}"
+
+    def view_key(self, pose: Pose2D) -> tuple[float, float, float, object]:
+        """What a sensor's view of the walls and furniture from ``pose`` depends on: the pose, to the bit, and this
+        scene as it is now (its `revision`). A robot standing still has the same pose frame after frame, so the
+        simulated cameras and lidar keep their last view while the key stays the same and add only the people
+        and pets to it; furniture put down or taken away changes the key."""
+        return (pose.x_m, pose.y_m, pose.yaw_rad, self.revision)
 
     # -- frames --------------------------------------------------------------------------------
     def to_grid_frame(self, x_m: float, y_m: float, yaw_rad: float) -> tuple[float, float, float]:
