@@ -150,9 +150,12 @@ def test_check_with_nothing_attached_says_what_is_missing(tmp_path: Path, capsys
     assert out.splitlines()[-1] == "4 critical device(s) missing: lidar, imu, motors, secondary"
 
 
-def test_run_real_with_nothing_attached_fails_start_up_without_powering_off(tmp_path: Path, capsys) -> None:
+def test_run_real_with_nothing_attached_fails_start_up_without_powering_off(tmp_path: Path, capsys,
+                                                                           monkeypatch) -> None:
     """One line per missing device, exit 1, and never the power-off acknowledgement (0x150 byte 0 = 2) that
-    would make the ESP32 cut the power."""
+    would make the ESP32 cut the power. Nothing answers here whatever the wait: the check waits 1 s, not the
+    robot's 5 s."""
+    monkeypatch.setattr("atemr.cli.run.STARTUP_CHECK_S", 1.0)
     channel = unique_channel("nothing")
     config = write_config(tmp_path / "robot.yaml", lidar=f"{{driver: rplidar, port: {tmp_path}/ttyUSB0}}",
                           imu=f"{{driver: wt901, port: {tmp_path}/ttyUSB1}}", camera="{driver: none}")
