@@ -16,7 +16,9 @@ Rows (``python benchmarks/bench_nav.py``):
   (``numpy_baselines.py``: every beam's samples at once), on a 400x400 map whose layer holds marks: the same
   cells, updates per second, interleaved. Goal >= 1x.
 * one local-planner tick (dynamic window, all (v, w) samples and time steps at once), ticks per second
-  (goal >= 10 Hz).
+  (goal >= 10 Hz); and the same tick with its rollouts and safety checks compiled (``_rollout_poses``,
+  ``_rollouts_valid``) against the numpy versions they replaced (``numpy_baselines.NumpyLocalPlanner``): the
+  same plan, interleaved. Goal >= 1x.
 * A* against tcod (libtcod's C pathfinder, a benchmark-only dependency: the ``bench`` extra) on the same cost
   model: 8-connected, entering a cell costs its step length times ``1 + 3 · cost/252`` (tcod in integers:
   cell cost ``84 + cost`` times 1000 or 1414 per step, so its diagonals are 0.0015 % short), no corner cutting
@@ -40,7 +42,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from numpy_baselines import NumpyClearingCostmap
+from numpy_baselines import NumpyClearingCostmap, NumpyLocalPlanner
 
 from atemr.domain.maps import OccupancyMap
 from atemr.msgs import LaserScan, Pose2D, Twist
@@ -131,6 +133,23 @@ def clearing_row(occ: OccupancyMap, scan: LaserScan, pose: Pose2D, repeats: int)
     return {"what": "  the layer's clearing compiled vs the numpy one it replaced (same cells)",
             "ours": round(1.0 / best["ours"], 1), "baseline": round(1.0 / best["numpy"], 1),
             "ratio": round(best["numpy"] / best["ours"], 2), "goal": 1.0, "unit": "updates/s"}
+
+
+def local_planner_row(cm: Costmap, pose: Pose2D, path: Any, goal_xy: tuple[float, float],
+                      repeats: int) -> dict[str, Any]:
+    """A local-planner tick with the compiled rollouts and checks against the numpy ones they replaced,
+    interleaved best-of; the plans must be the same."""
+    planners = {"ours": LocalPlanner(cm), "numpy": NumpyLocalPlanner(cm)}
+    best = dict.fromkeys(planners, math.inf)
+    plans = {}
+    for _ in range(repeats):
+        for name, planner in planners.items():
+            t, plans[name] = _best(lambda planner=planner: planner.compute(pose, Twist(0.3, 0.0), path, goal_xy), 1)
+            best[name] = min(best[name], t)
+    assert plans["ours"].twist == plans["numpy"].twist
+    return {"what": "  the tick's rollouts and checks compiled vs the numpy ones they replaced (same plan)",
+            "ours": round(1.0 / best["ours"], 1), "baseline": round(1.0 / best["numpy"], 1),
+            "ratio": round(best["numpy"] / best["ours"], 2), "goal": 1.0, "unit": "ticks/s"}
 
 
 def _best(fn: Any, repeats: int) -> tuple[float, Any]:
@@ -228,6 +247,7 @@ def run(quick: bool = False) -> list[dict[str, Any]]:  # noqa: PLR0915  the benc
     rows.append({"what": "local planner tick (dynamic window, all samples x steps at once)",
                  "ours": round(1.0 / t_local, 1), "baseline": 10.0, "ratio": round(0.1 / t_local, 1),
                  "goal": 1.0, "unit": "ticks/s (baseline: the 10 Hz control rate)"})
+    rows.append(local_planner_row(cm, pose, path.points, goal_xy, 20 if quick else 60))
     return rows + against_tcod(quick)
 
 

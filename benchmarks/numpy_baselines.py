@@ -18,7 +18,10 @@
   `atemr.skills.hexpattern.sectorise`'s compiled loop replaced (as it was at `fb3fde7`);
 * `NumpyFinishDepthCamera`: the simulated depth camera finishing its image (depth, noise, range, dropouts) with
   numpy passes and ``Generator``'s array draws, which `atemr.io.sim.depth`'s ``_finish`` replaced (as it was at
-  `0fa2758`).
+  `0fa2758`);
+* `numpy_ramped_rollout` and `NumpyLocalPlanner`: the local planner's rollouts and its check of which are safe, in
+  (targets × steps) arrays, which `atemr.skills.nav.local_planner`'s ``_rollout_poses`` and ``_rollouts_valid``
+  replaced (as they were at `8afc15c`).
 
 Kept as they were at `096bdec` unless said otherwise (renamed, with the helpers of their own) for two uses: the
 benchmarks measure the compiled loops against them, and the tests check that the two answer with the same bits,
@@ -38,11 +41,12 @@ from scipy import ndimage
 from atemr.io.sim.depth import F32, DepthCamera
 from atemr.io.sim.depth import _inverse as inverse_directions
 from atemr.io.sim.raycast import FloatArray, GridHits, IntArray
-from atemr.msgs import DepthImage, LaserScan
+from atemr.msgs import DepthImage, LaserScan, Pose2D, Twist
 from atemr.skills.hexpattern import DEFAULT_RADIUS_M, HEX90, SECTORS, BasePoints, HexLayout, HexSectors, _layout_tables
 from atemr.skills.localization.likelihood_field import DENSE_LOOKUPS, LikelihoodField
 from atemr.skills.nav.costmap import MAX_NON_OBSTACLE, Costmap
 from atemr.skills.nav.global_planner import _BLOCKED, _MOVES, PlannerParams
+from atemr.skills.nav.local_planner import LocalPlanner, stop_cone_clearance
 from atemr.skills.nav.voxel_layer import VoxelLayer
 
 #: Crossings processed per chunk (per axis), after each jump over empty space.
@@ -503,3 +507,52 @@ class NumpyClearingCostmap(Costmap):
         cy = (sy + uy[:, None] * t[None, :])[along]
         row, col, inside = self.cells(cx, cy)
         self.obstacles[row[inside], col[inside]] = False
+
+
+def numpy_ramped_rollout(pose: Pose2D, velocity: Twist, v_target: FloatArray, w_target: FloatArray, *, step_s: float,
+                         steps: int, linear_accel: float, angular_accel: float
+                         ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """`atemr.skills.nav.local_planner.ramped_rollout` as numpy computed it: all targets at once."""
+    t_mid = (np.arange(steps, dtype=np.float64) + 0.5) * step_s
+    dv = np.clip(v_target[:, None] - velocity.linear_mps, -linear_accel * t_mid, linear_accel * t_mid)
+    dw = np.clip(w_target[:, None] - velocity.angular_radps, -angular_accel * t_mid, angular_accel * t_mid)
+    v = velocity.linear_mps + dv
+    w = velocity.angular_radps + dw
+    yaw = pose.yaw_rad + np.cumsum(w * step_s, axis=1)
+    yaw_mid = yaw - w * (step_s / 2)
+    x = pose.x_m + np.cumsum(v * np.cos(yaw_mid) * step_s, axis=1)
+    y = pose.y_m + np.cumsum(v * np.sin(yaw_mid) * step_s, axis=1)
+    return x, y, yaw
+
+
+class NumpyLocalPlanner(LocalPlanner):
+    """`LocalPlanner` rolling out and checking its rollouts with numpy arrays."""
+
+    def _rollout(self, pose: Pose2D, velocity: Twist, vs: FloatArray, ws: FloatArray, horizon_s: float
+                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        p = self.params
+        steps = max(round(horizon_s / p.sim_step_s), 1)
+        return numpy_ramped_rollout(pose, velocity, vs, ws, step_s=p.sim_step_s, steps=steps,
+                                    linear_accel=p.linear_accel_mps2, angular_accel=p.angular_accel_radps2)
+
+    def _valid(self, pose: Pose2D, xs: FloatArray, ys: FloatArray, th: FloatArray, *, vs: FloatArray,
+               clearance_here: float) -> NDArray[np.bool_]:
+        p, cm = self.params, self.costmap
+        r_in = cm.params.inscribed_radius_m
+        clear = cm.distance_at(xs, ys)
+        floor = min(r_in, clearance_here)
+        first_cell = np.hypot(xs - pose.x_m, ys - pose.y_m) < cm.resolution_m
+        valid = np.where(first_cell, clear >= floor - cm.resolution_m, clear >= floor).all(axis=1)
+        if clearance_here < r_in:
+            valid &= clear[:, -1] > clearance_here
+            hard_here = float(cm.static_distance_at(pose.x_m, pose.y_m))
+            hard = cm.static_distance_at(xs, ys)
+            floor = min(r_in + 0.05, hard_here)
+            valid &= (hard.min(axis=1) >= floor) & (hard[:, -1] >= floor)
+        direction = np.sign(vs)[:, None] * np.ones_like(xs)
+        cone = stop_cone_clearance(cm, xs, ys, th, direction=direction, radius_m=p.stop_cone_m).min(axis=1)
+        cone_here = float(stop_cone_clearance(cm, np.array([pose.x_m]), np.array([pose.y_m]),
+                                              np.array([pose.yaw_rad]), direction=np.array([1.0]),
+                                              radius_m=p.stop_cone_m)[0])
+        valid &= cone >= min(1.0, cone_here)
+        return valid

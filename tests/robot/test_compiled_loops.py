@@ -23,13 +23,14 @@ from atemr.robot.core import Ticker
 from atemr.robot.headless import build_headless_robot
 from atemr.skills import hexpattern
 from atemr.skills.localization import likelihood_field
-from atemr.skills.nav import costmap, global_planner, voxel_layer
+from atemr.skills.nav import costmap, global_planner, local_planner, voxel_layer
 
 loops = {"walk_rays": raycast._walk_rays, "traced": likelihood_field._traced, "sampled": likelihood_field._sampled,
          "marks": voxel_layer._marks, "box_hits": depth._box_hits, "cylinder_hits": depth._cylinder_hits,
          "weights": global_planner._weights_into, "cells": likelihood_field._cells_into,
          "clear_beams": costmap._clear_beams, "circles": raycast._circle_hits,
-         "sectors": hexpattern._sector_stats, "finish": depth._finish}
+         "sectors": hexpattern._sector_stats, "finish": depth._finish, "rollouts": local_planner._rollout_poses,
+         "rollouts_valid": local_planner._rollouts_valid}
 robot = build_headless_robot(load_config(environ={}, overrides={"sim.camera_hz": 10.0, "sim.seed": 2}))
 built = {name: len(loop.signatures) for name, loop in loops.items()}
 inputs = robot.parts.inputs
@@ -44,7 +45,8 @@ field.crossings(poses, (0.1, 0.0), rng.uniform(-5, 5, (90, 2)), 0.1)
 # A plan on the robot's own costmap, and a replan after it changed (the weights patched in a window).
 navigator = robot.parts.navigation.navigator
 planner = global_planner.GlobalPlanner(navigator.costmap)
-assert planner.plan((2.6, 2.6), (7.0, 3.0)) is not None
+path = planner.plan((2.6, 2.6), (7.0, 3.0))
+assert path is not None
 navigator.costmap.cost[60:64, 60:64] = 200
 planner.plan((2.6, 2.6), (7.0, 3.0))
 # Every loop reached through the robot's own parts, whatever the run happened to meet: the cameras facing each
@@ -62,6 +64,11 @@ field.log_likelihood(poses[:500], rng.uniform(-5, 5, (60, 2)))
 # The navigator's obstacle layer clearing a scan's beams through what it holds.
 navigator.costmap.obstacles[40:80, 40:80] = True
 navigator.costmap.update_from_scan(sim.read_lidar(30.0), sim.pose)
+# The local planner following a plan on that costmap, and evading from inside the inscribed radius.
+navigator.local.compute(Pose2D(2.6, 2.6, 0.0), Twist(0.2, 0.1), path.points, (7.0, 3.0), 0.1, zone=(1.0, 2.0))
+near = Pose2D(*(float(v) for v in navigator.costmap.map.cell_to_world(39, 60)), 0.0)  # by the marked block
+navigator.local.compute(near, Twist(), path.points, (7.0, 3.0), 0.1)
+navigator.local.evade(near, Twist())
 ran = {name: len(loop.signatures) for name, loop in loops.items()}
 robot.shutdown()
 print(json.dumps({"built": built, "ran": ran}))

@@ -249,6 +249,11 @@ class Costmap:
         row, col, inside = self.cells(x_m, y_m)
         return np.where(inside, self._hard[row, col], 0.0).astype(np.float64)
 
+    @property
+    def static_distance_m(self) -> NDArray[np.float32]:
+        """Distance from each cell centre to the nearest lethal cell of the map alone, metres (inf: none)."""
+        return self._static_distance
+
     def static_distance_at(self, x_m: NDArray[np.float64] | float, y_m: NDArray[np.float64] | float
                            ) -> NDArray[np.float64]:
         """Clearance (m) from the map alone; 0 outside the grid. A move that makes room for a person (who is
@@ -333,12 +338,17 @@ class Costmap:
                beams: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]) -> None:
         """Empty the obstacle cells that samples every half cell along each beam (unit direction ``ux, uy`` from
         ``sensor``, map frame) reach up to ``reach`` (`_clear_beams`)."""
-        origin = self.map.origin
-        c0, s0 = (math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)) if origin.yaw_rad else (1.0, 0.0)
         step = self.resolution_m / 2
         samples = int(max(beams[2].max(), 0.0) / step) + 1
-        _clear_beams(self.obstacles, sensor, beams, (step, samples),
-                     (origin.x_m, origin.y_m, c0, s0, bool(origin.yaw_rad), self.resolution_m))
+        _clear_beams(self.obstacles, sensor, beams, (step, samples), self.grid_transform())
+
+    def grid_transform(self) -> tuple[float, float, float, float, bool, float]:
+        """What a compiled loop needs to find a world point's cell with `OccupancyMap.world_to_cell`'s arithmetic,
+        in its order: the map origin's x and y, the cosine and sine of its yaw, whether it is rotated at all, and
+        the resolution."""
+        origin = self.map.origin
+        c0, s0 = (math.cos(origin.yaw_rad), math.sin(origin.yaw_rad)) if origin.yaw_rad else (1.0, 0.0)
+        return (origin.x_m, origin.y_m, c0, s0, bool(origin.yaw_rad), self.resolution_m)
 
     # -- views for the planners and the dashboard -------------------------------------------------------
     def traversable(self, *, allow_unknown: bool = False) -> NDArray[np.bool_]:

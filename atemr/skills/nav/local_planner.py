@@ -3,7 +3,7 @@
 Each tick: target velocities (v, ω) are sampled over the whole speed range; each is rolled out as the
 base would drive it — from the current velocity towards the target at the acceleration limits, then
 held (TrajectoryPlanner's model, so a sharp turn from rest is planned as it will really happen) — over
-``sim_time_s`` at ``sim_step_s``: one (targets × steps) array, no Python loop. Each trajectory is checked
+``sim_time_s`` at ``sim_step_s``: (targets × steps) arrays, filled by compiled loops. Each trajectory is checked
 against the costmap's clearance (any pose within the inscribed radius of an obstacle rules it out, and so
 does any pose with an obstacle in the speed ramp's stop cone ahead: a path the safety layer would end in an
 emergency stop is no path) and scored (lower is better):
@@ -27,10 +27,12 @@ input; the chosen trajectory goes to the dashboard.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from atemr.errors import NavigationError
@@ -117,17 +119,14 @@ def ramped_rollout(pose: Pose2D, velocity: Twist, v_target: FloatArray, w_target
                    ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Poses (x, y, yaw), each (P, steps), when the base goes from ``velocity`` towards each target (v, ω)
     at the acceleration limits and then holds it (TrajectoryPlanner's model): a sharp turn from rest is
-    planned as the base would really drive it. Midpoint integration per step, all targets at once."""
-    t_mid = (np.arange(steps, dtype=np.float64) + 0.5) * step_s
-    dv = np.clip(v_target[:, None] - velocity.linear_mps, -linear_accel * t_mid, linear_accel * t_mid)
-    dw = np.clip(w_target[:, None] - velocity.angular_radps, -angular_accel * t_mid, angular_accel * t_mid)
-    v = velocity.linear_mps + dv
-    w = velocity.angular_radps + dw
-    yaw = pose.yaw_rad + np.cumsum(w * step_s, axis=1)
-    yaw_mid = yaw - w * (step_s / 2)
-    x = pose.x_m + np.cumsum(v * np.cos(yaw_mid) * step_s, axis=1)
-    y = pose.y_m + np.cumsum(v * np.sin(yaw_mid) * step_s, axis=1)
-    return x, y, yaw
+    planned as the base would really drive it. Midpoint integration per step (`_rollout_poses`)."""
+    v_target = np.ascontiguousarray(v_target, dtype=np.float64)
+    w_target = np.ascontiguousarray(w_target, dtype=np.float64)
+    if v_target.shape != w_target.shape or v_target.ndim != 1:
+        raise NavigationError(f"local planner: {v_target.shape} linear targets for {w_target.shape} angular ones")
+    return _rollout_poses((pose.x_m, pose.y_m, pose.yaw_rad), (velocity.linear_mps, velocity.angular_radps),
+                          (v_target, w_target), (float(step_s), int(steps)),
+                          (float(linear_accel), float(angular_accel)))
 
 
 def stop_cone_clearance(costmap: Costmap, xs: FloatArray, ys: FloatArray, yaw: FloatArray, *, direction: FloatArray,
@@ -175,6 +174,7 @@ class LocalPlanner:
     def __init__(self, costmap: Costmap, params: LocalPlannerParams | None = None) -> None:
         self.costmap = costmap
         self.params = params or LocalPlannerParams()
+        load_compiled()
 
     def targets(self, velocity: Twist, v_cap: float, *, reverse: bool = False) -> tuple[FloatArray, FloatArray]:
         """The sampled target (v, ω) pairs (flattened grid) over the whole speed range, plus the current
@@ -272,34 +272,23 @@ class LocalPlanner:
 
     def _valid(self, pose: Pose2D, xs: FloatArray, ys: FloatArray, th: FloatArray, *, vs: FloatArray,
                clearance_here: float) -> NDArray[np.bool_]:
-        """Which rollouts (from ``pose``, at linear speeds ``vs``) are safe to take."""
+        """Which rollouts (from ``pose``, at linear speeds ``vs``) are safe to take (`_rollouts_valid` says how)."""
         p, cm = self.params, self.costmap
         r_in = cm.params.inscribed_radius_m
-        clear = cm.distance_at(xs, ys)
-        # Valid: never inside the inscribed radius; from inside it (pushed against something, or something
-        # came close), never closer than now and ending farther away: the way out, never a creep inwards.
-        # Within a cell of where the base stands the grid cannot tell better than a cell: a base resting on the
-        # edge of the inscribed zone reads the next cell a cell closer whichever way it moves, and would never
-        # move again (seen with a cat lying right behind the robot).
-        floor = min(r_in, clearance_here)
-        first_cell = np.hypot(xs - pose.x_m, ys - pose.y_m) < cm.resolution_m
-        valid = np.where(first_cell, clear >= floor - cm.resolution_m, clear >= floor).all(axis=1)
-        if clearance_here < r_in:
-            valid &= clear[:, -1] > clearance_here
-            # Out of a person's way, but never towards a wall: the clearance from the map may not fall below
-            # the inscribed radius (with a margin: the base lags its commands), nor below what it is now.
-            hard_here = float(cm.static_distance_at(pose.x_m, pose.y_m))
-            hard = cm.static_distance_at(xs, ys)
-            floor = min(r_in + 0.05, hard_here)
-            valid &= (hard.min(axis=1) >= floor) & (hard[:, -1] >= floor)
-        # Never into the speed ramp's stop zone ahead (or, already in it, never deeper): an emergency stop is
-        # not a way to follow a path.
-        direction = np.sign(vs)[:, None] * np.ones_like(xs)
-        cone = stop_cone_clearance(cm, xs, ys, th, direction=direction, radius_m=p.stop_cone_m).min(axis=1)
+        escaping = clearance_here < r_in
+        # From inside the inscribed radius, the clearance from the map may not fall below it (with a margin: the
+        # base lags its commands), nor below what it is now.
+        hard_floor = min(r_in + 0.05, float(cm.static_distance_at(pose.x_m, pose.y_m))) if escaping else math.inf
         cone_here = float(stop_cone_clearance(cm, np.array([pose.x_m]), np.array([pose.y_m]),
                                               np.array([pose.yaw_rad]), direction=np.array([1.0]),
                                               radius_m=p.stop_cone_m)[0])
-        valid &= cone >= min(1.0, cone_here)
+        floor = min(r_in, clearance_here)
+        valid = np.empty(len(vs), dtype=np.bool_)
+        _rollouts_valid(
+            (xs, ys, th), np.ascontiguousarray(vs, dtype=np.float64),
+            (cm.distance_m, cm.static_distance_m, cm.grid_transform()),
+            ((pose.x_m, pose.y_m), (floor, floor - cm.resolution_m, clearance_here, escaping, hard_floor),
+             (0.5 * p.stop_cone_m, math.sqrt(0.75) * p.stop_cone_m, min(1.0, cone_here))), valid)
         return valid
 
     def _score(self, xs: FloatArray, ys: FloatArray, th: FloatArray, *, path: FloatArray, s: FloatArray,
@@ -347,3 +336,135 @@ class LocalPlanner:
         if gain[best] <= 0.01:
             return Twist(0.0, 0.0)
         return self.first_command(velocity, float(vs[best]), float(ws[best]), dt)
+
+
+@functools.cache
+def load_compiled() -> None:
+    """Compile (a checkout's first run) or load (from numba's cache) the planner's loops when the first planner is
+    built, not at its first tick: the calls have the argument types of `LocalPlanner.compute`'s (a test checks
+    that a running robot has one compiled version of each loop)."""
+    one, grid = np.ones((1, 1)), np.ones((1, 1), dtype=np.float32)
+    _rollout_poses((0.0, 0.0, 0.0), (0.0, 0.0), (one[0], one[0]), (0.1, 1), (1.0, 1.0))
+    _rollouts_valid((one, one, one), one[0], (grid, grid, (0.0, 0.0, 1.0, 0.0, False, 1.0)),
+                    ((0.0, 0.0), (0.0, 0.0, 0.0, False, 0.0), (0.1, 0.2, 1.0)), np.empty(1, dtype=np.bool_))
+
+
+@njit(cache=True, nogil=True)
+def _rollout_poses(start: tuple[float, float, float], velocity: tuple[float, float],  # pragma: no cover  numba
+                   targets: tuple[FloatArray, FloatArray], timing: tuple[float, int], accel: tuple[float, float]
+                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """`ramped_rollout`'s poses, a target at a time: the speed clipped towards the target by the acceleration
+    times the step's midpoint time, the yaw and position summed step by step. The numpy version it replaced
+    (``numpy_ramped_rollout`` in ``benchmarks/numpy_baselines.py``) made a dozen (targets × steps) arrays; the
+    same expressions in the same order (numpy's cumulative sums run from the first term, and so do these), so the
+    same bits, which a test holds it to."""
+    x0, y0, yaw0 = start
+    v0, w0 = velocity
+    v_target, w_target = targets
+    step_s, steps = timing
+    linear_accel, angular_accel = accel
+    half_step = step_s / 2
+    n = v_target.shape[0]
+    xs = np.empty((n, steps))
+    ys = np.empty((n, steps))
+    th = np.empty((n, steps))
+    for i in range(n):
+        sum_w = sum_x = sum_y = 0.0
+        for k in range(steps):
+            t_mid = (k + 0.5) * step_s
+            v = v0 + _clip(v_target[i] - v0, -linear_accel * t_mid, linear_accel * t_mid)
+            w = w0 + _clip(w_target[i] - w0, -angular_accel * t_mid, angular_accel * t_mid)
+            turn = w * step_s
+            sum_w = turn if k == 0 else sum_w + turn
+            yaw = yaw0 + sum_w
+            yaw_mid = yaw - w * half_step
+            dx = v * math.cos(yaw_mid) * step_s
+            dy = v * math.sin(yaw_mid) * step_s
+            sum_x = dx if k == 0 else sum_x + dx
+            sum_y = dy if k == 0 else sum_y + dy
+            xs[i, k] = x0 + sum_x
+            ys[i, k] = y0 + sum_y
+            th[i, k] = yaw
+    return xs, ys, th
+
+
+@njit(cache=True, nogil=True)
+def _clip(x: float, lo: float, hi: float) -> float:  # pragma: no cover  compiled by numba
+    """`np.clip` of one float: the lower bound first, then the upper one; a NaN stays NaN."""
+    x = lo if x < lo else x
+    return hi if x > hi else x
+
+
+@njit(cache=True, nogil=True)
+def _at(grid: NDArray[np.float32], x: float, y: float,  # pragma: no cover  compiled by numba
+        transform: tuple[float, float, float, float, bool, float]) -> float:
+    """``grid``'s value at a world point as a float, 0 outside: `Costmap.distance_at`'s lookup, the cell found
+    with `OccupancyMap.world_to_cell`'s arithmetic in its order (`Costmap.grid_transform`)."""
+    ox, oy, c, s, rotated, resolution_m = transform
+    dx = x - ox
+    dy = y - oy
+    if rotated:
+        dx, dy = c * dx + s * dy, -s * dx + c * dy
+    row = np.floor(dy / resolution_m)  # a float: NaN and huge values fall outside, as numpy's do
+    col = np.floor(dx / resolution_m)
+    if 0 <= row < grid.shape[0] and 0 <= col < grid.shape[1]:
+        return float(grid[int(row), int(col)])
+    return 0.0
+
+
+@njit(cache=True, nogil=True)
+def _rollouts_valid(rollouts: tuple[FloatArray, FloatArray, FloatArray], vs: FloatArray,  # pragma: no cover  numba
+                    grids: tuple[NDArray[np.float32], NDArray[np.float32],
+                                 tuple[float, float, float, float, bool, float]],
+                    limits: tuple[tuple[float, float], tuple[float, float, float, bool, float],
+                                  tuple[float, float, float]],
+                    out: NDArray[np.bool_]) -> None:
+    """Which rollouts are safe to take, into ``out``:
+
+    The grids are the costmap's clearance (`Costmap.distance_m`), the map's own (`Costmap.static_distance_m`) and
+    their `Costmap.grid_transform`; ``limits`` are the base's position, the clearance limits and the cone's.
+
+    * never inside the inscribed radius (``clearance``: its floor, ``min(inscribed, clearance here)``). Within a
+      cell of where the base stands the grid cannot tell better than a cell: a base resting on the edge of the
+      inscribed zone reads the next cell a cell closer whichever way it moves, and would never move again (seen
+      with a cat lying right behind the robot), so there the floor is a cell lower;
+    * from inside it (``escaping``: pushed against something, or something came close), never closer than now
+      and ending farther away: the way out, never a creep inwards. Out of a person's way, but never towards a
+      wall: the map's own clearance (``grids[1]``) never below ``hard_floor``;
+    * never into the speed ramp's stop cone ahead (`stop_cone_clearance`: ``cone`` holds half its radius, the
+      clearance that means nothing is in it, and the floor, ``min(1, the cone's clearance here)``): an emergency
+      stop is not a way to follow a path. A rollout standing still (v = 0) has no cone.
+
+    The numpy version it replaced (``NumpyLocalPlanner._valid`` in ``benchmarks/numpy_baselines.py``) looked up
+    every pose three times over in (targets × steps) arrays; the same expressions in the same order, so the same
+    answers, which a test holds it to."""
+    xs, ys, th = rollouts
+    distance, static, transform = grids
+    (px, py), clearance, cone = limits
+    floor, floor_first_cell, clearance_here, escaping, hard_floor = clearance
+    cone_half, cone_clear, cone_floor = cone
+    resolution_m = transform[5]
+    steps = xs.shape[1]
+    for i in range(xs.shape[0]):
+        ok = True
+        direction = np.sign(vs[i]) * 1.0
+        half = cone_half * direction
+        lowest_cone = np.inf
+        hard_lowest = np.inf
+        clear = hard = 0.0
+        for k in range(steps):
+            x, y, yaw = xs[i, k], ys[i, k], th[i, k]
+            clear = _at(distance, x, y, transform)
+            # clear >= floor passes within a cell of the base too (its floor is lower): the distance to the base
+            # (a hypot per pose, the loop's dearest step after the cone's cosine and sine) decides only below it
+            if clear < floor:
+                ok &= clear >= floor_first_cell and math.hypot(x - px, y - py) < resolution_m
+            if escaping:
+                hard = _at(static, x, y, transform)
+                hard_lowest = min(hard_lowest, hard)
+            probe = _at(distance, x + half * math.cos(yaw), y + half * math.sin(yaw), transform)
+            lowest_cone = min(lowest_cone, np.inf if direction == 0 else probe / cone_clear)
+        if escaping:
+            ok &= clear > clearance_here
+            ok &= (hard_lowest >= hard_floor) & (hard >= hard_floor)
+        out[i] = ok & (lowest_cone >= cone_floor)

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from atemr.errors import NavigationError
+from atemr.io.sim.simulation import build_simulation
 from atemr.msgs import Pose2D, Twist
 from atemr.skills.nav.costmap import Costmap
 from atemr.skills.nav.local_planner import (
@@ -180,3 +181,63 @@ def test_speed_is_capped_by_the_motion_pipelines_stop_zone(make_map, make_room):
     assert walled.twist.linear_mps <= 1e-9
     near = planner.compute(pose, Twist(0.3, 0.0), path, (3.0, 1.5), 0.1, zone=(edge + 0.02, math.inf))
     assert 0.0 <= near.twist.linear_mps <= caps[0] + 1e-9
+
+
+def _bits(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)
+
+
+def test_the_compiled_rollouts_and_checks_answer_as_the_numpy_ones(numpy_baselines):
+    """`benchmarks/numpy_baselines.py`'s numpy rollouts and safety check against the compiled loops, to the bit: in the
+    studio with people in the obstacle layer and their predictions, and on a rotated map of random walls; from poses
+    in the open, near walls and inside the inscribed radius (escaping), at random speeds, along the global plan to a
+    random goal. The rollouts, which of them are safe, the chosen plan and the evasive move are the same, so a
+    seeded run drives as before."""
+    from atemr.domain.maps import OccupancyMap
+    from atemr.skills.nav.global_planner import GlobalPlanner
+
+    sim = build_simulation("studio", 3)
+    rng = np.random.default_rng(3)
+    data = np.zeros((80, 100), dtype=np.int8)
+    for _ in range(12):  # random walls
+        r, c = (int(v) for v in rng.integers(5, 70, 2))
+        data[r:r + int(rng.integers(2, 8)), c:c + int(rng.integers(2, 25))] = 100
+    grids = (sim.world.map, OccupancyMap(data, RES, Pose2D(-0.7, 0.4, 0.3), name="rotated"))
+    cases = {"escaping": 0, "some invalid": 0, "none valid": 0, "moving": 0}
+    for grid in grids:
+        cm = Costmap(grid)
+        ours, before = LocalPlanner(cm), numpy_baselines.NumpyLocalPlanner(cm)
+        free = np.argwhere(cm.cost < 100)
+        for k in range(60):
+            if k % 10 == 0:  # someone walks about: obstacles and predictions change the clearance
+                cm.clear_obstacles()
+                for r, c in free[rng.integers(0, len(free), 3)]:
+                    cm.obstacles[r - 2:r + 2, c - 2:c + 2] = True
+                    cm.predicted[r + 2:r + 5, c - 1:c + 1] = True
+                cm.version += 1
+            r, c = free[rng.integers(0, len(free))]
+            x, y = (float(v) for v in grid.cell_to_world(r, c))
+            pose = Pose2D(x + float(rng.uniform(-0.02, 0.02)), y + float(rng.uniform(-0.02, 0.02)),
+                          float(rng.uniform(-math.pi, math.pi)))
+            velocity = Twist(float(rng.uniform(-0.1, 0.5)), float(rng.uniform(-1.2, 1.2)))
+            gr, gc = free[rng.integers(0, len(free))]
+            goal = tuple(float(v) for v in grid.cell_to_world(gr, gc))
+            path = GlobalPlanner(cm).plan((pose.x_m, pose.y_m), goal)
+            points = path.points if path is not None else np.array([[pose.x_m, pose.y_m], goal])
+            here = float(cm.distance_at(pose.x_m, pose.y_m))
+            vs, ws = ours.targets(velocity, 0.5, reverse=here < cm.params.inscribed_radius_m)
+            rolled = ours._rollout(pose, velocity, vs, ws, ours.params.sim_time_s)
+            for a, b in zip(rolled, before._rollout(pose, velocity, vs, ws, ours.params.sim_time_s), strict=True):
+                np.testing.assert_array_equal(_bits(a), _bits(b))
+            valid = ours._valid(pose, *rolled, vs=vs, clearance_here=here)
+            np.testing.assert_array_equal(valid, before._valid(pose, *rolled, vs=vs, clearance_here=here))
+            plan, plan_before = ours.compute(pose, velocity, points, goal), before.compute(pose, velocity, points, goal)
+            assert plan.twist == plan_before.twist and (plan.ok, plan.candidates, plan.valid) == (
+                plan_before.ok, plan_before.candidates, plan_before.valid)
+            np.testing.assert_array_equal(_bits(plan.trajectory), _bits(plan_before.trajectory))
+            assert ours.evade(pose, velocity) == before.evade(pose, velocity)
+            cases["escaping"] += here < cm.params.inscribed_radius_m
+            cases["some invalid"] += 0 < valid.sum() < len(valid)
+            cases["none valid"] += not valid.any()
+            cases["moving"] += plan.twist.linear_mps != 0.0
+    assert min(cases.values()) >= 5, cases  # every branch was met, or the comparison proves little
