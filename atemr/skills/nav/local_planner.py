@@ -330,7 +330,7 @@ class LocalPlanner:
         # lags its commands), or, already below it, never falls.
         floor = min(cm.params.inscribed_radius_m + 0.05, float(cm.static_distance_at(pose.x_m, pose.y_m)))
         hard = cm.static_distance_at(xs, ys)
-        safe = (clear.min(axis=1) >= here) & (hard.min(axis=1) >= floor) & (hard[:, -1] >= floor)
+        safe = (clear.min(axis=1) >= here) & (hard.min(axis=1) >= floor)
         gain = np.where(safe, clear[:, -1] - here, -np.inf)
         best = int(np.argmax(gain))
         if gain[best] <= 0.01:
@@ -399,7 +399,10 @@ def _clip(x: float, lo: float, hi: float) -> float:  # pragma: no cover  compile
 def _at(grid: NDArray[np.float32], x: float, y: float,  # pragma: no cover  compiled by numba
         transform: tuple[float, float, float, float, bool, float]) -> float:
     """``grid``'s value at a world point as a float, 0 outside: `Costmap.distance_at`'s lookup, the cell found
-    with `OccupancyMap.world_to_cell`'s arithmetic in its order (`Costmap.grid_transform`)."""
+    with `OccupancyMap.world_to_cell`'s arithmetic in its order (`Costmap.grid_transform`). The costmap's
+    ``_clear_beams`` finds its cells the same way; each module keeps its own copy because numba's cache of a
+    compiled function is checked against its own file only, and a loop calling into another module would keep
+    running a stale copy after that module changed."""
     ox, oy, c, s, rotated, resolution_m = transform
     dx = x - ox
     dy = y - oy
@@ -451,7 +454,7 @@ def _rollouts_valid(rollouts: tuple[FloatArray, FloatArray, FloatArray], vs: Flo
         half = cone_half * direction
         lowest_cone = np.inf
         hard_lowest = np.inf
-        clear = hard = 0.0
+        clear = 0.0
         for k in range(steps):
             x, y, yaw = xs[i, k], ys[i, k], th[i, k]
             clear = _at(distance, x, y, transform)
@@ -460,11 +463,10 @@ def _rollouts_valid(rollouts: tuple[FloatArray, FloatArray, FloatArray], vs: Flo
             if clear < floor:
                 ok &= clear >= floor_first_cell and math.hypot(x - px, y - py) < resolution_m
             if escaping:
-                hard = _at(static, x, y, transform)
-                hard_lowest = min(hard_lowest, hard)
+                hard_lowest = min(hard_lowest, _at(static, x, y, transform))
             probe = _at(distance, x + half * math.cos(yaw), y + half * math.sin(yaw), transform)
             lowest_cone = min(lowest_cone, np.inf if direction == 0 else probe / cone_clear)
         if escaping:
             ok &= clear > clearance_here
-            ok &= (hard_lowest >= hard_floor) & (hard >= hard_floor)
+            ok &= hard_lowest >= hard_floor  # the last pose's too: the lowest is no higher
         out[i] = ok & (lowest_cone >= cone_floor)
