@@ -183,10 +183,6 @@ def test_speed_is_capped_by_the_motion_pipelines_stop_zone(make_map, make_room):
     assert 0.0 <= near.twist.linear_mps <= caps[0] + 1e-9
 
 
-def _bits(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)
-
-
 def test_the_compiled_rollouts_and_checks_answer_as_the_numpy_ones(numpy_baselines):
     """`benchmarks/numpy_baselines.py`'s numpy rollouts and safety check against the compiled loops, to the bit: in the
     studio with people in the obstacle layer and their predictions, and on a rotated map of random walls; from poses
@@ -228,13 +224,13 @@ def test_the_compiled_rollouts_and_checks_answer_as_the_numpy_ones(numpy_baselin
             vs, ws = ours.targets(velocity, 0.5, reverse=here < cm.params.inscribed_radius_m)
             rolled = ours._rollout(pose, velocity, vs, ws, ours.params.sim_time_s)
             for a, b in zip(rolled, before._rollout(pose, velocity, vs, ws, ours.params.sim_time_s), strict=True):
-                np.testing.assert_array_equal(_bits(a), _bits(b))
+                assert a.tobytes() == b.tobytes()
             valid = ours._valid(pose, *rolled, vs=vs, clearance_here=here)
             np.testing.assert_array_equal(valid, before._valid(pose, *rolled, vs=vs, clearance_here=here))
             plan, plan_before = ours.compute(pose, velocity, points, goal), before.compute(pose, velocity, points, goal)
             assert plan.twist == plan_before.twist and (plan.ok, plan.candidates, plan.valid) == (
                 plan_before.ok, plan_before.candidates, plan_before.valid)
-            np.testing.assert_array_equal(_bits(plan.trajectory), _bits(plan_before.trajectory))
+            assert plan.trajectory.tobytes() == plan_before.trajectory.tobytes()
             assert ours.evade(pose, velocity) == before.evade(pose, velocity)
             cases["escaping"] += here < cm.params.inscribed_radius_m
             cases["some invalid"] += 0 < valid.sum() < len(valid)
