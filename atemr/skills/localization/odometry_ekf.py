@@ -7,9 +7,19 @@ odometry) and lets the twist wander as a random walk (``accel_std``, ``angular_a
 little pose noise for slip. Three sensors correct the twist, each with its own noise:
 
 * wheel odometry: ``[v, ω]`` from the wheels' speeds (`DiffDrive.measured`);
-* IMU: ``ω`` from the gyro (not fooled by a slipping wheel);
+* IMU: ``ω`` from the gyro (not fooled by a slipping wheel), less its bias;
 * scan matcher: the ICP increment between consecutive scans, as ``[v, ω] = Δ/Δt`` with the ICP
   covariance (Censi's estimate) scaled to a rate; a failed match is simply not used.
+
+**The gyro's bias** is learned whenever the wheels say the robot stands still (every wheel measurement zero for
+``gyro_bias_settle_s``): the gyro then reads its bias and its noise. The estimate is the plain mean of those
+readings until they span ``gyro_bias_tau_s`` (so a robot that has just woken up knows its bias within a second),
+then an exponential average with that time constant, which follows the bias as it drifts with temperature. Left in,
+a bias of a tenth of a degree a second is what the fusion trusts most (the gyro's noise is five times smaller than
+the wheels'): a robot waiting for its next command would turn in ``odom`` by several degrees a minute, and its map
+pose with it, until only a scan match could pull it back. With the bias out it stands still in ``odom`` too, so
+localization has nothing to correct while the robot waits. A rate further than ``gyro_bias_gate_radps`` from the
+estimate is a turn, not a bias (a robot lifted and turned by hand, its wheels still): it is fused, not learned.
 
 Measurements of the twist, rather than of the pose, are what the ``differential`` mode of ROS
 robot_localization does with relative sensors: a sensor that restarts or a scan matcher that fails
@@ -65,6 +75,11 @@ class OdometryEkfParams:
     #: Floor under the scan matcher's (optimistic) covariance, as a rate.
     icp_v_std_min_mps: float = 0.02
     icp_w_std_min_radps: float = 0.01
+    #: The gyro's bias, learned while the wheels stand still (module docstring): the time constant of its average,
+    #: how long the wheels must have read zero first, and how far from the estimate a reading is a turn instead.
+    gyro_bias_tau_s: float = 10.0
+    gyro_bias_settle_s: float = 0.5
+    gyro_bias_gate_radps: float = 0.05
 
     def __post_init__(self) -> None:
         _check_positive(self, tuple(self.__dataclass_fields__), "localization.odometry")
@@ -121,6 +136,11 @@ class OdometryEkf:
                          p.accel_std_per_rts**2, p.angular_accel_std_per_rts**2)
         self._r_wheels = np.diag([p.wheel_v_std_mps**2, p.wheel_w_std_radps**2])
         self._r_gyro = np.array([[p.gyro_std_radps**2]])
+        #: The gyro's bias as learned so far (rad/s), subtracted from every reading.
+        self.gyro_bias_radps = 0.0
+        self._still_since: float | None = None  # when the wheels last started reading zero (None: they move)
+        self._gyro_t: float | None = None  # the time of the last gyro reading fused
+        self._bias_readings = 0  # how many readings the bias was learned from
 
     # -- prediction ------------------------------------------------------------------------------
     def predict_to(self, now: float) -> bool:
@@ -165,11 +185,31 @@ class OdometryEkf:
 
     def update_wheels(self, now: float, twist: Twist) -> bool:
         """Wheel odometry's twist (from `DiffDrive.measured`) measured at ``now``."""
-        return self._update(now, (twist.linear_mps, twist.angular_radps), _H_TWIST, self._r_wheels)
+        if not self._update(now, (twist.linear_mps, twist.angular_radps), _H_TWIST, self._r_wheels):
+            return False
+        if not twist.is_zero:
+            self._still_since = None
+        elif self._still_since is None:
+            self._still_since = now
+        return True
+
+    @property
+    def standing(self) -> bool:
+        """Whether the wheels have read zero for at least ``gyro_bias_settle_s`` (the gyro reads its bias)."""
+        return self._still_since is not None and self.t - self._still_since >= self.params.gyro_bias_settle_s
 
     def update_imu(self, sample: ImuSample) -> bool:
-        """The gyro's yaw rate."""
-        return self._update(sample.t, (sample.yaw_rate_radps,), _H_GYRO, self._r_gyro)
+        """The gyro's yaw rate, less its bias; while the robot stands, the reading also teaches the bias."""
+        rate, last = sample.yaw_rate_radps, self._gyro_t
+        if not self._update(sample.t, (rate - self.gyro_bias_radps,), _H_GYRO, self._r_gyro):
+            return False
+        self._gyro_t = sample.t
+        p = self.params
+        if self.standing and last is not None and abs(rate - self.gyro_bias_radps) <= p.gyro_bias_gate_radps:
+            self._bias_readings += 1
+            weight = max(1.0 / self._bias_readings, min(1.0, (sample.t - last) / p.gyro_bias_tau_s))
+            self.gyro_bias_radps += weight * (rate - self.gyro_bias_radps)
+        return True
 
     def update_scan_match(self, now: float, delta: Pose2D, dt_s: float, covariance: FloatArray | None = None) -> bool:
         """A scan-matcher increment ``delta`` (later scan in the earlier scan's frame) over ``dt_s`` seconds."""
