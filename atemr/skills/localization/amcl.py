@@ -44,7 +44,7 @@ from atemr.domain.maps import OccupancyMap
 from atemr.errors import ConfigError, NavigationError
 from atemr.msgs import Pose2D
 from atemr.skills.diff_drive import wrap_angle
-from atemr.skills.localization.geometry import FloatArray, as_array, compose, is_finite_pose, relative
+from atemr.skills.localization.geometry import FloatArray, is_finite_pose
 from atemr.skills.localization.likelihood_field import FieldParams, LikelihoodField
 from atemr.skills.localization.motion_model import OdometryNoise, sample_motion_model_odometry
 from atemr.skills.localization.scan import evenly_spread
@@ -231,19 +231,6 @@ class Amcl:
         if odom is not None and is_finite_pose(odom):
             self._odom_ref = odom
         self._reset(now)
-
-    def rebase(self, pose: Pose2D, odom: Pose2D, *, now: float) -> None:
-        """Move the cloud rigidly so its mean is ``pose`` while odometry reads ``odom`` (its spread kept).
-
-        For a correction made outside the filter (a scan-to-map match of a robot standing still, whose
-        odometry drifts while AMCL, rightly, does not update)."""
-        if not self.initialized or not (is_finite_pose(pose) and is_finite_pose(odom)):
-            return
-        mean = as_array(self.estimate.pose)  # the heaviest cluster's mean goes to ``pose``
-        moved = compose(as_array(pose), relative(mean, self.particles))
-        self.particles = moved
-        self._odom_ref = odom
-        self._estimate_from(now, self.weights)
 
     def initialize_global(self, *, now: float = 0.0) -> None:
         """Global localization: ``global_particles`` spread uniformly over free space, uniform yaw."""

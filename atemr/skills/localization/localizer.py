@@ -12,11 +12,13 @@ Phases (`Phase`), each with its own method, run on every scan:
   enough for a new view, the candidates are refined on the new scan and its beams pooled with the earlier
   ones, until one place is clearly best (tracking from there), or none explains the scans (a new search).
 * ``FAILED``: searched again once the robot has moved, or after ``retry_s``.
-* ``TRACKING``: AMCL updates when the robot moved enough and corrects the map EKF; a robot that stands still
-  (its odometry drifts, AMCL rightly does not update) has its map pose re-matched to the map every
-  ``hold_correction_s``. The monitor turns every scan into evidence and the evidence into the **confidence**
-  (`CovarianceMonitor`); below the limit the robot is lost: a scan-to-map match near the last good pose
-  (carried along by odometry), accepted if the scan agrees there, else a global search on the same scan.
+* ``TRACKING``: AMCL updates when the robot moved enough and corrects the map EKF. A robot that stands still is
+  not matched to anything: its odometry stands still too (the odometry EKF takes the gyro's bias out, learned while
+  the wheels stand), so its map pose has nothing to drift by. The monitor turns every scan into evidence and the
+  evidence into the **confidence** (`CovarianceMonitor`), standing or not: one look at the scan from the current pose,
+  no search. Below the limit the robot is lost (a robot carried off while its wheels stood still is noticed here): a
+  scan-to-map match near the last good pose (carried along by odometry), accepted if the scan agrees there, else a
+  global search on the same scan.
 
 ``localized`` means tracking with the confidence at or above ``monitor.min_confidence``, nothing else; the
 confidence is the one number every consumer shows (dashboard, CAN 0x153 bit 4, ``mission run --json``, the
@@ -124,10 +126,6 @@ class LocalizerParams:
     #: Cloud put round a matched pose (a checked operator's pose, a relocalization, a global search's answer).
     matched_std_m: float = 0.05
     matched_std_rad: float = 0.05
-    #: A robot that has not moved enough for AMCL has its pose re-matched to the map this often (s).
-    hold_correction_s: float = 1.0
-    hold_window_m: float = 0.1
-    hold_window_rad: float = 0.05
     #: While ambiguous, a scan adds evidence once the robot moved or turned this much since the last one.
     evidence_every_m: float = 0.3
     evidence_every_rad: float = math.radians(45.0)
@@ -160,7 +158,6 @@ class Localizer:
         self._prior: tuple[Pose2D, Pose2D | None] | None = None  # operator's pose, odometry when it was given
         self._last_good: tuple[Pose2D, Pose2D] | None = None  # (map pose, odometry) when last known good
         self._mark: tuple[float, Pose2D] | None = None  # (time, odometry) of the last view while not tracking
-        self._last_fix = 0.0
         self._odom: Pose2D | None = None  # the odometry of the latest scan
         self._look_around = False  # the current search was the operator's, who asked the robot to look around
         self._look_turned = 0.0  # how far it has turned since (rad, from the odometry)
@@ -349,9 +346,6 @@ class Localizer:
         p = self.params
         if self.amcl.update(now, odom, points):
             self.map_ekf.update(self.amcl.estimate)
-            self._last_fix = now
-        elif now - self._last_fix >= p.hold_correction_s:
-            self._hold(now, odom, points, sensor)
         est = self.map_ekf.estimate
         report = self.monitor.check(est, self.agreement.measure(as_array(est.pose)[None], points, sensor))
         self.last_report = report
@@ -360,19 +354,6 @@ class Localizer:
         if report.lost:
             self._event(now, "lost", report.reason)
             self._relocalize(now, odom, points, sensor)
-
-    def _hold(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
-        """A robot standing still: re-match its map pose to the map (its odometry drifts; AMCL does not update)."""
-        p = self.params
-        self._last_fix = now
-        est = self.map_ekf.estimate
-        match = self.matcher.match(points, est.pose, window_xy_m=p.hold_window_m, window_yaw_rad=p.hold_window_rad)
-        if self._fit(match.pose, points, sensor) < max(p.monitor.min_confidence, self._fit(est.pose, points, sensor)):
-            return
-        # the match is a measurement of the pose, as precise as a matched pose is: the map EKF starts from it
-        # (keeping the old covariance would grow it by the EKF's floor at every correction)
-        self.map_ekf.reset(PoseEstimate(now, match.pose, self._matched_covariance()), odom)
-        self.amcl.rebase(match.pose, odom, now=now)
 
     def _relocalize(self, now: float, odom: Pose2D, points: FloatArray, sensor: tuple[float, float]) -> None:
         p = self.params
@@ -410,7 +391,6 @@ class Localizer:
         self.map_ekf.reset(PoseEstimate(now, pose, cov), odom)
         self.monitor.reset(confidence, now)
         self._last_good = (pose, odom)
-        self._last_fix = now
         self._enter(Phase.TRACKING, 0.0)
 
     def _matched_covariance(self) -> FloatArray:

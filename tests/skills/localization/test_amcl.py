@@ -180,19 +180,6 @@ def test_the_heaviest_cluster_leaves_out_particles_scattered_over_the_map() -> N
                        atol=0.05)
 
 
-def test_a_rebased_cloud_puts_its_heaviest_cluster_on_the_pose() -> None:
-    """A hold correction moves the cloud rigidly onto the matched pose: its heaviest cluster lands there (the mean
-    of the whole cloud, recovery particles included, would put the cluster metres away)."""
-    amcl = Amcl(hall(), np.random.default_rng(0))
-    amcl.initialize(Pose2D(5.0, 5.0, 0.3))
-    rng = np.random.default_rng(4)
-    amcl.particles = cluster_and_scatter(rng, (5.0, 5.0))
-    amcl.weights = np.full(len(amcl.particles), 1.0 / len(amcl.particles))
-    amcl.rebase(Pose2D(6.0, 5.5, 0.3), Pose2D(), now=1.0)
-    assert amcl.estimate.pose.distance_to(Pose2D(6.0, 5.5, 0.3)) < 0.02
-    assert np.hypot(amcl.particles[:800, 0] - 6.0, amcl.particles[:800, 1] - 5.5).mean() < 0.15
-
-
 def test_recovery_particles_do_not_shake_the_cloud_they_join() -> None:
     """Roughening jitters the resampled particles by the spread of the cloud they came from. Recovery particles,
     scattered over a 40 m hall, are not part of that spread: counted in, they shook every particle by about half
