@@ -11,15 +11,16 @@ little pose noise for slip. Three sensors correct the twist, each with its own n
 * scan matcher: the ICP increment between consecutive scans, as ``[v, ω] = Δ/Δt`` with the ICP
   covariance (Censi's estimate) scaled to a rate; a failed match is simply not used.
 
-**The gyro's bias** is learned whenever the wheels say the robot stands still (every wheel measurement zero for
-``gyro_bias_settle_s``): the gyro then reads its bias and its noise. The estimate is the plain mean of those
-readings until they span ``gyro_bias_tau_s`` (so a robot that has just woken up knows its bias within a second),
-then an exponential average with that time constant, which follows the bias as it drifts with temperature. Left in,
-a bias of a tenth of a degree a second is what the fusion trusts most (the gyro's noise is five times smaller than
-the wheels'): a robot waiting for its next command would turn in ``odom`` by several degrees a minute, and its map
-pose with it, until only a scan match could pull it back. With the bias out it stands still in ``odom`` too, so
-localization has nothing to correct while the robot waits. A rate further than ``gyro_bias_gate_radps`` from the
-estimate is a turn, not a bias (a robot lifted and turned by hand, its wheels still): it is fused, not learned.
+**The gyro's bias** is learned whenever the wheels say the robot stands still (every wheel measurement zero, or a
+step of the motors' speed readings from it, for ``gyro_bias_settle_s``: `stands_still`): the gyro then reads its
+bias and its noise. The estimate is the plain mean of those readings until they span ``gyro_bias_tau_s`` (so a robot
+that has just woken up knows its bias within a second), then an exponential average with that time constant, which
+follows the bias as it drifts with temperature. Left in, a bias of a tenth of a degree a second is what the fusion
+trusts most (the gyro's noise is five times smaller than the wheels'): a robot waiting for its next command would
+turn in ``odom`` by several degrees a minute, and its map pose with it, until only a scan match could pull it back.
+With the bias out it stands still in ``odom`` too, so localization has nothing to correct while the robot waits. A
+rate further than ``gyro_bias_gate_radps`` from the estimate is a turn, not a bias (a robot lifted and turned by
+hand, its wheels still): it is fused, not learned.
 
 Measurements of the twist, rather than of the pose, are what the ``differential`` mode of ROS
 robot_localization does with relative sensors: a sensor that restarts or a scan matcher that fails
@@ -80,6 +81,11 @@ class OdometryEkfParams:
     gyro_bias_tau_s: float = 10.0
     gyro_bias_settle_s: float = 0.5
     gyro_bias_gate_radps: float = 0.05
+    #: A wheel twist this close to zero is a robot standing (`stands_still`): the motors report their speed in steps
+    #: of 1°/s, so a standing motor may read a step either way (1.5 mm/s on a 0.085 m wheel; two wheels a step
+    #: apart either way turn the base by 0.0074 rad/s on a 0.4 m track).
+    still_mps: float = 0.002
+    still_radps: float = 0.008
 
     def __post_init__(self) -> None:
         _check_positive(self, tuple(self.__dataclass_fields__), "localization.odometry")
@@ -187,11 +193,16 @@ class OdometryEkf:
         """Wheel odometry's twist (from `DiffDrive.measured`) measured at ``now``."""
         if not self._update(now, (twist.linear_mps, twist.angular_radps), _H_TWIST, self._r_wheels):
             return False
-        if not twist.is_zero:
+        if not self.stands_still(twist):
             self._still_since = None
         elif self._still_since is None:
             self._still_since = now
         return True
+
+    def stands_still(self, twist: Twist) -> bool:
+        """Whether a wheel twist means a robot standing: zero, or within a step of the motors' speed readings."""
+        p = self.params
+        return abs(twist.linear_mps) <= p.still_mps and abs(twist.angular_radps) <= p.still_radps
 
     @property
     def standing(self) -> bool:

@@ -6,8 +6,9 @@ until the next tick). Each tick handles the newest scan:
 
 1. ICP of the scan against the previous one, starting from the odometry EKF's own increment, gives
    the scan-matcher measurement of the twist (`OdometryEkf.update_scan_match`), unless odometry says the
-   robot stood still since the previous scan (every wheel measurement in between was zero): a match would
-   only confirm it, and a robot waiting for its next command is most of a day. The previous scan's target
+   robot stood still since the previous scan (every wheel measurement in between was zero, or a step of the
+   motors' speed readings from it: `OdometryEkf.stands_still`): a match would only confirm it, and a robot
+   waiting for its next command is most of a day. The previous scan's target
    (its k-d tree and its normals, from neighbouring beams) is built only when a match needs it;
 2. the `Localizer` gets the scan with the ``odom`` pose of its time (AMCL, map EKF, covariance monitor,
    relocalization).
@@ -150,7 +151,7 @@ class LocalizationPipeline:
     def on_wheel_twist(self, now: float, twist: Twist) -> None:
         """The base twist the wheels measured at ``now`` (a recording keeps this: `atemr.robot.replay`)."""
         self._wheel_samples += 1
-        self._wheels_moved |= not twist.is_zero
+        self._wheels_moved |= not self.odometry.stands_still(twist)
         if self.odometry.update_wheels(now, twist):
             self._remember()
 

@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from atemr.io.sim.imu import Imu, ImuParams
-from atemr.msgs import Twist
+from atemr.msgs import Twist, WheelSpeeds
+from atemr.skills.diff_drive import DiffDrive
 from atemr.skills.localization.odometry_ekf import OdometryEkf
 
 #: 1.5 σ of the simulated IMU's turn-on bias (rad/s): 0.18 rad a minute when left in.
@@ -87,3 +88,18 @@ def test_the_bias_follows_a_drift_with_its_time_constant() -> None:
     imu.gyro_bias_radps = BIAS + 0.004
     run(ekf, imu, 60.0, 60.0 + 3 * ekf.params.gyro_bias_tau_s)
     assert abs(ekf.gyro_bias_radps - (BIAS + 0.004)) < 0.0005, ekf.gyro_bias_radps
+
+
+def test_motors_reading_a_step_either_way_still_stand() -> None:
+    """A standing motor may report one step of its speed resolution (1°/s) either way: the robot still stands, so
+    the bias is learned and the pipeline skips ICP. Two steps on a wheel is motion."""
+    drive, step = DiffDrive(), math.radians(1.0)
+    ekf, imu = OdometryEkf(), gyro()
+    jitter = np.random.default_rng(5).integers(-1, 2, (500, 2)) * step
+    for k, (left, right) in enumerate(jitter, start=1):
+        ekf.update_wheels(k / 100, drive.measured(WheelSpeeds(float(left), float(right))))
+        if k % 2 == 0:
+            ekf.update_imu(imu.sample(k / 100, 0.0, 0.0, 0.0))
+    assert ekf.standing and abs(ekf.gyro_bias_radps - BIAS) < 0.001, ekf.gyro_bias_radps
+    assert not ekf.stands_still(drive.measured(WheelSpeeds(2 * step, 2 * step)))
+    assert not ekf.stands_still(drive.measured(WheelSpeeds(-2 * step, 2 * step)))

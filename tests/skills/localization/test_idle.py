@@ -2,8 +2,9 @@
 while it stands (issue 22), and a kidnap is still noticed.
 
 At the skill level, through the whole localization chain (`LocalizationPipeline`): the simulator's lidar sees the
-studio with its carer and cat walking, the motors report wheels standing still, and a simulated gyro reads its
-bias (0.003 rad/s, 10° a minute) and its noise. The odometry EKF learns that bias while the wheels stand, so the
+studio with its carer and cat walking, the motors report wheels standing still (each reading 0 or a step of 1°/s
+either way, as a real motor holding still may), and a simulated gyro reads its bias (0.003 rad/s, 10° a minute) and
+its noise. The odometry EKF learns that bias while the wheels stand, so the
 odometry does not turn, AMCL has no motion to update on and nothing is matched, yet the map pose stays on the
 truth. Every scan is still weighed from the current pose (the monitor's one look), which is what notices the robot
 carried off.
@@ -72,16 +73,17 @@ def test_standing_idle_among_people_is_never_lost_matches_nothing_and_a_kidnap_i
     assert localizer is not None
     truth = world.start
     pipeline.set_initial_pose(0.0, truth)
-    tick = 0
+    tick, step, jitter = 0, math.radians(1.0), np.random.default_rng(5)
 
     def stand(until: float, check: Callable[[float], None] = lambda t: None) -> float:
-        """The robot's sensors and the pipeline at their rates until ``until`` (s): the wheels still, the gyro
-        reading its bias, the lidar the room; ``check(t)`` after each scan handled."""
+        """The robot's sensors and the pipeline at their rates until ``until`` (s): the wheels still (to a step),
+        the gyro reading its bias, the lidar the room; ``check(t)`` after each scan handled."""
         nonlocal tick
         while tick * (1.0 / WHEELS_HZ) < until:
             tick += 1
             t = tick / WHEELS_HZ
-            pipeline.on_wheels(t, WheelSpeeds())
+            left, right = jitter.integers(-1, 2, 2) * step
+            pipeline.on_wheels(t, WheelSpeeds(float(left), float(right)))
             if tick % (WHEELS_HZ // IMU_HZ) == 0:
                 pipeline.on_imu(imu.sample(t, 0.0, 0.0, 0.0))
             if tick % (WHEELS_HZ // SCAN_HZ) == 0:
