@@ -100,6 +100,9 @@ def _read_only(a: FloatArray) -> FloatArray:
     return a
 
 
+#: Wheels that have not reported for this long (s) no longer say the robot stands (the motors answer at 50-100 Hz).
+WHEELS_SILENT_S = 0.2
+
 #: What the sensors measure of ``[x, y, θ, v, ω]``: the twist (wheels, scan matcher), the yaw rate (gyro).
 _H_TWIST = _read_only(np.array([[0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]]))
 _H_GYRO = _read_only(np.array([[0.0, 0.0, 0.0, 0.0, 1.0]]))
@@ -145,6 +148,7 @@ class OdometryEkf:
         #: The gyro's bias as learned so far (rad/s), subtracted from every reading.
         self.gyro_bias_radps = 0.0
         self._still_since: float | None = None  # when the wheels last started reading zero (None: they move)
+        self._wheels_t = -math.inf  # the time of the last wheel reading
         self._gyro_t: float | None = None  # the time of the last gyro reading fused
         self._bias_readings = 0  # how many readings the bias was learned from
 
@@ -197,6 +201,7 @@ class OdometryEkf:
             self._still_since = None
         elif self._still_since is None:
             self._still_since = now
+        self._wheels_t = now
         return True
 
     def stands_still(self, twist: Twist) -> bool:
@@ -206,8 +211,11 @@ class OdometryEkf:
 
     @property
     def standing(self) -> bool:
-        """Whether the wheels have read zero for at least ``gyro_bias_settle_s`` (the gyro reads its bias)."""
-        return self._still_since is not None and self.t - self._still_since >= self.params.gyro_bias_settle_s
+        """Whether the wheels have read zero for at least ``gyro_bias_settle_s`` (the gyro reads its bias), and still
+        do: wheels silent for longer than `WHEELS_SILENT_S` (a motor driver that lost its motors) say nothing, and a
+        robot pushed about meanwhile must not teach its turns as the bias."""
+        return (self._still_since is not None and self.t - self._still_since >= self.params.gyro_bias_settle_s
+                and self.t - self._wheels_t <= WHEELS_SILENT_S)
 
     def update_imu(self, sample: ImuSample) -> bool:
         """The gyro's yaw rate, less its bias; while the robot stands, the reading also teaches the bias."""

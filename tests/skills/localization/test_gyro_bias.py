@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from atemr.io.sim.imu import Imu, ImuParams
 from atemr.msgs import Twist, WheelSpeeds
@@ -103,3 +104,18 @@ def test_motors_reading_a_step_either_way_still_stand() -> None:
     assert ekf.standing and abs(ekf.gyro_bias_radps - BIAS) < 0.001, ekf.gyro_bias_radps
     assert not ekf.stands_still(drive.measured(WheelSpeeds(2 * step, 2 * step)))
     assert not ekf.stands_still(drive.measured(WheelSpeeds(-2 * step, 2 * step)))
+
+
+def test_silent_wheels_do_not_say_the_robot_stands() -> None:
+    """The motors stop answering (a bus gone off) while the robot stood: from then on the gyro teaches nothing, so a
+    robot pushed round slowly by hand meanwhile keeps its turn in the odometry instead of learning it as a bias."""
+    ekf, imu = OdometryEkf(), gyro()
+    run(ekf, imu, 0.0, 5.0)
+    learned, before = ekf.gyro_bias_radps, ekf.pose.yaw_rad
+    for k in range(501, 1501):  # ten seconds turning at 0.02 rad/s (inside the gate), with no wheel reading
+        if k % 2 == 0:
+            ekf.update_imu(imu.sample(k / 100, 0.0, 0.02, 0.0))
+    assert not ekf.standing
+    # the first 0.2 s of silence still count as standing (WHEELS_SILENT_S): ten readings, a few hundredths of the turn
+    assert abs(ekf.gyro_bias_radps - learned) < 0.001, (ekf.gyro_bias_radps, learned)
+    assert ekf.pose.yaw_rad - before == pytest.approx(0.2, abs=0.03)
