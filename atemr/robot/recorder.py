@@ -231,6 +231,9 @@ class RunRecorder:
             self._next_health = now + HEALTH_PERIOD_S
             self._emit(tp.HEALTH.name, now, lambda: {"t": now, "components": {
                 name: {"ok": h.ok, "reason": h.detail} for name, h in self.sources.health.collect().items()}})
+            odometry = self.sources.localization.odometry
+            self._emit(tp.GYRO_BIAS.name, now, lambda: {"t": now, "bias_radps": odometry.gyro_bias_radps,
+                                                        "standing": odometry.standing})
         self._camera(now)
         self._depth(now)
 

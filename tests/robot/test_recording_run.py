@@ -141,6 +141,20 @@ def test_the_agent_health_events_and_camera_are_recorded(run: Run) -> None:
     assert len({f["id"] for m in by_topic["/can/frames"] for f in m["frames"]}) >= 4  # motors, secondary core
 
 
+def test_the_gyro_bias_learned_while_standing_is_recorded_and_is_the_simulated_gyros(run: Run) -> None:
+    """The robot stood for four seconds, then drove to its goal: the recording shows the bias the odometry learned
+    while it stood (the simulated gyro's own, within 0.0002 rad/s), held while it drove."""
+    reader = RecordingReader(run.path)
+    got = [reader.decode(m) for m in reader.messages({"/odom/gyro_bias"})]
+    assert 7 <= len(got) <= 9  # once a second over 8 s
+    assert any(g["standing"] for g in got) and not got[-1]["standing"], got
+    assert run.robot.parts.sim is not None
+    truth = run.robot.parts.sim.imu.gyro_bias_radps
+    assert got[-1]["bias_radps"] == run.robot.parts.localization.odometry.gyro_bias_radps
+    assert got[-1]["bias_radps"] == pytest.approx(truth, abs=2e-4), (got[-1], truth)
+    assert abs(truth) > 5e-4, "a gyro with a bias to learn"
+
+
 def test_depth_frames_decode_to_what_the_depth_camera_gave_and_sit_on_the_mast(run: Run) -> None:
     """Issues 23 and 24: the D415's frames as ROS 2 depth images (16UC1 millimetres) with their camera info at
     trace.depth_hz, in an optical frame the static transforms put where the camera is mounted, looking ahead

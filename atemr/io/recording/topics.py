@@ -105,6 +105,10 @@ HEALTH = json_topic("/health", "atemr.Health", {"t": _number(), "components": {
     "type": "object", "additionalProperties": {"type": "object", "properties": {"ok": {"type": "boolean"},
                                                                                 "reason": _STR}}}},
     ["t", "components"], "every component's health, once a second")
+GYRO_BIAS = json_topic("/odom/gyro_bias", "atemr.GyroBias", {"t": _number(), "bias_radps": _number(),
+                                                             "standing": {"type": "boolean"}},
+                       ["t", "bias_radps", "standing"],
+                       "the gyro's bias as the odometry has learned it (while the wheels stand), once a second")
 _FRAME = {"type": "object", "properties": {"id": {"type": "integer"}, "data": _STR, "extended": {"type": "boolean"},
                                           "remote": {"type": "boolean"}}, "required": ["id", "data"]}
 CAN = json_topic("/can/frames", "atemr.CanFrames", {"t": _number(), "frames": {"type": "array", "items": _FRAME}},
@@ -119,7 +123,8 @@ AGENT_STATE = json_topic("/agent/state", "atemr.agent.State", {"t": _number(), "
                          ["t", "state"], "the agent's state and mode, when they change")
 
 ROS2_TOPICS = (SCAN, IMU, WHEEL_ODOM, ODOM, POSE, TF, TF_STATIC, MAP, PLAN, CAMERA, DEPTH, DEPTH_INFO, GROUND_TRUTH)
-TOPICS: dict[str, Topic] = {t.name: t for t in (*ROS2_TOPICS, CAN, HEALTH, EVENTS, MAPPING, AGENT_STATE, *_AGENT)}
+TOPICS: dict[str, Topic] = {t.name: t for t in (*ROS2_TOPICS, CAN, HEALTH, GYRO_BIAS, EVENTS, MAPPING, AGENT_STATE,
+                                                 *_AGENT)}
 
 
 def topic(name: str) -> Topic:
