@@ -464,8 +464,9 @@ def _rollouts_valid(rollouts: tuple[FloatArray, FloatArray, FloatArray], vs: Flo
                 ok &= clear >= floor_first_cell and math.hypot(x - px, y - py) < resolution_m
             if escaping:
                 hard_lowest = min(hard_lowest, _at(static, x, y, transform))
-            probe = _at(distance, x + half * math.cos(yaw), y + half * math.sin(yaw), transform)
-            lowest_cone = min(lowest_cone, np.inf if direction == 0 else probe / cone_clear)
+            if direction != 0:  # a rollout standing still has no cone: nothing to look up
+                probe = _at(distance, x + half * math.cos(yaw), y + half * math.sin(yaw), transform)
+                lowest_cone = min(lowest_cone, probe / cone_clear)
         if escaping:
             ok &= clear > clearance_here
             ok &= hard_lowest >= hard_floor  # the last pose's too: the lowest is no higher
